@@ -1,0 +1,27 @@
+# The two README commands: `make demo` (the main job) and `make test` (the whole suite).
+# Each creates a local .venv and installs the project (compiling the C core) on first use.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+SOURCES := $(shell find c_core firmware_sim dbc -type f \( -name '*.c' -o -name '*.h' -o -name '*.dbc' -o -name '*.py' \)) pyproject.toml setup.py
+
+.PHONY: demo test bench clean
+
+demo: $(STAMP)
+	$(BIN)/vehest-can demo $(ARGS)
+
+test: $(STAMP)
+	$(BIN)/python -m pytest $(ARGS)
+
+bench: $(STAMP)
+	$(BIN)/vehest-can bench $(ARGS)
+
+$(STAMP): $(SOURCES)
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $@
+
+clean:
+	rm -rf build $(VENV) vehest_can/_native*.so vehest_can/_native.c out

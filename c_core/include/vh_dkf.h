@@ -1,0 +1,85 @@
+/* vh_dkf.h - 2 kHz discrete Kalman filter for driveline output-shaft torque (seed 001).
+ *
+ * State x = [w_o, w_w, T_o, T_Le]: output-shaft speed, wheel speed, output-shaft torque,
+ * road-load error torque. Input u = T_i, turbine torque (eq. 9, vh_dkf_turbine_torque).
+ * Measurements: rows of z = [w_o, w_w, T_o] picked by the measurement set, i.e. the paper's
+ * H = diag[1 1 1 0] (speeds + torque transducer) or diag[1 1 0 0] (speeds only); the zero rows
+ * of the paper's 4x4 H add nothing and are left out.
+ *
+ * Numerics: Joseph-form covariance update, then symmetrised, so P stays symmetric positive
+ * definite indefinitely (the textbook P = (I-KH)P- loses symmetry and goes to NaN in a few
+ * thousand steps at Ts = 0.5 ms). A non-finite value in x or P, a non-positive diagonal or a
+ * diagonal above p_max resets the filter to its initial state and counts a reset.
+ */
+#ifndef VH_DKF_H
+#define VH_DKF_H
+
+#include "vh_types.h"
+
+#define VH_DKF_NX 4
+#define VH_DKF_NZ 3
+
+typedef enum { VH_DKF_EULER = 0, VH_DKF_ZOH = 1 } vh_dkf_disc_t;
+typedef enum { VH_DKF_SPEEDS_TORQUE = 0, VH_DKF_SPEEDS = 1 } vh_dkf_meas_t;
+typedef enum { VH_HEALTH_INIT = 0, VH_HEALTH_OK = 1, VH_HEALTH_DEGRADED = 2, VH_HEALTH_FAULT = 3 } vh_health_t;
+
+/* Measurement-valid bits for vh_dkf_step's mask. */
+enum { VH_DKF_Z_WO = 1u, VH_DKF_Z_WW = 2u, VH_DKF_Z_TO = 4u, VH_DKF_Z_ALL = 7u };
+
+typedef struct {
+    /* Model (Table 1). */
+    double jo;  /* output-side inertia J_o [kg m^2] */
+    double jv;  /* vehicle inertia at the wheel J_v [kg m^2] */
+    double rd;  /* final drive ratio R_d */
+    double ri;  /* gear ratio R_i */
+    double ks;  /* output-shaft stiffness k_s [Nm/rad] */
+    double c;   /* linearised road-load coefficient [Nm s/rad], eq. 4 */
+    double ts;  /* sample time [s] */
+    /* Tuning: diagonals of Q (discrete process noise) and R (z = [w_o, w_w, T_o]). */
+    double q[VH_DKF_NX];
+    double r[VH_DKF_NZ];
+    double p0[VH_DKF_NX]; /* initial covariance diagonal */
+    double p_max;         /* divergence limit on any P diagonal */
+    int meas;             /* vh_dkf_meas_t */
+    int disc;             /* vh_dkf_disc_t */
+    int use_input;        /* 0: run with u = 0 (the paper's "without input torque" case) */
+} vh_dkf_config_t;
+
+typedef struct {
+    vh_dkf_config_t cfg;
+    double ad[VH_DKF_NX * VH_DKF_NX]; /* discrete A, row-major */
+    double bd[VH_DKF_NX];             /* discrete B */
+    double x[VH_DKF_NX];
+    double p[VH_DKF_NX * VH_DKF_NX];
+    double k[VH_DKF_NX * VH_DKF_NZ];  /* last gain; columns of unused rows are zero */
+    uint32_t steps;                   /* steps since the last (re)start */
+    uint32_t resets;                  /* divergence resets since init */
+    uint8_t health;                   /* vh_health_t */
+    uint8_t x_init;                   /* 0 until the state is seeded from a measurement */
+} vh_dkf_t;
+
+/* Paper's defaults (Table 1 and the tuning of sec. 4) for a measurement set; ZOH. */
+void vh_dkf_config_default(vh_dkf_config_t *cfg, int meas);
+/* c = r_t * rho_a * C_a * A * w_wo, eq. 4 as printed. */
+double vh_dkf_road_load_coeff(double rt, double rho_a, double ca, double area, double wwo);
+/* Continuous A (row-major 4x4) and B (4) of eq. 1-8 for a configuration. */
+void vh_dkf_model(const vh_dkf_config_t *cfg, double a[16], double b[4]);
+/* Discretise (A, B) at ts: x+ = Ad x + Bd u. Euler: Ad = I + ts A (eq. 10); ZOH: exact. */
+void vh_dkf_discretise(const double a[16], const double b[4], double ts, int disc, double ad[16], double bd[4]);
+
+/* VH_OK, or VH_EINVAL for a non-physical or non-finite configuration (nothing changed). */
+int vh_dkf_init(vh_dkf_t *f, const vh_dkf_config_t *cfg);
+void vh_dkf_reset(vh_dkf_t *f);
+/* One 0.5 ms step: predict with u, update with the valid rows of z (mask of VH_DKF_Z_*).
+ * z rows the measurement set does not use are ignored. Returns 1 if the filter had to be reset. */
+int vh_dkf_step(vh_dkf_t *f, double u, const double z[VH_DKF_NZ], unsigned mask);
+/* Run n steps over arrays (the Python API): u[n], z[n*3], mask[n] (NULL: all valid).
+ * Writes x_out[n*4] and, when non-NULL, k_out[n*12] and p_out[n*16]. Returns total resets. */
+uint32_t vh_dkf_run(vh_dkf_t *f, size_t n, const double *u, const double *z, const uint8_t *mask,
+                    double *x_out, double *k_out, double *p_out);
+
+/* Turbine torque from engine and turbine speed, eq. 9. Returns 0 and sets *ti when
+ * w_e >= we_min and the speed ratio is in [0, 1.2]; else -1 (input not usable). */
+int vh_dkf_turbine_torque(double we, double wt, double we_min, double *ti);
+
+#endif /* VH_DKF_H */
