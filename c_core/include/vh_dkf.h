@@ -25,6 +25,9 @@ typedef enum { VH_HEALTH_INIT = 0, VH_HEALTH_OK = 1, VH_HEALTH_DEGRADED = 2, VH_
 
 /* Measurement-valid bits for vh_dkf_step's mask. */
 enum { VH_DKF_Z_WO = 1u, VH_DKF_Z_WW = 2u, VH_DKF_Z_TO = 4u, VH_DKF_Z_ALL = 7u };
+/* Input-valid bit of the same mask: without it u is still used (the caller's held value)
+ * but the filter reports DEGRADED. A non-finite u is replaced by 0 and also clears it. */
+enum { VH_DKF_U_VALID = 8u, VH_DKF_ALL_VALID = 15u };
 
 typedef struct {
     /* Model (Table 1). */
@@ -73,6 +76,8 @@ void vh_dkf_reset(vh_dkf_t *f);
 /* One 0.5 ms step: predict with u, update with the valid rows of z (mask of VH_DKF_Z_*).
  * z rows the measurement set does not use are ignored. Returns 1 if the filter had to be reset. */
 int vh_dkf_step(vh_dkf_t *f, double u, const double z[VH_DKF_NZ], unsigned mask);
+/* Gear change: new R_i, rediscretised; state and covariance carry over. VH_EINVAL if ri <= 0. */
+int vh_dkf_set_ratio(vh_dkf_t *f, double ri);
 /* Run n steps over arrays (the Python API): u[n], z[n*3], mask[n] (NULL: all valid).
  * Writes x_out[n*4] and, when non-NULL, k_out[n*12] and p_out[n*16]. Returns total resets. */
 uint32_t vh_dkf_run(vh_dkf_t *f, size_t n, const double *u, const double *z, const uint8_t *mask,

@@ -1,0 +1,34 @@
+/* cffi declarations: vh_ecu.h */
+enum { VH_ECU_DKF_T = 0, VH_ECU_DKF_S = 1, VH_ECU_N_DKF = 2 };
+#define VH_ECU_MAX_TX 4
+#define VH_ECU_N_GEARS 6
+typedef struct {
+    vh_dkf_config_t dkf[2];
+    double gear_ratio[6];
+    double we_min;
+    uint16_t status_period_ticks;
+} vh_ecu_config_t;
+typedef struct {
+    uint16_t crc_error; uint16_t counter_repeat; uint16_t counter_skip; uint16_t dlc_error;
+    uint16_t timeout; uint16_t unknown_id; uint16_t signal_invalid; uint16_t input_invalid;
+    uint16_t filter_reset; uint16_t deadline_miss;
+} vh_ecu_counters_t;
+typedef struct {
+    double wo; double wwl; double wwr; double to; double we; double wt;
+    uint8_t valid; uint8_t gear; uint8_t fresh; uint16_t age; uint8_t timed_out;
+    ...;
+} vh_ecu_dls_t;
+typedef struct {
+    vh_ecu_config_t cfg;
+    vh_dkf_t dkf[2];
+    vh_ecu_dls_t dls;
+    vh_ecu_counters_t cnt;
+    double ti; uint8_t ti_valid; uint8_t gear; uint32_t tick;
+    ...;
+} vh_ecu_t;
+void vh_ecu_config_default(vh_ecu_config_t *cfg);
+int vh_ecu_init(vh_ecu_t *ecu, const vh_ecu_config_t *cfg);
+void vh_ecu_reset(vh_ecu_t *ecu);
+void vh_ecu_rx(vh_ecu_t *ecu, const vh_frame_t *frame);
+size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap);
+void vh_ecu_note_deadline_miss(vh_ecu_t *ecu, uint32_t n);

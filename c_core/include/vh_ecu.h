@@ -1,0 +1,78 @@
+/* vh_ecu.h - the ECU firmware: RX checks, the 2 kHz estimator tasks, TX, as one fixed-step tick.
+ *
+ * A pure function of frames and ticks: the caller hands in received frames (vh_ecu_rx) and then
+ * calls vh_ecu_step once per 500 us tick, which returns the frames to transmit. No clock, no I/O,
+ * no heap: deterministic and replayable from a log.
+ *
+ * RX checks per message (from the DBC): length, E2E P01 CRC and alive counter, qualifier bits and
+ * SNA values per signal, timeout after RxTimeoutCycles cycles without a good frame. Inputs keep their
+ * last good value (zero-order hold) for the turbine torque input; the filters' measurement update
+ * uses only samples that arrived fresh since the previous tick.
+ */
+#ifndef VH_ECU_H
+#define VH_ECU_H
+
+#include "vh_dkf.h"
+#include "vh_e2e.h"
+#include "vh_types.h"
+
+/* The two driveline filters: T = speeds + torque transducer, S = speeds only. */
+enum { VH_ECU_DKF_T = 0, VH_ECU_DKF_S = 1, VH_ECU_N_DKF = 2 };
+#define VH_ECU_MAX_TX 4
+#define VH_ECU_N_GEARS 6 /* index = GearEngaged 1..5; 0 = neutral */
+
+typedef struct {
+    vh_dkf_config_t dkf[VH_ECU_N_DKF]; /* ri is taken from gear_ratio[gear] at run time */
+    double gear_ratio[VH_ECU_N_GEARS]; /* R_i per gear (w_o = R_i w_t); 0 = gear not usable */
+    double we_min;                     /* engine speed below which eq. 9 is not used [rad/s] */
+    uint16_t status_period_ticks;      /* VEHEST_Status every N ticks (20 = 10 ms) */
+} vh_ecu_config_t;
+
+/* Saturating fault counters (uint16, as on the bus). */
+typedef struct {
+    uint16_t crc_error;
+    uint16_t counter_repeat;
+    uint16_t counter_skip;
+    uint16_t dlc_error;
+    uint16_t timeout;
+    uint16_t unknown_id;
+    uint16_t signal_invalid;
+    uint16_t input_invalid;
+    uint16_t filter_reset;
+    uint16_t deadline_miss;
+} vh_ecu_counters_t;
+
+/* Last good driveline sensor sample (physical units) with per-signal validity. */
+typedef struct {
+    double wo, wwl, wwr, to, we, wt;
+    uint8_t valid;   /* bit i: signal i valid (order as above) */
+    uint8_t gear;    /* 0..14, 15 = SNA */
+    uint8_t fresh;   /* a good frame arrived since the last tick */
+    uint16_t age;    /* ticks since the last good frame */
+    uint8_t timed_out;
+    vh_e2e_rx_t e2e;
+} vh_ecu_dls_t;
+
+typedef struct {
+    vh_ecu_config_t cfg;
+    vh_dkf_t dkf[VH_ECU_N_DKF];
+    vh_ecu_dls_t dls;
+    vh_ecu_counters_t cnt;
+    double ti;        /* last turbine torque input (eq. 9) */
+    uint8_t ti_valid;
+    uint8_t gear;     /* gear the filters are discretised for */
+    uint32_t tick;
+    uint8_t tx_counter[2]; /* E2E counters: DrivelineEst, Status */
+} vh_ecu_t;
+
+void vh_ecu_config_default(vh_ecu_config_t *cfg);
+int vh_ecu_init(vh_ecu_t *ecu, const vh_ecu_config_t *cfg);
+void vh_ecu_reset(vh_ecu_t *ecu);
+/* Hand in one received frame; checked and counted now, used at the next vh_ecu_step. */
+void vh_ecu_rx(vh_ecu_t *ecu, const vh_frame_t *frame);
+/* One 500 us tick. Writes up to cap frames to tx; returns how many (VH_ECU_MAX_TX is enough). */
+size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap);
+/* The daemon's wall-clock scheduler reports ticks that started late; published in VEHEST_Status. */
+void vh_ecu_note_deadline_miss(vh_ecu_t *ecu, uint32_t n);
+
+#endif /* VH_ECU_H */

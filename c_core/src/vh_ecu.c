@@ -1,0 +1,307 @@
+/* vh_ecu.c - the ECU tick: RX checks, driveline filters, TX. See vh_ecu.h. */
+#include <math.h>
+#include <string.h>
+
+#include "vh_ecu.h"
+#include "vh_pt.h"
+#include "vh_pt_meta.h"
+
+/* Signal order of vh_ecu_dls_t.valid */
+enum { SIG_WO = 0, SIG_WWL, SIG_WWR, SIG_TO, SIG_WE, SIG_WT, N_SIG };
+#define GEAR_SNA 15u
+
+static void inc(uint16_t *c)
+{
+    if (*c < UINT16_MAX) {
+        ++*c;
+    }
+}
+
+void vh_ecu_config_default(vh_ecu_config_t *cfg)
+{
+    memset(cfg, 0, sizeof *cfg);
+    vh_dkf_config_default(&cfg->dkf[VH_ECU_DKF_T], VH_DKF_SPEEDS_TORQUE);
+    vh_dkf_config_default(&cfg->dkf[VH_ECU_DKF_S], VH_DKF_SPEEDS);
+    /* w_o = R_i w_t; 2nd gear = 0.43 (Table 1), the others a typical 5-speed transaxle */
+    cfg->gear_ratio[1] = 0.28;
+    cfg->gear_ratio[2] = 0.43;
+    cfg->gear_ratio[3] = 0.66;
+    cfg->gear_ratio[4] = 0.91;
+    cfg->gear_ratio[5] = 1.18;
+    cfg->we_min = 40.0; /* well below idle (~80 rad/s): an engine this slow is stalling */
+    cfg->status_period_ticks = (uint16_t)(VH_PT_VEHEST_STATUS_CYCLE_TIME_US / VH_TICK_US);
+}
+
+int vh_ecu_init(vh_ecu_t *ecu, const vh_ecu_config_t *cfg)
+{
+    int i;
+    vh_dkf_t probe;
+    if (cfg->status_period_ticks == 0u || !(cfg->we_min > 0.0) || !isfinite(cfg->we_min)) {
+        return VH_EINVAL;
+    }
+    for (i = 1; i < VH_ECU_N_GEARS; ++i) {
+        if (!(cfg->gear_ratio[i] >= 0.0) || !isfinite(cfg->gear_ratio[i])) {
+            return VH_EINVAL;
+        }
+    }
+    for (i = 0; i < VH_ECU_N_DKF; ++i) {
+        if (vh_dkf_init(&probe, &cfg->dkf[i]) != VH_OK) {
+            return VH_EINVAL;
+        }
+    }
+    memset(ecu, 0, sizeof *ecu);
+    ecu->cfg = *cfg;
+    vh_ecu_reset(ecu);
+    return VH_OK;
+}
+
+void vh_ecu_reset(vh_ecu_t *ecu)
+{
+    int i;
+    const vh_ecu_config_t cfg = ecu->cfg;
+    memset(ecu, 0, sizeof *ecu);
+    ecu->cfg = cfg;
+    for (i = 0; i < VH_ECU_N_DKF; ++i) {
+        (void)vh_dkf_init(&ecu->dkf[i], &cfg.dkf[i]); /* validated in vh_ecu_init */
+    }
+    ecu->gear = 0u;
+    ecu->dls.gear = GEAR_SNA;
+    ecu->dls.timed_out = 1u; /* nothing received yet */
+    vh_e2e_rx_init(&ecu->dls.e2e);
+}
+
+static int known_id(uint32_t id)
+{
+    return id == VH_PT_DLS_SENSORS_FRAME_ID || id == VH_PT_VEHEST_DRIVELINE_EST_FRAME_ID ||
+           id == VH_PT_VEHEST_STATUS_FRAME_ID || id == VH_PT_SIM_SYNC_FRAME_ID ||
+           id == VH_PT_VEHEST_SYNC_ACK_FRAME_ID;
+}
+
+/* One speed/torque signal: raw SNA value or a cleared qualifier makes it invalid. */
+static int take(vh_ecu_t *ecu, int ok, double value, double *dst, int sig)
+{
+    if (!ok) {
+        inc(&ecu->cnt.signal_invalid);
+        ecu->dls.valid &= (uint8_t)~(1u << sig);
+        return 0;
+    }
+    *dst = value;
+    ecu->dls.valid |= (uint8_t)(1u << sig);
+    return 1;
+}
+
+static void rx_dls(vh_ecu_t *ecu, const vh_frame_t *f)
+{
+    struct vh_pt_dls_sensors_t m;
+    vh_ecu_dls_t *d = &ecu->dls;
+    if (f->len != VH_PT_DLS_SENSORS_LENGTH || (f->flags & VH_FRAME_EXT) != 0u) {
+        inc(&ecu->cnt.dlc_error);
+        return;
+    }
+    switch (vh_e2e_p01_check(&d->e2e, f->data, f->len, VH_PT_DLS_SENSORS_E2E_DATA_ID)) {
+    case VH_E2E_OK:
+    case VH_E2E_INITIAL:
+        break;
+    case VH_E2E_SKIPPED: /* frames were lost, but this one is good */
+        inc(&ecu->cnt.counter_skip);
+        break;
+    case VH_E2E_REPEATED:
+        inc(&ecu->cnt.counter_repeat);
+        return;
+    case VH_E2E_WRONG_CRC:
+    case VH_E2E_BAD_LEN:
+    default:
+        inc(&ecu->cnt.crc_error);
+        return;
+    }
+    (void)vh_pt_dls_sensors_unpack(&m, f->data, f->len);
+    d->valid = 0u;
+    take(ecu, m.qf_out_shaft_speed && m.out_shaft_speed != VH_PT_DLS_SENSORS_OUT_SHAFT_SPEED_SNA_CHOICE,
+         vh_pt_dls_sensors_out_shaft_speed_decode(m.out_shaft_speed), &d->wo, SIG_WO);
+    take(ecu, m.qf_wheel_speed_l && m.wheel_speed_l != VH_PT_DLS_SENSORS_WHEEL_SPEED_L_SNA_CHOICE,
+         vh_pt_dls_sensors_wheel_speed_l_decode(m.wheel_speed_l), &d->wwl, SIG_WWL);
+    take(ecu, m.qf_wheel_speed_r && m.wheel_speed_r != VH_PT_DLS_SENSORS_WHEEL_SPEED_R_SNA_CHOICE,
+         vh_pt_dls_sensors_wheel_speed_r_decode(m.wheel_speed_r), &d->wwr, SIG_WWR);
+    take(ecu, m.qf_shaft_torque && m.shaft_torque != VH_PT_DLS_SENSORS_SHAFT_TORQUE_SNA_CHOICE,
+         vh_pt_dls_sensors_shaft_torque_decode(m.shaft_torque), &d->to, SIG_TO);
+    take(ecu, m.qf_engine_speed && m.engine_speed != VH_PT_DLS_SENSORS_ENGINE_SPEED_SNA_CHOICE,
+         vh_pt_dls_sensors_engine_speed_decode(m.engine_speed), &d->we, SIG_WE);
+    take(ecu, m.qf_turbine_speed && m.turbine_speed != VH_PT_DLS_SENSORS_TURBINE_SPEED_SNA_CHOICE,
+         vh_pt_dls_sensors_turbine_speed_decode(m.turbine_speed), &d->wt, SIG_WT);
+    if (m.gear_engaged >= VH_ECU_N_GEARS || (m.gear_engaged > 0u && !(ecu->cfg.gear_ratio[m.gear_engaged] > 0.0))) {
+        if (m.gear_engaged != GEAR_SNA) {
+            inc(&ecu->cnt.signal_invalid); /* a gear the ECU has no ratio for */
+        }
+        d->gear = GEAR_SNA;
+    } else {
+        d->gear = m.gear_engaged;
+    }
+    d->fresh = 1u;
+}
+
+void vh_ecu_rx(vh_ecu_t *ecu, const vh_frame_t *frame)
+{
+    if (frame->id == VH_PT_DLS_SENSORS_FRAME_ID) {
+        rx_dls(ecu, frame);
+    } else if (!known_id(frame->id)) {
+        inc(&ecu->cnt.unknown_id);
+    }
+}
+
+static int16_t enc_s16(double v, double scale)
+{
+    double r = floor(v / scale + 0.5);
+    r = r > 32767.0 ? 32767.0 : (r < -32767.0 ? -32767.0 : r); /* -32768 is SNA */
+    return (int16_t)r;
+}
+
+static uint16_t enc_u16(double v, double scale)
+{
+    double r = floor(v / scale + 0.5);
+    r = r > 65534.0 ? 65534.0 : (r < 0.0 ? 0.0 : r); /* 65535 is SNA */
+    return (uint16_t)r;
+}
+
+/* Update inputs for this tick: timeout, gear, turbine torque (eq. 9, held when not usable). */
+static unsigned update_inputs(vh_ecu_t *ecu)
+{
+    vh_ecu_dls_t *d = &ecu->dls;
+    unsigned mask = 0u;
+    int i;
+    if (d->fresh) {
+        d->age = 0u;
+        d->timed_out = 0u;
+    } else if (d->age < UINT16_MAX) {
+        ++d->age;
+    }
+    if (!d->timed_out && d->age >= VH_PT_DLS_SENSORS_RX_TIMEOUT_CYCLES) {
+        d->timed_out = 1u;
+        inc(&ecu->cnt.timeout);
+    }
+    if (d->timed_out) {
+        d->valid = 0u;
+    }
+    if (d->gear != GEAR_SNA && d->gear != ecu->gear && !d->timed_out) {
+        if (d->gear > 0u) {
+            for (i = 0; i < VH_ECU_N_DKF; ++i) {
+                (void)vh_dkf_set_ratio(&ecu->dkf[i], ecu->cfg.gear_ratio[d->gear]);
+            }
+        }
+        ecu->gear = d->gear;
+    }
+    /* turbine torque reaches the output only with a gear engaged; neutral gives u = 0 */
+    if (d->timed_out || d->gear == GEAR_SNA) {
+        ecu->ti_valid = 0u;
+    } else if (d->gear == 0u) {
+        ecu->ti = 0.0;
+        ecu->ti_valid = 1u;
+    } else if ((d->valid & (1u << SIG_WE)) && (d->valid & (1u << SIG_WT))) {
+        double ti;
+        ecu->ti_valid = (uint8_t)(vh_dkf_turbine_torque(d->we, d->wt, ecu->cfg.we_min, &ti) == 0);
+        if (ecu->ti_valid) {
+            ecu->ti = ti;
+        }
+    } else {
+        ecu->ti_valid = 0u;
+    }
+    if (!ecu->ti_valid) {
+        inc(&ecu->cnt.input_invalid);
+    } else {
+        mask |= VH_DKF_U_VALID;
+    }
+    if (d->fresh) { /* measurement update only with samples new since the last tick */
+        if (d->valid & (1u << SIG_WO)) {
+            mask |= VH_DKF_Z_WO;
+        }
+        if ((d->valid & (1u << SIG_WWL)) && (d->valid & (1u << SIG_WWR))) {
+            mask |= VH_DKF_Z_WW;
+        }
+        if (d->valid & (1u << SIG_TO)) {
+            mask |= VH_DKF_Z_TO;
+        }
+    }
+    d->fresh = 0u;
+    return mask;
+}
+
+static size_t emit(vh_frame_t *tx, size_t n, size_t cap, uint32_t id, size_t len, int fd)
+{
+    if (n >= cap) {
+        return n;
+    }
+    tx[n].id = id;
+    tx[n].len = (uint8_t)len;
+    tx[n].flags = fd ? (uint8_t)(VH_FRAME_FD | VH_FRAME_BRS) : 0u;
+    return n + 1u;
+}
+
+size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap)
+{
+    const unsigned mask = update_inputs(ecu);
+    const vh_ecu_dls_t *d = &ecu->dls;
+    const double z[VH_DKF_NZ] = {d->wo, 0.5 * (d->wwl + d->wwr), d->to};
+    struct vh_pt_vehest_driveline_est_t est;
+    size_t n = 0u;
+    int i;
+
+    for (i = 0; i < VH_ECU_N_DKF; ++i) {
+        if (vh_dkf_step(&ecu->dkf[i], ecu->ti, z, mask)) {
+            inc(&ecu->cnt.filter_reset);
+        }
+    }
+
+    memset(&est, 0, sizeof est);
+    est.dkf_t_health = ecu->dkf[VH_ECU_DKF_T].health;
+    est.dkf_s_health = ecu->dkf[VH_ECU_DKF_S].health;
+    est.dkf_t_shaft_torque = enc_s16(ecu->dkf[VH_ECU_DKF_T].x[2], 0.25);
+    est.dkf_t_road_load_err = enc_s16(ecu->dkf[VH_ECU_DKF_T].x[3], 0.25);
+    est.dkf_s_shaft_torque = enc_s16(ecu->dkf[VH_ECU_DKF_S].x[2], 0.25);
+    est.dkf_s_road_load_err = enc_s16(ecu->dkf[VH_ECU_DKF_S].x[3], 0.25);
+    est.dkf_t_wheel_speed = enc_u16(ecu->dkf[VH_ECU_DKF_T].x[1], 0.02);
+    est.turbine_torque = enc_s16(ecu->ti, 0.02);
+    /* valid only from valid inputs: OK means every input of the filter was good this tick */
+    est.dkf_t_valid = ecu->dkf[VH_ECU_DKF_T].health == VH_HEALTH_OK;
+    est.dkf_s_valid = ecu->dkf[VH_ECU_DKF_S].health == VH_HEALTH_OK;
+    est.turbine_torque_valid = ecu->ti_valid;
+    if (n < cap) {
+        memset(tx[n].data, 0, sizeof tx[n].data);
+        (void)vh_pt_vehest_driveline_est_pack(tx[n].data, &est, VH_PT_VEHEST_DRIVELINE_EST_LENGTH);
+        vh_e2e_p01_protect(tx[n].data, VH_PT_VEHEST_DRIVELINE_EST_LENGTH, VH_PT_VEHEST_DRIVELINE_EST_E2E_DATA_ID,
+                           &ecu->tx_counter[0]);
+        n = emit(tx, n, cap, VH_PT_VEHEST_DRIVELINE_EST_FRAME_ID, VH_PT_VEHEST_DRIVELINE_EST_LENGTH,
+                 VH_PT_VEHEST_DRIVELINE_EST_IS_FD);
+    }
+
+    if (ecu->tick % ecu->cfg.status_period_ticks == 0u && n < cap) {
+        struct vh_pt_vehest_status_t st;
+        memset(&st, 0, sizeof st);
+        st.dkf_t_health_sts = est.dkf_t_health;
+        st.dkf_s_health_sts = est.dkf_s_health;
+        st.ecu_tick = ecu->tick;
+        st.cnt_crc_error = ecu->cnt.crc_error;
+        st.cnt_counter_repeat = ecu->cnt.counter_repeat;
+        st.cnt_counter_skip = ecu->cnt.counter_skip;
+        st.cnt_dlc_error = ecu->cnt.dlc_error;
+        st.cnt_timeout = ecu->cnt.timeout;
+        st.cnt_unknown_id = ecu->cnt.unknown_id;
+        st.cnt_signal_invalid = ecu->cnt.signal_invalid;
+        st.cnt_input_invalid = ecu->cnt.input_invalid;
+        st.cnt_filter_reset = ecu->cnt.filter_reset;
+        st.cnt_deadline_miss = ecu->cnt.deadline_miss;
+        st.rx_fault_active = (uint8_t)((d->timed_out ? 1u : 0u) |
+                                       (((d->valid & 0x3Fu) != 0x3Fu) ? 2u : 0u) | (ecu->ti_valid ? 0u : 4u));
+        memset(tx[n].data, 0, sizeof tx[n].data);
+        (void)vh_pt_vehest_status_pack(tx[n].data, &st, VH_PT_VEHEST_STATUS_LENGTH);
+        vh_e2e_p01_protect(tx[n].data, VH_PT_VEHEST_STATUS_LENGTH, VH_PT_VEHEST_STATUS_E2E_DATA_ID,
+                           &ecu->tx_counter[1]);
+        n = emit(tx, n, cap, VH_PT_VEHEST_STATUS_FRAME_ID, VH_PT_VEHEST_STATUS_LENGTH, VH_PT_VEHEST_STATUS_IS_FD);
+    }
+    ++ecu->tick;
+    return n;
+}
+
+void vh_ecu_note_deadline_miss(vh_ecu_t *ecu, uint32_t n)
+{
+    const uint32_t sum = (uint32_t)ecu->cnt.deadline_miss + n;
+    ecu->cnt.deadline_miss = (uint16_t)(sum > UINT16_MAX ? UINT16_MAX : sum);
+}
