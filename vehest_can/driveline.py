@@ -33,6 +33,7 @@ class DkfConfig:
     r: tuple[float, float, float]
     p0: tuple[float, float, float, float]
     p_max: float
+    x_max: float
     meas: str = SPEEDS_TORQUE
     disc: str = "zoh"
     use_input: bool = True
@@ -56,7 +57,7 @@ class DkfConfig:
         disc = {v: k for k, v in _DISC.items()}[c.disc]
         return cls(
             jo=c.jo, jv=c.jv, rd=c.rd, ri=c.ri, ks=c.ks, c=c.c, ts=c.ts,
-            q=tuple(c.q), r=tuple(c.r), p0=tuple(c.p0), p_max=c.p_max,
+            q=tuple(c.q), r=tuple(c.r), p0=tuple(c.p0), p_max=c.p_max, x_max=c.x_max,
             meas=meas, disc=disc, use_input=bool(c.use_input),
         )
 
@@ -67,7 +68,7 @@ class DkfConfig:
         if self.disc not in _DISC:
             raise ConfigError(f"discretisation {self.disc!r}: expected one of {sorted(_DISC)}")
         c = c if c is not None else ffi.new("vh_dkf_config_t *")
-        for name in ("jo", "jv", "rd", "ri", "ks", "c", "ts", "p_max"):
+        for name in ("jo", "jv", "rd", "ri", "ks", "c", "ts", "p_max", "x_max"):
             setattr(c, name, float(getattr(self, name)))
         for name, n in (("q", 4), ("r", 3), ("p0", 4)):
             values = tuple(getattr(self, name))

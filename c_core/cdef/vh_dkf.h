@@ -7,7 +7,7 @@ typedef enum { VH_HEALTH_INIT = 0, VH_HEALTH_OK = 1, VH_HEALTH_DEGRADED = 2, VH_
 enum { VH_DKF_Z_WO = 1, VH_DKF_Z_WW = 2, VH_DKF_Z_TO = 4, VH_DKF_Z_ALL = 7, VH_DKF_U_VALID = 8, VH_DKF_ALL_VALID = 15 };
 typedef struct {
     double jo; double jv; double rd; double ri; double ks; double c; double ts;
-    double q[4]; double r[3]; double p0[4]; double p_max;
+    double q[4]; double r[3]; double p0[4]; double p_max; double x_max;
     int meas; int disc; int use_input;
 } vh_dkf_config_t;
 typedef struct {

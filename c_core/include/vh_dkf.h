@@ -43,6 +43,7 @@ typedef struct {
     double r[VH_DKF_NZ];
     double p0[VH_DKF_NX]; /* initial covariance diagonal */
     double p_max;         /* divergence limit on any P diagonal */
+    double x_max;         /* divergence limit on any |x| (far beyond any physical speed or torque) */
     int meas;             /* vh_dkf_meas_t */
     int disc;             /* vh_dkf_disc_t */
     int use_input;        /* 0: run with u = 0 (the paper's "without input torque" case) */

@@ -37,6 +37,7 @@ void vh_dkf_config_default(vh_dkf_config_t *cfg, int meas)
     /* P0 = Q: the filter starts as uncertain as one step of process noise. */
     cfg->p0[0] = cfg->q[0]; cfg->p0[1] = cfg->q[1]; cfg->p0[2] = cfg->q[2]; cfg->p0[3] = cfg->q[3];
     cfg->p_max = 1e12;
+    cfg->x_max = 1e6;
 }
 
 void vh_dkf_model(const vh_dkf_config_t *cfg, double a[16], double b[4])
@@ -88,7 +89,7 @@ void vh_dkf_discretise(const double a[16], const double b[4], double ts, int dis
 static int config_ok(const vh_dkf_config_t *c)
 {
     int i;
-    const double pos[] = {c->jo, c->jv, c->rd, c->ri, c->ks, c->ts, c->p_max};
+    const double pos[] = {c->jo, c->jv, c->rd, c->ri, c->ks, c->ts, c->p_max, c->x_max};
     for (i = 0; i < (int)(sizeof pos / sizeof pos[0]); ++i) {
         if (!(pos[i] > 0.0) || !isfinite(pos[i])) {
             return 0;
@@ -166,7 +167,7 @@ static int sane(const vh_dkf_t *f)
     }
     for (i = 0; i < NX; ++i) {
         const double d = f->p[i * NX + i];
-        if (!(d > 0.0) || d > f->cfg.p_max) {
+        if (!(d > 0.0) || d > f->cfg.p_max || fabs(f->x[i]) > f->cfg.x_max) {
             return 0;
         }
     }

@@ -1,0 +1,66 @@
+"""Opening buses the python-can way: its CLI flags, env (CAN_INTERFACE/CAN_CHANNEL/CAN_CONFIG),
+config files (``~/.canrc``, ``can.ini``), plus one embedded default.
+
+The default, when nothing else names an interface, is ``udp_multicast`` on loopback: it needs no
+kernel CAN support and no root, and carries CAN FD between processes.
+"""
+from __future__ import annotations
+
+import argparse
+import logging
+
+import can
+from can.cli import add_bus_arguments
+
+from .errors import BusError
+
+log = logging.getLogger(__name__)
+
+DEFAULT_INTERFACE = "udp_multicast"
+DEFAULT_CHANNEL = "239.74.163.2"  # python-can's UdpMulticastBus.DEFAULT_GROUP_IPv4
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """python-can's own bus flags (-i/-c/-b/--fd/--data-bitrate/--bus-kwargs ...) plus a config file."""
+    add_bus_arguments(parser)
+    group = parser.add_argument_group("bus configuration file")
+    group.add_argument(
+        "--bus-config", metavar="FILE",
+        help="python-can configuration file (INI, as ~/.canrc); flags given on the command line win",
+    )
+    group.add_argument("--bus-context", metavar="SECTION", help="section of the configuration file")
+
+
+def bus_config(args: argparse.Namespace, **overrides) -> dict:
+    """Resolve the bus configuration: flags > env/config files > embedded default."""
+    given = {}
+    for key in ("interface", "channel", "bitrate", "fd", "data_bitrate", "timing"):
+        if key in args and getattr(args, key) is not None:
+            given[key] = getattr(args, key)
+    given.update(getattr(args, "bus_kwargs", None) or {})
+    path = getattr(args, "bus_config", None)
+    try:
+        config = dict(can.util.load_config(path=path, config=given, context=getattr(args, "bus_context", None)))
+    except can.CanInterfaceNotImplementedError as exc:
+        if "interface" in given or path:  # the user named one, and it is wrong
+            raise BusError(f"bus configuration: {exc}") from exc
+        config = {"interface": DEFAULT_INTERFACE, "channel": DEFAULT_CHANNEL, **given}
+    except (can.CanError, ValueError, KeyError) as exc:
+        raise BusError(f"bus configuration: {exc}") from exc
+    if config["interface"] in ("udp_multicast", "virtual", "socketcan") and "fd" not in config:
+        config["fd"] = True  # the PT bus is CAN FD; these interfaces carry it as is
+    config.update(overrides)
+    return config
+
+
+def open_bus(config: dict) -> can.BusABC:
+    try:
+        bus = can.Bus(**config)
+    except (can.CanError, OSError, ValueError, ImportError, TypeError) as exc:
+        raise BusError(f"cannot open bus {_describe(config)}: {exc}") from exc
+    log.info("bus open: %s", _describe(config))
+    return bus
+
+
+def _describe(config: dict) -> str:
+    return f"{config.get('interface')}:{config.get('channel')}"

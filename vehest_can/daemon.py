@@ -1,0 +1,173 @@
+"""The ECU prototype daemon: the C core behind a python-can bus, in lockstep or real time.
+
+* lockstep: driven by SIM_Sync frames (see ``lockstep.py``); deterministic on any bus.
+* real time: the daemon's own 2 kHz wall clock; received frames are handed to the core as they
+  arrive (the core holds the last sample of each signal), deadline misses, tick lateness and
+  frame-to-estimate latency are measured.
+
+Stops cleanly on SIGINT/SIGTERM (or END in lockstep with ``exit_on_end``): log flushed, bus
+closed, summary returned.
+"""
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from dataclasses import dataclass, field
+
+import can
+
+from . import lockstep
+from .ecu import Ecu
+from .frames import TICK_S, frame_id
+from .rt import Ticker, percentiles_us
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class DaemonStats:
+    mode: str
+    ticks: int = 0
+    frames_rx: int = 0
+    frames_tx: int = 0
+    sessions: int = 0
+    wall_s: float = 0.0
+    lateness_us: dict = field(default_factory=dict)
+    latency_us: dict = field(default_factory=dict)
+    deadline_misses: int = 0
+    counters: dict = field(default_factory=dict)
+    health: dict = field(default_factory=dict)
+
+    def lines(self) -> list[str]:
+        out = [f"mode {self.mode}: {self.ticks} ticks, {self.frames_rx} frames in, {self.frames_tx} out, "
+               f"{self.wall_s:.1f} s"]
+        if self.mode == "realtime":
+            out.append(f"tick lateness µs {_fmt(self.lateness_us)}; deadline misses {self.deadline_misses}")
+            out.append(f"frame-to-estimate latency µs {_fmt(self.latency_us)}")
+        faults = {k: v for k, v in self.counters.items() if v}
+        out.append("faults: " + (", ".join(f"{k}={v}" for k, v in faults.items()) or "none"))
+        out.append("health: " + ", ".join(f"{k}={v}" for k, v in self.health.items()))
+        return out
+
+
+def _fmt(p: dict) -> str:
+    return " ".join(f"{k}={v:.0f}" for k, v in p.items() if k != "n") or "-"
+
+
+class EcuDaemon:
+    def __init__(self, bus: can.BusABC, ecu: Ecu | None = None, *, log_writer: can.Listener | None = None,
+                 log_channel: str = "vcan0"):
+        self.bus = bus
+        self.ecu = ecu or Ecu()
+        self.log_writer = log_writer
+        self.log_channel = log_channel
+        self.stop_event = threading.Event()
+        self._dls_id = frame_id("DLS_Sensors")
+
+    # -- shared -------------------------------------------------------------------------------
+    def _log(self, msg: can.Message, timestamp: float) -> None:
+        if self.log_writer is not None:
+            msg.timestamp = timestamp
+            msg.channel = self.log_channel
+            self.log_writer.on_message_received(msg)
+
+    def _send(self, msg: can.Message, timestamp: float) -> None:
+        self.bus.send(msg)
+        self._log(msg, timestamp)
+
+    def _finish(self, stats: DaemonStats, t0: float) -> DaemonStats:
+        stats.wall_s = time.perf_counter() - t0
+        stats.counters = self.ecu.counters()
+        stats.health = self.ecu.health()
+        return stats
+
+    # -- lockstep -----------------------------------------------------------------------------
+    def serve_lockstep(self, *, exit_on_end: bool = False, idle_timeout: float | None = None) -> DaemonStats:
+        """Answer SIM_Sync frames until stopped (or END with exit_on_end, or idle_timeout s of silence)."""
+        stats = DaemonStats("lockstep")
+        t0 = last = time.perf_counter()
+        while not self.stop_event.is_set():
+            msg = self.bus.recv(timeout=0.05)
+            if msg is None:
+                if idle_timeout is not None and time.perf_counter() - last > idle_timeout:
+                    log.warning("no frame for %.1f s, stopping", idle_timeout)
+                    break
+                continue
+            last = time.perf_counter()
+            if msg.is_error_frame or msg.is_remote_frame:
+                continue
+            stats.frames_rx += 1
+            now = self.ecu.tick * TICK_S
+            self._log(msg, now)
+            if not lockstep.is_sync(msg):
+                self.ecu.rx(msg)
+                continue
+            tick, cmd = lockstep.decode_sync(msg)
+            if cmd == lockstep.RESET:
+                self.ecu.reset()
+                stats.sessions += 1
+                self._send(lockstep.ack_message(tick, 0), 0.0)
+            elif cmd == lockstep.STEP:
+                out = self.ecu.step()
+                for m in out:
+                    self._send(m, now)
+                stats.frames_tx += len(out)
+                stats.ticks += 1
+                self._send(lockstep.ack_message(tick, len(out)), now)
+            elif cmd == lockstep.END:
+                self._send(lockstep.ack_message(tick, 0), now)
+                if exit_on_end:
+                    break
+        return self._finish(stats, t0)
+
+    # -- real time ----------------------------------------------------------------------------
+    def serve_realtime(self, *, duration: float | None = None) -> DaemonStats:
+        """Tick at 2 kHz of wall clock until stopped or for duration seconds."""
+        stats = DaemonStats("realtime")
+        inbox: queue.SimpleQueue = queue.SimpleQueue()
+
+        class Inbox(can.Listener):
+            def on_message_received(self, msg: can.Message) -> None:
+                inbox.put((time.perf_counter(), msg))
+
+        notifier = can.Notifier(self.bus, [Inbox()], timeout=0.005)
+        ticker = Ticker(TICK_S)
+        latencies: list[float] = []
+        t0 = time.perf_counter()
+        ticker.start()
+        try:
+            while not self.stop_event.is_set():
+                if duration is not None and time.perf_counter() - t0 >= duration:
+                    break
+                missed = ticker.wait()
+                if missed:
+                    self.ecu.note_deadline_miss(missed)
+                now = time.perf_counter() - t0
+                pending = []
+                while True:
+                    try:
+                        t_rx, msg = inbox.get_nowait()
+                    except queue.Empty:
+                        break
+                    if msg.is_error_frame or msg.is_remote_frame:
+                        continue
+                    stats.frames_rx += 1
+                    self._log(msg, now)
+                    self.ecu.rx(msg)
+                    if msg.arbitration_id == self._dls_id:
+                        pending.append(t_rx)
+                out = self.ecu.step()
+                for m in out:
+                    self._send(m, now)
+                t_tx = time.perf_counter()
+                latencies.extend(t_tx - t for t in pending)
+                stats.frames_tx += len(out)
+                stats.ticks += 1
+        finally:
+            notifier.stop()
+        stats.lateness_us = percentiles_us(ticker.lateness)
+        stats.latency_us = percentiles_us(latencies)
+        stats.deadline_misses = ticker.misses
+        return self._finish(stats, t0)

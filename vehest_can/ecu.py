@@ -1,0 +1,73 @@
+"""The ECU firmware (``vh_ecu_t``) seen from Python: frames in, a tick, frames out."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import can
+
+from .driveline import DkfConfig
+from .frames import to_frame, to_message
+from .native import check, ffi, lib
+
+COUNTERS = (
+    "crc_error", "counter_repeat", "counter_skip", "dlc_error", "timeout", "unknown_id",
+    "signal_invalid", "input_invalid", "filter_reset", "deadline_miss",
+)
+HEALTH = {0: "INIT", 1: "OK", 2: "DEGRADED", 3: "FAULT"}
+
+
+@dataclass
+class EcuConfig:
+    dkf_t: DkfConfig
+    dkf_s: DkfConfig
+
+    @classmethod
+    def default(cls) -> "EcuConfig":
+        return cls(DkfConfig.default("speeds+torque"), DkfConfig.default("speeds"))
+
+    def to_c(self):
+        c = ffi.new("vh_ecu_config_t *")
+        lib.vh_ecu_config_default(c)
+        self.dkf_t.to_c(ffi.addressof(c.dkf[lib.VH_ECU_DKF_T]))
+        self.dkf_s.to_c(ffi.addressof(c.dkf[lib.VH_ECU_DKF_S]))
+        return c
+
+
+class Ecu:
+    """One ECU instance. ``rx`` every received frame, then ``step`` once per 500 µs tick."""
+
+    def __init__(self, config: EcuConfig | None = None):
+        self.config = config or EcuConfig.default()
+        self._c_config = self.config.to_c()
+        self.c = ffi.new("vh_ecu_t *")
+        check(lib.vh_ecu_init(self.c, self._c_config), "ECU configuration")
+        self._rx = ffi.new("vh_frame_t *")
+        self._tx = ffi.new("vh_frame_t[]", lib.VH_ECU_MAX_TX)
+
+    def reset(self) -> None:
+        lib.vh_ecu_reset(self.c)
+
+    def rx(self, msg: can.Message) -> None:
+        if msg.is_error_frame or msg.is_remote_frame:
+            return
+        lib.vh_ecu_rx(self.c, to_frame(msg, self._rx))
+
+    def step(self, timestamp: float = 0.0) -> list[can.Message]:
+        n = lib.vh_ecu_step(self.c, self._tx, lib.VH_ECU_MAX_TX)
+        return [to_message(self._tx[i], timestamp) for i in range(n)]
+
+    def note_deadline_miss(self, n: int = 1) -> None:
+        lib.vh_ecu_note_deadline_miss(self.c, n)
+
+    @property
+    def tick(self) -> int:
+        return int(self.c.tick)
+
+    def counters(self) -> dict[str, int]:
+        return {name: int(getattr(self.c.cnt, name)) for name in COUNTERS}
+
+    def health(self) -> dict[str, str]:
+        return {
+            "dkf_t": HEALTH[self.c.dkf[lib.VH_ECU_DKF_T].health],
+            "dkf_s": HEALTH[self.c.dkf[lib.VH_ECU_DKF_S].health],
+        }

@@ -1,0 +1,67 @@
+"""Frames across the firmware boundary: ``vh_frame_t`` <-> ``can.Message``, and the DBC helpers."""
+from __future__ import annotations
+
+from functools import lru_cache
+
+import can
+import cantools
+import numpy as np
+
+from .native import ffi, lib
+from .paths import dbc_path
+
+TICK_S = lib.VH_TICK_US * 1e-6
+
+#: numpy view of ``vh_frame_t`` (for bulk frame buffers filled by C loops)
+FRAME_DTYPE = np.dtype({
+    "names": ["id", "len", "flags", "data"],
+    "formats": [np.uint32, np.uint8, np.uint8, (np.uint8, 64)],
+    "offsets": [ffi.offsetof("vh_frame_t", f) for f in ("id", "len", "flags", "data")],
+    "itemsize": ffi.sizeof("vh_frame_t"),
+})
+
+
+@lru_cache(maxsize=None)
+def database(bus: str = "pt") -> cantools.database.can.Database:
+    return cantools.database.load_file(str(dbc_path(bus)), strict=True)
+
+
+def frame_id(name: str, bus: str = "pt") -> int:
+    return database(bus).get_message_by_name(name).frame_id
+
+
+def to_message(frame, timestamp: float = 0.0, channel=None) -> can.Message:
+    """``vh_frame_t`` (cdata or a FRAME_DTYPE record) -> ``can.Message`` (IDs always explicit)."""
+    flags = int(frame["flags"] if isinstance(frame, np.void) else frame.flags)
+    n = int(frame["len"] if isinstance(frame, np.void) else frame.len)
+    data = bytes(frame["data"][:n]) if isinstance(frame, np.void) else bytes(ffi.buffer(frame.data)[:n])
+    return can.Message(
+        timestamp=timestamp,
+        arbitration_id=int(frame["id"] if isinstance(frame, np.void) else frame.id),
+        is_extended_id=bool(flags & lib.VH_FRAME_EXT),
+        is_fd=bool(flags & lib.VH_FRAME_FD),
+        bitrate_switch=bool(flags & lib.VH_FRAME_BRS),
+        data=data,
+        channel=channel,
+    )
+
+
+def to_frame(msg: can.Message, out=None):
+    """``can.Message`` -> ``vh_frame_t`` cdata. Remote and error frames carry no payload."""
+    out = out if out is not None else ffi.new("vh_frame_t *")
+    data = bytes(msg.data or b"")[:64]
+    out.id = msg.arbitration_id
+    out.len = len(data)
+    out.flags = (
+        (lib.VH_FRAME_EXT if msg.is_extended_id else 0)
+        | (lib.VH_FRAME_FD if msg.is_fd else 0)
+        | (lib.VH_FRAME_BRS if msg.bitrate_switch else 0)
+    )
+    ffi.memmove(out.data, data.ljust(64, b"\0"), 64)
+    return out
+
+
+def same_frame(a: can.Message, b: can.Message) -> bool:
+    """Equal on the wire (ID, ID type, FD, payload); timestamps and channels aside."""
+    return (a.arbitration_id, a.is_extended_id, a.is_fd, bytes(a.data)) == (
+        b.arbitration_id, b.is_extended_id, b.is_fd, bytes(b.data))
