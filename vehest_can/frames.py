@@ -65,3 +65,30 @@ def same_frame(a: can.Message, b: can.Message) -> bool:
     """Equal on the wire (ID, ID type, FD, payload); timestamps and channels aside."""
     return (a.arbitration_id, a.is_extended_id, a.is_fd, bytes(a.data)) == (
         b.arbitration_id, b.is_extended_id, b.is_fd, bytes(b.data))
+
+
+def e2e_data_id(message) -> int:
+    attrs = message.dbc.attributes if message.dbc else {}
+    return int(attrs["E2EDataID"].value) if "E2EDataID" in attrs else 0
+
+
+class E2ESender:
+    """Encode a DBC message from physical values and protect it (E2E P01, the firmware's own C)."""
+
+    def __init__(self, bus: str = "pt"):
+        self.db = database(bus)
+        self._counters: dict[str, object] = {}
+
+    def message(self, name: str, values: dict, *, protect: bool = True) -> can.Message:
+        m = self.db.get_message_by_name(name)
+        signals = {s.name: 0 for s in m.signals}
+        signals.update(values)
+        payload = bytearray(m.encode(signals, scaling=True, strict=False, padding=False))
+        data_id = e2e_data_id(m)
+        if protect and data_id:
+            counter = self._counters.setdefault(name, ffi.new("uint8_t *", 0))
+            buf = ffi.new("uint8_t[]", bytes(payload))
+            lib.vh_e2e_p01_protect(buf, len(payload), data_id, counter)
+            payload = bytearray(ffi.buffer(buf, len(payload)))
+        return can.Message(arbitration_id=m.frame_id, is_extended_id=False, is_fd=m.is_fd,
+                           bitrate_switch=m.is_fd, data=bytes(payload))

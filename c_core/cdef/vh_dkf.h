@@ -4,7 +4,7 @@
 typedef enum { VH_DKF_EULER = 0, VH_DKF_ZOH = 1 } vh_dkf_disc_t;
 typedef enum { VH_DKF_SPEEDS_TORQUE = 0, VH_DKF_SPEEDS = 1 } vh_dkf_meas_t;
 typedef enum { VH_HEALTH_INIT = 0, VH_HEALTH_OK = 1, VH_HEALTH_DEGRADED = 2, VH_HEALTH_FAULT = 3 } vh_health_t;
-enum { VH_DKF_Z_WO = 1, VH_DKF_Z_WW = 2, VH_DKF_Z_TO = 4, VH_DKF_Z_ALL = 7, VH_DKF_U_VALID = 8, VH_DKF_ALL_VALID = 15 };
+enum { VH_DKF_Z_WO = 1, VH_DKF_Z_WW = 2, VH_DKF_Z_TO = 4, VH_DKF_Z_ALL = 7, VH_DKF_U_VALID = 8, VH_DKF_ALL_VALID = 15, VH_DKF_STALE = 16 };
 typedef struct {
     double jo; double jv; double rd; double ri; double ks; double c; double ts;
     double q[4]; double r[3]; double p0[4]; double p_max; double x_max;

@@ -28,6 +28,9 @@ enum { VH_DKF_Z_WO = 1u, VH_DKF_Z_WW = 2u, VH_DKF_Z_TO = 4u, VH_DKF_Z_ALL = 7u }
 /* Input-valid bit of the same mask: without it u is still used (the caller's held value)
  * but the filter reports DEGRADED. A non-finite u is replaced by 0 and also clears it. */
 enum { VH_DKF_U_VALID = 8u, VH_DKF_ALL_VALID = 15u };
+/* The valid rows are the last good samples, not new ones: predict only, health unaffected
+ * (a sample late by less than the RX timeout is normal operation, not a fault). */
+enum { VH_DKF_STALE = 16u };
 
 typedef struct {
     /* Model (Table 1). */

@@ -204,8 +204,11 @@ int vh_dkf_step(vh_dkf_t *f, double u, const double z[VH_DKF_NZ], unsigned mask)
     if (!f->cfg.use_input) {
         u = 0.0;
     }
-    nz = select_rows(f, mask, rows);
+    nz = (mask & VH_DKF_STALE) ? 0 : select_rows(f, mask, rows);
     if (!f->x_init) {
+        if (mask & VH_DKF_STALE) {
+            return 0;
+        }
         if ((mask & (VH_DKF_Z_WO | VH_DKF_Z_WW)) != (VH_DKF_Z_WO | VH_DKF_Z_WW)) {
             return 0; /* wait for both speeds before starting */
         }

@@ -209,16 +209,17 @@ static unsigned update_inputs(vh_ecu_t *ecu)
     } else {
         mask |= VH_DKF_U_VALID;
     }
-    if (d->fresh) { /* measurement update only with samples new since the last tick */
-        if (d->valid & (1u << SIG_WO)) {
-            mask |= VH_DKF_Z_WO;
-        }
-        if ((d->valid & (1u << SIG_WWL)) && (d->valid & (1u << SIG_WWR))) {
-            mask |= VH_DKF_Z_WW;
-        }
-        if (d->valid & (1u << SIG_TO)) {
-            mask |= VH_DKF_Z_TO;
-        }
+    if (d->valid & (1u << SIG_WO)) {
+        mask |= VH_DKF_Z_WO;
+    }
+    if ((d->valid & (1u << SIG_WWL)) && (d->valid & (1u << SIG_WWR))) {
+        mask |= VH_DKF_Z_WW;
+    }
+    if (d->valid & (1u << SIG_TO)) {
+        mask |= VH_DKF_Z_TO;
+    }
+    if (!d->fresh) { /* measurement update only with samples new since the last tick */
+        mask |= VH_DKF_STALE;
     }
     d->fresh = 0u;
     return mask;
