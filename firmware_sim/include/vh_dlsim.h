@@ -1,0 +1,35 @@
+/* vh_dlsim.h - the simulated car of seed 001 (plant + sensor node) and the in-process lockstep.
+ *
+ * One tick = plant step of 0.5 ms, then the sensor node samples the new state and sends its
+ * frames. The same vh_dlsim_tick drives every mode: in-process lockstep (vh_lockstep_run, frames
+ * passed to the ECU in memory), lockstep over a bus and real time (the Python simulator sends the
+ * frames it returns), so all modes see bit-identical frames.
+ */
+#ifndef VH_DLSIM_H
+#define VH_DLSIM_H
+
+#include "vh_dlplant.h"
+#include "vh_dlsnode.h"
+#include "vh_ecu.h"
+#include "vh_types.h"
+
+#define VH_DLSIM_MAX_TX 2
+
+typedef struct {
+    vh_dlp_t plant;
+    vh_dls_t node;
+} vh_dlsim_t;
+
+int vh_dlsim_init(vh_dlsim_t *sim, const vh_dlp_params_t *prm, uint64_t plant_seed, const vh_dls_config_t *node);
+void vh_dlsim_reset(vh_dlsim_t *sim);
+/* One tick of the car with the driver's throttle and gear; returns the frames written to out. */
+size_t vh_dlsim_tick(vh_dlsim_t *sim, double throttle, int gear, vh_frame_t *out, size_t cap);
+
+/* n ticks of car and ECU in lockstep. Per tick: car frames -> vh_ecu_rx -> vh_ecu_step.
+ * truth[n] receives the plant truth of each tick (NULL: not kept). Every frame on the bus, car's
+ * then ECU's, goes to frames[] with its tick in frame_tick[] until cap is reached; returns the
+ * number of frames (more than cap means some were not stored). */
+size_t vh_lockstep_run(vh_dlsim_t *sim, vh_ecu_t *ecu, size_t n, const double *throttle, const uint8_t *gear,
+                       vh_dlp_truth_t *truth, vh_frame_t *frames, uint32_t *frame_tick, size_t cap);
+
+#endif /* VH_DLSIM_H */

@@ -1,0 +1,52 @@
+"""``vehest-can daemon``: the ECU prototype daemon on a bus (lockstep or real time)."""
+from __future__ import annotations
+
+import signal
+import sys
+
+import can
+
+from .. import bus as busmod
+from ..daemon import EcuDaemon
+from ..errors import ConfigError
+
+
+def add_subparser(subparsers) -> None:
+    p = subparsers.add_parser("daemon", help="run the ECU on a CAN bus",
+                              description="Run the ECU firmware on a python-can bus until SIGINT/SIGTERM.")
+    p.add_argument("--mode", choices=("lockstep", "realtime"), default="realtime",
+                   help="lockstep: step on the simulator's SIM_Sync frames; realtime: own 2 kHz clock (default)")
+    p.add_argument("--log", metavar="FILE", help="log every frame (candump -L for .log; any python-can format)")
+    p.add_argument("--duration", type=float, metavar="S", help="realtime: stop after S seconds")
+    p.add_argument("--exit-on-end", action="store_true", help="lockstep: stop when the simulator sends END")
+    p.add_argument("--idle-timeout", type=float, metavar="S", help="lockstep: stop after S seconds without a frame")
+    busmod.add_arguments(p)
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    if args.duration is not None and args.duration <= 0:
+        raise ConfigError("--duration must be positive")
+    config = busmod.bus_config(args)
+    bus = busmod.open_bus(config)
+    writer = can.Logger(args.log) if args.log else None
+    daemon = EcuDaemon(bus, log_writer=writer,
+                       log_channel=config.get("channel") if config["interface"] == "socketcan" else "vcan0")
+
+    def stop(signum, _frame):
+        daemon.stop_event.set()
+
+    old = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        if args.mode == "lockstep":
+            stats = daemon.serve_lockstep(exit_on_end=args.exit_on_end, idle_timeout=args.idle_timeout)
+        else:
+            stats = daemon.serve_realtime(duration=args.duration)
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+        if writer is not None:
+            writer.stop()
+        bus.shutdown()
+    print("\n".join(stats.lines()), file=sys.stderr)
+    return 0
