@@ -185,3 +185,34 @@ def plots(session: Session, out_dir: Path) -> list[Path]:
 def write_metrics(metrics: list[dict], path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(metrics, indent=2, default=float) + "\n")
+
+
+def realtime_summary(session: Session, daemon: dict) -> dict:
+    """Frames lost either way, deadline misses and latency of a real-time run (car side + ECU side)."""
+    ids = session.frames["id"]
+    sensors_sent = int(session.stats.get("frames_sent", 0))
+    est_id = database("pt").get_message_by_name("VEHEST_DrivelineEst").frame_id
+    sts_id = database("pt").get_message_by_name("VEHEST_Status").frame_id
+    ecu_frames_seen = int(np.sum((ids == est_id) | (ids == sts_id)))
+    out = {
+        "mode": "realtime",
+        "duration_s": len(session.truth) * TICK_S,
+        "sensor_frames_sent": sensors_sent,
+        "sensor_frames_received_by_ecu": int(daemon.get("frames_rx", 0)),
+        "ecu_frames_sent": int(daemon.get("frames_tx", 0)),
+        "ecu_frames_received_by_car": ecu_frames_seen,
+        "ecu_counter_skips": int(daemon.get("counters", {}).get("counter_skip", 0)),
+        "ecu_deadline_misses": int(daemon.get("deadline_misses", 0)),
+        "car_deadline_misses": int(session.stats.get("deadline_misses", 0)),
+        "ecu_tick_lateness_us": daemon.get("lateness_us", {}),
+        "frame_to_estimate_latency_us": daemon.get("latency_us", {}),
+    }
+    lost_in = out["sensor_frames_sent"] - out["sensor_frames_received_by_ecu"]
+    lost_out = out["ecu_frames_sent"] - out["ecu_frames_received_by_car"]
+    out["frames_lost"] = lost_in + lost_out
+    lat = out["frame_to_estimate_latency_us"]
+    out["line"] = (f"{out['duration_s']:.0f} s, {sensors_sent} sensor frames -> {lost_in} lost, "
+                   f"{out['ecu_frames_sent']} ECU frames -> {lost_out} lost; deadline misses ECU "
+                   f"{out['ecu_deadline_misses']} car {out['car_deadline_misses']}; latency p50 "
+                   f"{lat.get('p50', float('nan')):.0f} µs p99 {lat.get('p99', float('nan')):.0f} µs")
+    return out

@@ -1,8 +1,11 @@
 """``vehest-can daemon``: the ECU prototype daemon on a bus (lockstep or real time)."""
 from __future__ import annotations
 
+import json
 import signal
 import sys
+from dataclasses import asdict
+from pathlib import Path
 
 import can
 
@@ -19,6 +22,7 @@ def add_subparser(subparsers) -> None:
     p.add_argument("--log", metavar="FILE", help="log every frame (candump -L for .log; any python-can format)")
     p.add_argument("--duration", type=float, metavar="S", help="realtime: stop after S seconds")
     p.add_argument("--exit-on-end", action="store_true", help="lockstep: stop when the simulator sends END")
+    p.add_argument("--stats", metavar="FILE", help="write the run's statistics as JSON on exit")
     p.add_argument("--idle-timeout", type=float, metavar="S", help="lockstep: stop after S seconds without a frame")
     busmod.add_arguments(p)
     p.set_defaults(func=run)
@@ -49,4 +53,6 @@ def run(args) -> int:
             writer.stop()
         bus.shutdown()
     print("\n".join(stats.lines()), file=sys.stderr)
+    if args.stats:
+        Path(args.stats).write_text(json.dumps(asdict(stats), indent=2) + "\n")
     return 0

@@ -1,0 +1,147 @@
+"""``vehest-can bench``: speed figures, measured side by side in one process.
+
+Targets (issue 2): filter >= 100x faster than filterpy per step through the array API; one full
+ECU tick (unpack, checks, two filters, pack) <= 5 µs median in a C loop; in-process lockstep of
+plant + sensor node + ECU >= 100x faster than real time. Medians of repeated runs; ratios are
+against baselines timed in the same run.
+"""
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from . import dkf_ref
+from .driveline import DkfConfig, DrivelineKF
+from .frames import TICK_S
+from .native import ffi, lib
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _median_time(fn, repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times))
+
+
+def _data(n: int, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    wo = 200 + 2 * np.arange(n) * TICK_S
+    z = np.c_[wo + rng.normal(0, 5, n), 0.255 * wo + rng.normal(0, 2, n), 1500 + rng.normal(0, 7, n)]
+    return np.full(n, 170.0), z
+
+
+def c_loop() -> dict[str, tuple[float, float]] | None:
+    """Build c_core/bench/vh_bench.c with the extension's flags and run it: {name: (median_ns, p99_ns)}."""
+    src = ROOT / "c_core" / "bench" / "vh_bench.c"
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if not src.exists() or cc is None:
+        return None
+    sys.path.insert(0, str(ROOT / "c_core"))
+    import vehest_build
+
+    with tempfile.TemporaryDirectory() as tmp:
+        gen = Path(tmp) / "generated"
+        sources = [str(s) for s in vehest_build.firmware_sources(gen)] + [str(src)]
+        inc = [f"-I{d}" for d in (ROOT / "c_core" / "include", ROOT / "firmware_sim" / "include", gen)]
+        exe = Path(tmp) / "vh_bench"
+        subprocess.run([cc, *vehest_build.STRICT_FLAGS, *vehest_build.OPT_FLAGS, *inc, *sources, "-lm", "-o", str(exe)],
+                       check=True, capture_output=True, text=True)
+        out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout
+    rows = {}
+    for line in out.splitlines():
+        name, _, med, p99 = line.split()
+        rows[name] = (float(med), float(p99))
+    return rows
+
+
+def run(quick: bool = False) -> dict:
+    n = 2000 if quick else 20000
+    repeats = 3 if quick else 7
+    u, z = _data(n)
+    cfg = DkfConfig.default("speeds+torque")
+    res: dict = {"steps": n}
+
+    kf = DrivelineKF(cfg)
+    res["array_api_ns"] = _median_time(lambda: (kf.reset(), kf.run(u, z)), repeats) / n * 1e9
+
+    f = ffi.new("vh_dkf_t *")
+    lib.vh_dkf_init(f, cfg.to_c())
+    zc = ffi.new("double[3]")
+    step = lib.vh_dkf_step
+
+    def single_calls():
+        for i in range(n):
+            zc[0], zc[1], zc[2] = z[i]
+            step(f, 170.0, zc, 15)
+
+    res["single_cffi_ns"] = _median_time(single_calls, repeats) / n * 1e9
+    m = min(n, 4000)
+    res["numpy_ref_ns"] = _median_time(lambda: dkf_ref.run(cfg, u[:m], z[:m]), max(1, repeats // 2)) / m * 1e9
+    try:
+        from filterpy.kalman import KalmanFilter
+    except ImportError:
+        res["filterpy_ns"] = None
+    else:
+        a, b = dkf_ref.model(cfg)
+        ad, bd = dkf_ref.discretise(a, b, cfg.ts, cfg.disc)
+
+        def filterpy_run():
+            kf2 = KalmanFilter(dim_x=4, dim_z=3, dim_u=1)
+            kf2.F, kf2.B = ad, bd.reshape(4, 1)
+            kf2.H = np.eye(4)[:3]
+            kf2.Q, kf2.R, kf2.P = np.diag(cfg.q), np.diag(cfg.r), np.diag(cfg.p0)
+            kf2.x = np.array([z[0, 0], z[0, 1], z[0, 2], 0.0])
+            for i in range(m):
+                kf2.predict(u=np.array([[u[i]]]))
+                kf2.update(z[i])
+
+        res["filterpy_ns"] = _median_time(filterpy_run, max(1, repeats // 2)) / m * 1e9
+    res["c_loop"] = c_loop()
+    return res
+
+
+def lockstep_factor(drive_factory, repeats: int = 3) -> float:
+    """Median real-time factor of the in-process lockstep of a drive."""
+    from .sim import run_inprocess
+
+    factors = [run_inprocess(drive_factory()).stats["realtime_factor"] for _ in range(repeats)]
+    return float(np.median(factors))
+
+
+def table(res: dict, lockstep: dict[str, float] | None = None) -> str:
+    lines = [f"{'benchmark':<44}{'median':>14}{'vs filterpy':>13}"]
+    fp = res.get("filterpy_ns")
+
+    def row(name, ns, unit="ns/step"):
+        ratio = f"{fp / ns:>11.0f}x" if fp and ns else f"{'-':>12}"
+        lines.append(f"{name:<44}{ns:>9.0f} {unit}{ratio}")
+
+    c = res.get("c_loop") or {}
+    if "dkf_step" in c:
+        row("KF step, C loop", c["dkf_step"][0])
+    row("KF step, Python array API (one call/run)", res["array_api_ns"])
+    row("KF step, one cffi call per step", res["single_cffi_ns"])
+    row("KF step, numpy reference", res["numpy_ref_ns"])
+    if fp:
+        row("KF step, filterpy KalmanFilter", fp)
+    if "ecu_tick" in c:
+        lines.append(f"{'ECU tick (rx+unpack+checks+2 KF+pack), C loop':<44}{c['ecu_tick'][0] / 1000:>9.2f} µs/tick"
+                     f"   p99 {c['ecu_tick'][1] / 1000:.2f} µs (target <= 5 µs)")
+    if "car_tick" in c:
+        lines.append(f"{'car tick (plant + sensor node), C loop':<44}{c['car_tick'][0] / 1000:>9.2f} µs/tick"
+                     f"   = {500 / (c['car_tick'][0] / 1000):.0f}x real time")
+    for name, factor in (lockstep or {}).items():
+        lines.append(f"{'in-process lockstep ' + name:<44}{factor:>9.0f}x real time (target >= 100x)")
+    if fp:
+        lines.append(f"array API vs filterpy: {fp / res['array_api_ns']:.0f}x faster (target >= 100x)")
+    return "\n".join(lines)

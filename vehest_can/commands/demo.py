@@ -1,0 +1,131 @@
+"""``vehest-can demo``: the main job. Car and ECU as two processes on a bus, every shipped
+driveline scenario, then a table beside the paper's figures, plots, metrics and candump logs."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import can
+import numpy as np
+
+from .. import bus as busmod
+from .. import report
+from ..errors import VehestError
+from ..progress import Progress
+from ..scenario import load_scenario, scenario_dir
+from ..sim import SimMaster, drive_from_scenario, run_inprocess
+
+
+def add_subparser(subparsers) -> None:
+    p = subparsers.add_parser("demo", help="the full loop: plant -> bus -> ECU -> estimates, with table and plots",
+                              description="Start the ECU daemon as its own process, run the driveline scenarios "
+                                          "in lockstep over the bus, and report against the paper.")
+    p.add_argument("scenarios", nargs="*", metavar="SCENARIO",
+                   help="scenario files (default: every scenario shipped in firmware_sim/scenarios)")
+    p.add_argument("-o", "--out", default="out/demo", metavar="DIR", help="output folder (default: out/demo)")
+    p.add_argument("--realtime", type=float, default=0.0, metavar="S",
+                   help="also run S seconds in real time (2 kHz wall clock on both sides)")
+    busmod.add_arguments(p)
+    p.set_defaults(func=run)
+
+
+def _daemon_cmd(args, mode: str, extra: list[str]) -> list[str]:
+    cmd = [sys.executable, "-m", "vehest_can.cli", "daemon", "--mode", mode, *extra]
+    for key, flag in (("interface", "-i"), ("channel", "-c"), ("bitrate", "-b"), ("data_bitrate", "--data-bitrate"),
+                      ("bus_config", "--bus-config"), ("bus_context", "--bus-context")):
+        if getattr(args, key, None) is not None:
+            cmd += [flag, str(getattr(args, key))]
+    if getattr(args, "fd", False):
+        cmd.append("--fd")
+    return cmd
+
+
+def _stop(proc: subprocess.Popen) -> str:
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGTERM)
+    try:
+        _, err = proc.communicate(timeout=10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        _, err = proc.communicate()
+    return err
+
+
+def run(args) -> int:
+    paths = [Path(p) for p in args.scenarios] or sorted(scenario_dir().glob("*.toml"))
+    scenarios = [load_scenario(p) for p in paths]
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    config = busmod.bus_config(args)
+    print(f"bus: {config['interface']} {config.get('channel')}; ECU daemon in its own process; output in {out}/")
+
+    ecu_proc = subprocess.Popen(_daemon_cmd(args, "lockstep", ["--idle-timeout", "60"]),
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy())
+    all_metrics = []
+    try:
+        bus = busmod.open_bus(config)
+        try:
+            for sc in scenarios:
+                drive = drive_from_scenario(sc)
+                sdir = out / sc.name
+                sdir.mkdir(parents=True, exist_ok=True)
+                progress = Progress(f"{sc.name} (lockstep)")
+                with can.Logger(str(sdir / "session.log")) as writer:
+                    master = SimMaster(bus, drive, log_writer=writer, progress=progress)
+                    session = master.run_lockstep(end=False)
+                progress.done(f"{session.stats['realtime_factor']:.1f}x real time over the bus")
+                local = run_inprocess(drive_from_scenario(sc))
+                same = (len(local.frames) == len(session.frames)
+                        and np.array_equal(local.frames, session.frames))
+                print(f"  bus lockstep == in-process lockstep: {'identical' if same else 'DIFFERENT'} "
+                      f"({len(session.frames)} frames)")
+                metrics = report.driveline_metrics(session)
+                metrics["bus_equals_inprocess"] = bool(same)
+                metrics["inprocess_realtime_factor"] = local.stats["realtime_factor"]
+                all_metrics.append(metrics)
+                report.plots(session, sdir)
+        finally:
+            bus.shutdown()
+    finally:
+        err = _stop(ecu_proc)
+    print("ECU daemon: " + " | ".join(line for line in err.strip().splitlines()[-4:]))
+
+    if args.realtime > 0:
+        all_metrics.append(_realtime(args, config, scenarios[0], out))
+
+    report.write_metrics(all_metrics, out / "metrics.json")
+    print()
+    print(report.table([m for m in all_metrics if "sets" in m]))
+    print(f"\nplots: {', '.join(str(p) for p in sorted(out.glob('*/*.png')))}")
+    print(f"metrics: {out / 'metrics.json'}; candump logs: {', '.join(str(p) for p in sorted(out.glob('*/session.log')))}")
+    return 0
+
+
+def _realtime(args, config, sc, out: Path) -> dict:
+    drive = drive_from_scenario(sc, duration_s=args.realtime)
+    stats_file = out / "realtime_daemon.json"
+    stats_file.unlink(missing_ok=True)
+    ecu_proc = subprocess.Popen(_daemon_cmd(args, "realtime", ["--duration", str(args.realtime + 3),
+                                                               "--stats", str(stats_file)]),
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(1.0)  # let the daemon open its bus
+    bus = busmod.open_bus(config)
+    try:
+        progress = Progress(f"{sc.name} (real time)")
+        session = SimMaster(bus, drive, progress=progress).run_realtime()
+        progress.done()
+    finally:
+        bus.shutdown()
+        err = _stop(ecu_proc)
+    if ecu_proc.returncode not in (0, -signal.SIGTERM):
+        raise VehestError(f"real-time ECU daemon failed: {err}")
+    if not stats_file.exists():
+        raise VehestError(f"real-time ECU daemon wrote no statistics: {err}")
+    summary = report.realtime_summary(session, json.loads(stats_file.read_text()))
+    print("real time: " + summary["line"])
+    return summary
