@@ -119,11 +119,16 @@ def test_bad_configuration_names():
         DrivelineKF().run(np.zeros(3), np.zeros((3, 2)))
 
 
-def test_turbine_torque_is_eq_9():
+def test_turbine_torque_is_eq_9_in_the_drive_range_and_vanishes_at_coupling():
     we = np.linspace(60, 600, 50)
-    r = np.linspace(0, 1.05, 50)
+    r = np.linspace(0, 0.9, 50)
     rt = np.where(r < 0.85, -1.4 * r + 2.2, 0.99)
     cf = (-1.695 * r**2 + 0.3 * r + 1.874) * 1e-3
     np.testing.assert_allclose(turbine_torque(we, r * we), rt * cf * we**2, rtol=1e-14)
     assert np.isnan(turbine_torque([10.0], [5.0]))[0]  # engine stalled: not usable
-    assert np.isnan(turbine_torque([100.0], [150.0]))[0]  # r beyond where C_f is defined
+    assert np.isnan(turbine_torque([100.0], [250.0]))[0]  # r = 2.5: implausible
+    r = np.linspace(0.9, 1.5, 61)
+    ti = turbine_torque(np.full(61, 300.0), 300.0 * r)
+    assert np.all(np.diff(ti) < 0)  # blend and overrun: monotonic through coupling
+    assert ti[np.argmin(abs(r - 1.0))] == pytest.approx(0.0, abs=1e-9)  # no torque at coupling
+    assert np.all(ti[r > 1.0] < 0)  # overrun drags the engine

@@ -77,6 +77,22 @@ class Session:
             yield to_message(f, timestamp=float(k) * TICK_S, channel=channel)
 
 
+def drive_from_scenario(scenario, duration_s: float | None = None) -> Drive:
+    """A scenario file's drive. A longer duration repeats the scenario's driver profile."""
+    duration = scenario.duration_s if duration_s is None else duration_s
+    n = int(round(duration / TICK_S))
+    t = (np.arange(n) * TICK_S) % scenario.duration_s
+    return Drive(
+        name=scenario.name,
+        throttle=np.asarray(scenario.throttle_at(t), dtype=np.float64),
+        gear=np.full(n, scenario.gear, dtype=np.uint8),
+        plant_params=scenario.plant_params(ffi, lib),
+        plant_seed=scenario.seed,
+        node_config=scenario.node_config(ffi, lib),
+        initial_speed=scenario.initial_speed_kmh / 3.6,
+    )
+
+
 class Car:
     """``vh_dlsim_t``: one tick of plant and sensor node per call."""
 

@@ -26,3 +26,6 @@ int vh_dkf_set_ratio(vh_dkf_t *f, double ri);
 uint32_t vh_dkf_run(vh_dkf_t *f, size_t n, const double *u, const double *z, const uint8_t *mask,
                     double *x_out, double *k_out, double *p_out);
 int vh_dkf_turbine_torque(double we, double wt, double we_min, double *ti);
+/* vh_tc.h */
+void vh_tc_torques(double we, double wt, double *tp, double *ti);
+double vh_tc_max_slope(void);

@@ -87,8 +87,9 @@ int vh_dkf_set_ratio(vh_dkf_t *f, double ri);
 uint32_t vh_dkf_run(vh_dkf_t *f, size_t n, const double *u, const double *z, const uint8_t *mask,
                     double *x_out, double *k_out, double *p_out);
 
-/* Turbine torque from engine and turbine speed, eq. 9. Returns 0 and sets *ti when
- * w_e >= we_min and the speed ratio is in [0, 1.2]; else -1 (input not usable). */
+/* Turbine torque from engine and turbine speed: eq. 9 (with the coupling/overrun extension of
+ * vh_tc.h). Returns 0 and sets *ti when w_e >= we_min and the speed ratio is in [0, 2]; else -1
+ * (input not usable: stalled engine, implausible ratio, non-finite speed). */
 int vh_dkf_turbine_torque(double we, double wt, double we_min, double *ti);
 
 #endif /* VH_DKF_H */

@@ -4,6 +4,7 @@
 
 #include "vh_dkf.h"
 #include "vh_mat.h"
+#include "vh_tc.h"
 
 #define NX VH_DKF_NX
 #define NZ VH_DKF_NZ
@@ -335,16 +336,10 @@ uint32_t vh_dkf_run(vh_dkf_t *f, size_t n, const double *u, const double *z, con
 
 int vh_dkf_turbine_torque(double we, double wt, double we_min, double *ti)
 {
-    double r, rt, cf;
-    if (!isfinite(we) || !isfinite(wt) || !(we >= we_min) || !(we > 0.0)) {
+    double tp;
+    if (!isfinite(we) || !isfinite(wt) || !(we >= we_min) || !(we > 0.0) || !(wt >= 0.0) || wt > 2.0 * we) {
         return -1;
     }
-    r = wt / we;
-    if (!(r >= 0.0) || r > 1.1) { /* C_f(r) changes sign just above 1.1 */
-        return -1;
-    }
-    rt = (r < 0.85) ? (-1.4 * r + 2.2) : 0.99;      /* eq. 9 */
-    cf = (-1.695 * r * r + 0.3 * r + 1.874) * 1e-3; /* eq. 9 */
-    *ti = rt * cf * we * we;                        /* eq. 9 */
+    vh_tc_torques(we, wt, &tp, ti); /* eq. 9 in the drive range, see vh_tc.h */
     return 0;
 }
