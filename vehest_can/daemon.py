@@ -20,7 +20,7 @@ import can
 
 from . import lockstep
 from .ecu import Ecu
-from .frames import TICK_S, frame_id
+from .frames import TICK_S, frame_id, is_own, sent_by
 from .rt import Ticker, percentiles_us
 
 log = logging.getLogger(__name__)
@@ -65,6 +65,7 @@ class EcuDaemon:
         self.log_channel = log_channel
         self.stop_event = threading.Event()
         self._dls_id = frame_id("DLS_Sensors")
+        self._own = sent_by({"VEHEST"})
 
     # -- shared -------------------------------------------------------------------------------
     def _log(self, msg: can.Message, timestamp: float) -> None:
@@ -96,7 +97,7 @@ class EcuDaemon:
                     break
                 continue
             last = time.perf_counter()
-            if msg.is_error_frame or msg.is_remote_frame:
+            if msg.is_error_frame or msg.is_remote_frame or is_own(msg, self._own):
                 continue
             stats.frames_rx += 1
             now = self.ecu.tick * TICK_S
@@ -151,7 +152,7 @@ class EcuDaemon:
                         t_rx, msg = inbox.get_nowait()
                     except queue.Empty:
                         break
-                    if msg.is_error_frame or msg.is_remote_frame:
+                    if msg.is_error_frame or msg.is_remote_frame or is_own(msg, self._own):
                         continue
                     stats.frames_rx += 1
                     self._log(msg, now)

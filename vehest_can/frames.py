@@ -26,6 +26,16 @@ def database(bus: str = "pt") -> cantools.database.can.Database:
     return cantools.database.load_file(str(dbc_path(bus)), strict=True)
 
 
+def sent_by(nodes: set[str], bus: str = "pt") -> frozenset[int]:
+    """Standard IDs the given DBC nodes transmit. A node ignores its own IDs on receive: some
+    buses (python-can's udp_multicast) echo a sender's frames back to it."""
+    return frozenset(m.frame_id for m in database(bus).messages if set(m.senders) & nodes and not m.is_extended_frame)
+
+
+def is_own(msg: can.Message, own: frozenset[int]) -> bool:
+    return not msg.is_extended_id and msg.arbitration_id in own
+
+
 def frame_id(name: str, bus: str = "pt") -> int:
     return database(bus).get_message_by_name(name).frame_id
 

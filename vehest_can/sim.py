@@ -22,7 +22,7 @@ import numpy as np
 from . import lockstep
 from .ecu import Ecu
 from .errors import BusError, VehestError
-from .frames import FRAME_DTYPE, TICK_S, to_frame, to_message
+from .frames import FRAME_DTYPE, TICK_S, is_own, sent_by, to_frame, to_message
 from .native import check, ffi, lib
 from .rt import Ticker, percentiles_us
 
@@ -156,10 +156,15 @@ class SimMaster:
         self.stop_event = threading.Event()
         self._frames: list = []
         self._ticks: list[int] = []
+        self._own = sent_by({"DLS", "SIM"})
 
     def _record(self, msg: can.Message, tick: int) -> None:
         self._frames.append(msg)
         self._ticks.append(tick)
+        self._log(msg, tick)
+
+    def _log(self, msg: can.Message, tick: int) -> None:
+        """Into the log only (sync frames: on the bus, but not part of the car/ECU session)."""
         if self.log_writer is not None:
             msg.timestamp = tick * TICK_S
             msg.channel = self.log_channel
@@ -182,6 +187,8 @@ class SimMaster:
             if msg is None:
                 raise BusError(f"lockstep: no VEHEST_SyncAck for tick {tick} within {deadline_s:.1f} s "
                                f"(is the ECU daemon running on this bus?)")
+            if is_own(msg, self._own):
+                continue
             if lockstep.is_ack(msg):
                 ack_tick, count = lockstep.decode_ack(msg)
                 if ack_tick != tick:
@@ -195,9 +202,11 @@ class SimMaster:
     def connect(self, attempts: int = 50) -> None:
         """RESET handshake: the ECU starts from scratch; retried while the daemon is starting."""
         for _ in range(attempts):
-            self.bus.send(lockstep.sync_message(0, lockstep.RESET))
+            reset = lockstep.sync_message(0, lockstep.RESET)
+            self.bus.send(reset)
             try:
                 self._await_ack(0, 0.2)
+                self._log(reset, 0)
                 return
             except BusError:
                 continue
@@ -218,7 +227,9 @@ class SimMaster:
                 msg = to_message(f)
                 self.bus.send(msg)
                 self._record(msg, k)
-            self.bus.send(lockstep.sync_message(k))
+            sync = lockstep.sync_message(k)
+            self.bus.send(sync)
+            self._log(sync, k)
             for msg in self._await_ack(k, self.ack_timeout):
                 self._record(msg, k)
             truth[k] = self.car.truth()
@@ -237,8 +248,9 @@ class SimMaster:
         inbox: queue.SimpleQueue = queue.SimpleQueue()
 
         class Inbox(can.Listener):
-            def on_message_received(self, msg: can.Message) -> None:
-                inbox.put(msg)
+            def on_message_received(inner, msg: can.Message) -> None:  # noqa: N805
+                if not is_own(msg, self._own):
+                    inbox.put(msg)
 
         notifier = can.Notifier(self.bus, [Inbox()], timeout=0.005)
         ticker = Ticker(TICK_S)
