@@ -1,0 +1,131 @@
+/* vh_dlsnode.c - see vh_dlsnode.h. */
+#include "vh_dlsnode.h"
+
+#include <math.h>
+
+#include "vh_e2e.h"
+#include "vh_pt.h"
+#include "vh_pt_meta.h"
+
+#define SPEED_SCALE 0.02 /* rad/s per bit, DBC */
+#define TORQUE_SCALE 0.25 /* Nm per bit, DBC */
+
+void vh_dls_config_default(vh_dls_config_t *cfg)
+{
+    /* Output-shaft speed from a toothed-wheel pick-up resampled to 2 kHz: period jitter and
+     * tooth-spacing error give ~0.3 rad/s. ABS wheel-speed sensors (48-tooth rings): 0.15 rad/s
+     * each, so their mean (the ECU's w_w, as in the paper) has ~0.11 rad/s. */
+    cfg->noise_std[VH_DLS_CH_WO] = 0.3;
+    cfg->noise_std[VH_DLS_CH_WL] = 0.15;
+    cfg->noise_std[VH_DLS_CH_WR] = 0.15;
+    /* Magneto-elastic transducer: 7 Nm, so the with-torque filter's RMS(measured - estimated)
+     * can land near the paper's 6.7 Nm. */
+    cfg->noise_std[VH_DLS_CH_TO] = 7.0;
+    /* Crank (60-2 wheel) and turbine speed sensors, including firing-pulse ripple. */
+    cfg->noise_std[VH_DLS_CH_WE] = 1.0;
+    cfg->noise_std[VH_DLS_CH_WT] = 0.5;
+    cfg->seed = 0x444C53u; /* "DLS" */
+    cfg->fail_mask = 0u;
+}
+
+int vh_dls_init(vh_dls_t *n, const vh_dls_config_t *cfg)
+{
+    int i;
+    if (n == NULL || cfg == NULL) {
+        return VH_EINVAL;
+    }
+    for (i = 0; i < VH_DLS_NCH; ++i) {
+        if (!(cfg->noise_std[i] >= 0.0) || !isfinite(cfg->noise_std[i])) {
+            return VH_EINVAL;
+        }
+    }
+    n->cfg = *cfg;
+    vh_dls_reset(n);
+    return VH_OK;
+}
+
+void vh_dls_reset(vh_dls_t *n)
+{
+    int i;
+    vh_rng_seed(&n->rng, n->cfg.seed);
+    for (i = 0; i < VH_DLS_NCH; ++i) {
+        n->meas[i] = 0.0;
+    }
+    n->counter = 0u;
+    n->frames = 0u;
+}
+
+/* raw = round(phys / scale), clamped to the signal's range: [0, 65534] (65535 is SNA). */
+static uint16_t quant_speed(double v)
+{
+    double r = floor(v / SPEED_SCALE + 0.5);
+    r = r > 65534.0 ? 65534.0 : (r < 0.0 ? 0.0 : r);
+    return (uint16_t)r;
+}
+
+/* raw = round(phys / scale), clamped to [-32767, 32767] (-32768 is SNA). */
+static int16_t quant_torque(double v)
+{
+    double r = floor(v / TORQUE_SCALE + 0.5);
+    r = r > 32767.0 ? 32767.0 : (r < -32767.0 ? -32767.0 : r);
+    return (int16_t)r;
+}
+
+size_t vh_dls_step(vh_dls_t *n, const vh_dlp_truth_t *truth, vh_frame_t *out, size_t cap)
+{
+    struct vh_pt_dls_sensors_t m;
+    double phys[VH_DLS_NCH];
+    uint8_t ok[VH_DLS_NCH];
+    int i;
+
+    if (out == NULL || cap == 0u || truth == NULL) {
+        return 0u;
+    }
+    /* both ABS sensors see the same wheel speed w_w: the plant has one driven-axle speed */
+    phys[VH_DLS_CH_WO] = truth->wo;
+    phys[VH_DLS_CH_WL] = truth->ww;
+    phys[VH_DLS_CH_WR] = truth->ww;
+    phys[VH_DLS_CH_TO] = truth->to;
+    phys[VH_DLS_CH_WE] = truth->we;
+    phys[VH_DLS_CH_WT] = truth->wt;
+    for (i = 0; i < VH_DLS_NCH; ++i) {
+        n->meas[i] = phys[i] + n->cfg.noise_std[i] * vh_rng_gauss(&n->rng);
+        /* a sensor that reads garbage reports it rather than sending a clamped number */
+        ok[i] = (uint8_t)(isfinite(n->meas[i]) && !(n->cfg.fail_mask & (1u << i)));
+    }
+
+    (void)vh_pt_dls_sensors_init(&m);
+    m.out_shaft_speed = ok[VH_DLS_CH_WO] ? quant_speed(n->meas[VH_DLS_CH_WO])
+                                         : VH_PT_DLS_SENSORS_OUT_SHAFT_SPEED_SNA_CHOICE;
+    m.wheel_speed_l = ok[VH_DLS_CH_WL] ? quant_speed(n->meas[VH_DLS_CH_WL])
+                                       : VH_PT_DLS_SENSORS_WHEEL_SPEED_L_SNA_CHOICE;
+    m.wheel_speed_r = ok[VH_DLS_CH_WR] ? quant_speed(n->meas[VH_DLS_CH_WR])
+                                       : VH_PT_DLS_SENSORS_WHEEL_SPEED_R_SNA_CHOICE;
+    m.shaft_torque = ok[VH_DLS_CH_TO] ? quant_torque(n->meas[VH_DLS_CH_TO])
+                                      : (int16_t)VH_PT_DLS_SENSORS_SHAFT_TORQUE_SNA_CHOICE;
+    m.engine_speed = ok[VH_DLS_CH_WE] ? quant_speed(n->meas[VH_DLS_CH_WE])
+                                      : VH_PT_DLS_SENSORS_ENGINE_SPEED_SNA_CHOICE;
+    m.turbine_speed = ok[VH_DLS_CH_WT] ? quant_speed(n->meas[VH_DLS_CH_WT])
+                                       : VH_PT_DLS_SENSORS_TURBINE_SPEED_SNA_CHOICE;
+    m.qf_out_shaft_speed = ok[VH_DLS_CH_WO];
+    m.qf_wheel_speed_l = ok[VH_DLS_CH_WL];
+    m.qf_wheel_speed_r = ok[VH_DLS_CH_WR];
+    m.qf_shaft_torque = ok[VH_DLS_CH_TO];
+    m.qf_engine_speed = ok[VH_DLS_CH_WE];
+    m.qf_turbine_speed = ok[VH_DLS_CH_WT];
+    m.gear_engaged = (truth->gear >= 0 && truth->gear <= VH_DLP_NGEARS) ? (uint8_t)truth->gear
+                                                                        : VH_PT_DLS_SENSORS_GEAR_ENGAGED_SNA_CHOICE;
+
+    for (i = 0; i < VH_FRAME_MAX_LEN; ++i) {
+        out->data[i] = 0u;
+    }
+    out->id = VH_PT_DLS_SENSORS_FRAME_ID;
+    out->len = (uint8_t)VH_PT_DLS_SENSORS_LENGTH;
+    out->flags = (uint8_t)(VH_FRAME_FD | VH_FRAME_BRS);
+    (void)vh_pt_dls_sensors_pack(out->data, &m, VH_PT_DLS_SENSORS_LENGTH);
+    vh_e2e_p01_protect(out->data, VH_PT_DLS_SENSORS_LENGTH, VH_PT_DLS_SENSORS_E2E_DATA_ID, &n->counter);
+    if (n->frames < UINT32_MAX) {
+        ++n->frames;
+    }
+    return 1u;
+}
