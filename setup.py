@@ -6,18 +6,22 @@ from setuptools import setup
 from setuptools.command.build_py import build_py
 
 
-class BuildPyWithDbc(build_py):
-    """Ship dbc/*.dbc inside the package, so an installed vehest-can finds its matrix."""
+DATA = {"dbc": ("dbc", "*.dbc"), "scenarios": ("firmware_sim/scenarios", "*.toml")}
+
+
+class BuildPyWithData(build_py):
+    """Ship the DBC files and the scenarios inside the package, so an installed vehest-can finds them."""
 
     def run(self):
         super().run()
-        dest = Path(self.build_lib) / "vehest_can" / "dbc"
-        dest.mkdir(parents=True, exist_ok=True)
-        for dbc in sorted(Path("dbc").glob("*.dbc")):
-            shutil.copy2(dbc, dest / dbc.name)
+        for name, (src, pattern) in DATA.items():
+            dest = Path(self.build_lib) / "vehest_can" / name
+            dest.mkdir(parents=True, exist_ok=True)
+            for f in sorted(Path(src).glob(pattern)):
+                shutil.copy2(f, dest / f.name)
 
 
 setup(
     cffi_modules=["c_core/vehest_build.py:ffibuilder"],
-    cmdclass={"build_py": BuildPyWithDbc},
+    cmdclass={"build_py": BuildPyWithData},
 )

@@ -193,7 +193,7 @@ static void seed_state(vh_dkf_t *f, double u, const double z[NZ], unsigned mask)
 int vh_dkf_step(vh_dkf_t *f, double u, const double z[VH_DKF_NZ], unsigned mask)
 {
     double xp[NX], pp[NX * NX], tmp[NX * NX];
-    double s[NZ * NZ], pht[NX * NZ], kt[NZ * NX], ikh[NX * NX];
+    double s[NZ * NZ], sinv[NZ], pht[NX * NZ], kt[NZ * NX], ikh[NX * NX];
     int rows[NZ], nz, i, j, l;
     const unsigned needed = VH_DKF_U_VALID |
                             ((f->cfg.meas == VH_DKF_SPEEDS) ? (VH_DKF_Z_WO | VH_DKF_Z_WW) : VH_DKF_Z_ALL);
@@ -242,7 +242,7 @@ int vh_dkf_step(vh_dkf_t *f, double u, const double z[VH_DKF_NZ], unsigned mask)
             s[i * nz + i] += f->cfg.r[rows[i]];
         }
         /* K = P- H^T (H P- H^T + R)^-1 (eq. 13), as S K^T = H P- via Cholesky */
-        if (vh_mat_chol(s, nz) != 0) {
+        if (vh_mat_chol(s, sinv, nz) != 0) {
             goto diverged;
         }
         for (i = 0; i < nz; ++i) {
@@ -250,7 +250,7 @@ int vh_dkf_step(vh_dkf_t *f, double u, const double z[VH_DKF_NZ], unsigned mask)
                 kt[i * NX + j] = pht[j * nz + i];
             }
         }
-        vh_mat_chol_solve(s, kt, nz, NX);
+        vh_mat_chol_solve(s, sinv, kt, nz, NX);
         for (i = 0; i < NX; ++i) {
             double innov_gain = 0.0;
             for (j = 0; j < nz; ++j) {

@@ -18,6 +18,7 @@
 #include <stdint.h>
 
 #include "vh_rng.h"
+#include "vh_tc.h"
 #include "vh_types.h"
 
 #define VH_DLP_NGEARS 5
@@ -34,7 +35,7 @@
  * fuel-cut speed. */
 #define VH_DLP_MAX_SUBSTEPS 8
 /* Speed ratio up to which the converter follows eq. 9 exactly; see vh_dlp_converter. */
-#define VH_DLP_CONV_RC 0.9
+#define VH_DLP_CONV_RC VH_TC_RC
 #define VH_DLP_GRAVITY 9.81
 
 enum { VH_DLP_X_WE = 0, VH_DLP_X_WO = 1, VH_DLP_X_WW = 2, VH_DLP_X_TS = 3, VH_DLP_X_GOV = 4, VH_DLP_NX = 5 };

@@ -1,5 +1,6 @@
 /* vh_dlplant.c - see vh_dlplant.h. Equation numbers refer to seed 001 (Kim 2011). */
 #include "vh_dlplant.h"
+#include "vh_tc.h"
 
 #include <math.h>
 
@@ -17,14 +18,8 @@
 static const double TE_SHAPE[N_BP] = {0.55, 0.55, 0.70, 0.80, 0.86, 0.90, 0.925, 0.965,
                                       1.0, 0.99, 0.975, 0.94, 0.895, 0.815, 0.0};
 
-/* Converter capacity C_f of eq. 9, its slope, and the coefficients of the coupling blend
- * (see vh_dlp_converter), folded at compile time. */
-#define CF_EQ9(r) ((-1.695 * (r) * (r) + 0.3 * (r) + 1.874) * 1e-3) /* eq. 9 */
-#define DCF_EQ9(r) ((-3.39 * (r) + 0.3) * 1e-3)
-#define BLEND_S0 (1.0 - VH_DLP_CONV_RC)
-#define BLEND_B_EXPR (-(CF_EQ9(VH_DLP_CONV_RC) + DCF_EQ9(VH_DLP_CONV_RC) * BLEND_S0) / (BLEND_S0 * BLEND_S0))
-static const double BLEND_B = BLEND_B_EXPR;
-static const double BLEND_A = -DCF_EQ9(VH_DLP_CONV_RC) - 2.0 * BLEND_B_EXPR * BLEND_S0;
+/* Steepest slope of the converter capacity (near coupling), for sub-step sizing. */
+#define BLEND_A (vh_tc_max_slope())
 
 void vh_dlp_params_default(vh_dlp_params_t *prm)
 {
@@ -62,38 +57,11 @@ void vh_dlp_params_default(vh_dlp_params_t *prm)
 
 /* ---- torque converter (eq. 9) ------------------------------------------------------------ */
 
-/* Coupling blend for r > RC with s = 1 - r: C(r) = a s + b s^2 matches value and slope of eq. 9
- * at RC and is zero at r = 1, where a real converter stops transmitting torque (eq. 9's fit is
- * still 0.48e-3 there and crosses zero only at r ~ 1.13, so a plant using it as printed would
- * cruise at r > 1.1 with the engine dragging the car). Beyond r = 1 the line a s keeps the
- * slope: overrun torque proportional to the slip. With RC = 0.9: a = 12.67e-3, b = -49.6e-3. */
+/* Eq. 9 with its coupling/overrun extension: one implementation, in c_core/src/vh_tc.c, so the
+ * plant and the ECU's input model share the converter's characteristic (see vh_tc.h). */
 void vh_dlp_converter(double we, double wt, double *tp, double *ti)
 {
-    /* a floor on w_e keeps r finite; near it the torques are ~we^2 and vanish anyway */
-    const double wec = we > 1e-3 ? we : 1e-3;
-    double r = wt / wec;
-    double c;
-    if (!(r > 0.0)) {
-        r = 0.0; /* turbine at rest or (shaft wind-up) slightly backwards: stall */
-    }
-    if (r <= VH_DLP_CONV_RC) {
-        const double rt = r < 0.85 ? -1.4 * r + 2.2 : 0.99; /* eq. 9 */
-        *tp = CF_EQ9(r) * wec * wec;                        /* eq. 9: T_p = C_f w_e^2 */
-        *ti = rt * *tp;                                     /* eq. 9: T_i = R_t T_p */
-        return;
-    }
-    if (r <= 1.0) {
-        const double s = 1.0 - r;
-        c = BLEND_A * s + BLEND_B * s * s;
-        *tp = c * wec * wec;
-        *ti = 0.99 * *tp; /* eq. 9's coupling-range torque ratio */
-    } else {
-        /* overrun: a (1 - r) w_e^2 = -a (w_t - w_e) w_e; torque passes 1:1 (the stator
-         * freewheels), so the converter dissipates T_p (w_e - w_t) > 0 */
-        c = BLEND_A * (1.0 - r);
-        *tp = c * wec * wec;
-        *ti = *tp;
-    }
+    vh_tc_torques(we, wt, tp, ti); /* the characteristic the ECU's input model uses too */
 }
 
 /* ---- engine, road load --------------------------------------------------------------------- */
@@ -256,7 +224,7 @@ static double base_rate(const vh_dlp_params_t *prm)
     lam = sqrt(prm->ks * inv_j);                                        /* shaft mode */
     l = prm->cs * inv_j;                                                /* shaft damper */
     lam = l > lam ? l : lam;
-    l = (prm->gov_kp + prm->fric1 + prm->fric0 / 5.0 + WE_CUT * (2.0 * CF_EQ9(0.0) + BLEND_A)) / prm->je;
+    l = (prm->gov_kp + prm->fric1 + prm->fric0 / 5.0 + WE_CUT * (2.0 * 1.874e-3 /* eq. 9: C_f(0) */ + BLEND_A)) / prm->je;
     lam = l > lam ? l : lam;                                            /* engine side */
     l = prm->mu_r * VH_DLP_GRAVITY / (prm->rt * prm->roll_w_eps);       /* rolling resistance at rest */
     return l > lam ? l : lam;
