@@ -269,13 +269,14 @@ int vh_dkf_step(vh_dkf_t *f, double u, const double z[VH_DKF_NZ], unsigned mask)
         }
         vh_mat_mul(ikh, pp, tmp, NX, NX, NX);
         vh_mat_mul_bt(tmp, ikh, f->p, NX, NX, NX);
-        for (i = 0; i < NX; ++i) {
-            for (j = 0; j < NX; ++j) {
-                double krk = 0.0;
-                for (l = 0; l < nz; ++l) {
-                    krk += kt[l * NX + i] * f->cfg.r[rows[l]] * kt[l * NX + j];
+        for (l = 0; l < nz; ++l) { /* + K R K^T, R diagonal: one outer product per row */
+            const double *kl = kt + l * NX;
+            const double rl = f->cfg.r[rows[l]];
+            for (i = 0; i < NX; ++i) {
+                const double rki = rl * kl[i];
+                for (j = 0; j < NX; ++j) {
+                    f->p[i * NX + j] += rki * kl[j];
                 }
-                f->p[i * NX + j] += krk;
             }
         }
         vh_mat_symmetrise(f->p, NX);
