@@ -565,4 +565,4 @@ def test_node_same_seed_same_frames():
 def test_default_noise_figures():
     cfg = ffi.new("vh_dls_config_t *")
     lib.vh_dls_config_default(cfg)
-    assert list(cfg.noise_std) == [0.3, 0.15, 0.15, 7.0, 1.0, 0.5]
+    assert list(cfg.noise_std) == [0.3, 0.15, 0.15, 7.8, 1.0, 0.5]
