@@ -1,0 +1,62 @@
+"""The console script: demo end to end on a short scenario, and clear errors for bad input."""
+import json
+import random
+
+import pytest
+
+from vehest_can.cli import main
+
+
+def short_scenario(tmp_path, text_extra=""):
+    p = tmp_path / "short.toml"
+    p.write_text(f"""
+name = "short"
+description = "1.5 s launch for the CLI test"
+duration_s = 1.5
+seed = 3
+[driver]
+gear = 2
+throttle = [[0.0, 0.0], [0.3, 0.0], [0.8, 0.5]]
+{text_extra}
+""")
+    return p
+
+
+@pytest.mark.multicast
+def test_demo_end_to_end(tmp_path, capsys):
+    out = tmp_path / "out"
+    channel = f"239.74.{random.randint(1, 254)}.{random.randint(1, 254)}"
+    assert main(["demo", str(short_scenario(tmp_path)), "-o", str(out), "-c", channel]) == 0
+    text = capsys.readouterr().out
+    assert "bus lockstep == in-process lockstep: identical" in text
+    assert "speeds+torque" in text and "6.7" in text and "28.5" in text
+    for name in ("torque.png", "error.png", "gain.png", "session.log"):
+        assert (out / "short" / name).stat().st_size > 1000
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics[0]["bus_equals_inprocess"] is True
+    assert {s["measurement_set"] for s in metrics[0]["sets"]} == {"speeds+torque", "speeds"}
+
+
+def test_bad_scenario_file_names_the_key(tmp_path, capsys):
+    bad = short_scenario(tmp_path, "[road]\nroughness_std_nm = -3\n")
+    assert main(["demo", str(bad), "-o", str(tmp_path / "o")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error:") and "road.roughness_std_nm" in err
+
+
+def test_missing_files_are_errors_not_tracebacks(tmp_path, capsys):
+    assert main(["replay", str(tmp_path / "nope.log")]) == 1
+    assert "no such log file" in capsys.readouterr().err
+    garbage = tmp_path / "garbage.log"
+    garbage.write_text("this is not a candump log\n")
+    assert main(["replay", str(garbage)]) == 1
+    assert "error:" in capsys.readouterr().err
+
+
+def test_unknown_verb_and_flags(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["fly"])
+    assert e.value.code == 2
+    with pytest.raises(SystemExit) as e:
+        main(["daemon", "--mode", "warp"])
+    assert e.value.code == 2
