@@ -110,8 +110,8 @@ def _realtime(args, config, sc, out: Path) -> dict:
     drive = drive_from_scenario(sc, duration_s=args.realtime)
     stats_file = out / "realtime_daemon.json"
     stats_file.unlink(missing_ok=True)
-    ecu_proc = subprocess.Popen(_daemon_cmd(args, "realtime", ["--duration", str(args.realtime + 3),
-                                                               "--stats", str(stats_file)]),
+    # no --duration: the daemon runs until the car is done and SIGTERM stops it (clean shutdown)
+    ecu_proc = subprocess.Popen(_daemon_cmd(args, "realtime", ["--stats", str(stats_file)]),
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     time.sleep(1.0)  # let the daemon open its bus
     bus = busmod.open_bus(config)
