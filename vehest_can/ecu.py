@@ -56,6 +56,15 @@ class Ecu:
         n = lib.vh_ecu_step(self.c, self._tx, lib.VH_ECU_MAX_TX)
         return [to_message(self._tx[i], timestamp) for i in range(n)]
 
+    def set_camber_calibrations(self, calibrations: dict) -> None:
+        """Load inspection-device calibrations ({wheel: camber.Calibration}, e.g. from
+        camber.load_calibrations); they persist across ECU resets."""
+        from .camber import WHEELS
+
+        for wheel, cal in calibrations.items():
+            check(lib.vh_ecu_set_camber_calibration(self.c, WHEELS.index(wheel), cal._to_c()),
+                  f"camber calibration of {wheel}")
+
     def note_deadline_miss(self, n: int = 1) -> None:
         lib.vh_ecu_note_deadline_miss(self.c, n)
 

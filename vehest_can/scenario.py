@@ -68,7 +68,7 @@ _TOP = {
     "initial_speed_kmh": _Num(0.0, 250.0),
 }
 _TOP_REQUIRED = ("name", "duration_s")
-_TABLES = ("driver", "road", "vehicle", "sensors")
+_TABLES = ("driver", "road", "vehicle", "sensors", "camber")
 
 _DRIVER = {"gear": _Num(0, 5, integer=True)}  # plus "throttle", a profile
 _ROAD = {
@@ -102,6 +102,25 @@ _SENSORS = {
     "engine_speed_std_rad_s": ((4,), _Num(0.0, 100.0)),
     "turbine_speed_std_rad_s": ((5,), _Num(0.0, 100.0)),
 }
+# [camber]: the four wheel-mounted inspection devices of seed 002 (FL, FR, RL, RR)
+_CAMBER_POSES = {"wheel": 0, "x_down": 1, "z_down": 2}
+_CAMBER = {
+    "theta_deg": _Num(-15.0, 15.0),    # true camber per wheel
+    "psi_deg": _Num(-45.0, 45.0),      # device misalignment yaw per wheel
+    "chip_deg": _Num(-10.0, 10.0),     # chip rotation in the device about x, y, z, per wheel
+    "lsb_mg": _Num(0.1, 100.0, lo_open=False),
+    "noise_mg": _Num(0.0, 100.0),
+}
+
+
+@dataclass(frozen=True)
+class Camber:
+    theta_deg: tuple[float, float, float, float]
+    psi_deg: tuple[float, float, float, float]
+    chip_deg: tuple[tuple[float, float, float], ...]
+    lsb_mg: float = 4.0
+    noise_mg: float = 4.0
+    pose: str = "wheel"
 
 
 @dataclass(frozen=True)
@@ -119,6 +138,7 @@ class Scenario:
     road_bandwidth_hz: float
     vehicle: tuple[tuple[str, Any], ...] = ()  # [vehicle] overrides as written (TOML key, value)
     sensors: tuple[tuple[str, float], ...] = ()  # every [sensors] key, defaults filled in
+    camber: Camber | None = None  # [camber]: inspection devices clamped on
     path: Path | None = None
 
     @property
@@ -164,6 +184,21 @@ class Scenario:
                 cfg.noise_std[ch] = value
         cfg.seed = self.node_seed
         return cfg
+
+    def camber_configs(self, ffi, lib):
+        """(``vh_cambernode_config_t[4]``, pose) for the inspection devices, or None."""
+        if self.camber is None:
+            return None
+        cfgs = ffi.new("vh_cambernode_config_t[4]")
+        for i in range(4):
+            lib.vh_cambernode_config_default(ffi.addressof(cfgs[i]))
+            cfgs[i].theta_rad = np.radians(self.camber.theta_deg[i])
+            cfgs[i].psi_rad = np.radians(self.camber.psi_deg[i])
+            cfgs[i].chip_rad = [float(np.radians(a)) for a in self.camber.chip_deg[i]]
+            cfgs[i].lsb_g = [self.camber.lsb_mg * 1e-3] * 3
+            cfgs[i].noise_std_g = self.camber.noise_mg * 1e-3
+            cfgs[i].seed = (self.node_seed + 7919 * (i + 1)) % 2**64 or 1
+        return cfgs, _CAMBER_POSES[self.camber.pose]
 
     def make_plant(self, ffi, lib):
         """An initialised ``vh_dlp_t *`` at the initial speed in the scenario's gear."""
@@ -339,10 +374,12 @@ def scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> Scenario:
     sensors = tuple((k, c.number(sensors_doc[k], f"sensors.{k}", spec) if k in sensors_doc
                      else cfg.noise_std[chans[0]]) for k, (chans, spec) in _SENSORS.items())
 
+    camber = _camber(c, doc["camber"]) if "camber" in doc else None
+
     sc = Scenario(name=name, description=description, duration_s=duration, seed=seed,
                   initial_speed_kmh=v0, gear=gear, throttle=throttle,
                   road_std_nm=road_v["roughness_std_nm"], road_bandwidth_hz=road_v["roughness_bandwidth_hz"],
-                  vehicle=tuple(sorted(vehicle)), sensors=sensors, path=Path(path))
+                  vehicle=tuple(sorted(vehicle)), sensors=sensors, camber=camber, path=Path(path))
     probe = ffi.new("vh_dlp_t *")
     if lib.vh_dlp_init(probe, sc.plant_params(ffi, lib), sc.seed) != lib.VH_OK:
         c.fail("vehicle", "the plant refuses this combination of parameters (a mode too fast for "
@@ -350,5 +387,37 @@ def scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> Scenario:
     return sc
 
 
+def _camber(c, doc) -> Camber:
+    t = c.table(doc, "camber", set(_CAMBER) | {"pose"})
+    for key in ("theta_deg", "psi_deg"):
+        if key not in t:
+            c.fail(f"camber.{key}", "missing (required: four values, FL FR RL RR)")
+
+    def four(key, spec, width=None):
+        v = t[key]
+        if not isinstance(v, list) or len(v) != 4:
+            c.fail(f"camber.{key}", "must be a list of 4 entries (FL, FR, RL, RR)")
+        if width is None:
+            return tuple(c.number(x, f"camber.{key}[{i}]", spec) for i, x in enumerate(v))
+        out = []
+        for i, row in enumerate(v):
+            if not isinstance(row, list) or len(row) != width:
+                c.fail(f"camber.{key}[{i}]", f"must be a list of {width} angles (about x, y, z)")
+            out.append(tuple(c.number(x, f"camber.{key}[{i}][{j}]", spec) for j, x in enumerate(row)))
+        return tuple(out)
+
+    pose = c.string(t.get("pose", "wheel"), "camber.pose")
+    if pose not in _CAMBER_POSES:
+        c.fail("camber.pose", f"{pose!r}: expected one of {', '.join(_CAMBER_POSES)}")
+    return Camber(
+        theta_deg=four("theta_deg", _CAMBER["theta_deg"]),
+        psi_deg=four("psi_deg", _CAMBER["psi_deg"]),
+        chip_deg=four("chip_deg", _CAMBER["chip_deg"], 3) if "chip_deg" in t else ((0.0, 0.0, 0.0),) * 4,
+        lsb_mg=c.number(t.get("lsb_mg", 4.0), "camber.lsb_mg", _CAMBER["lsb_mg"]),
+        noise_mg=c.number(t.get("noise_mg", 4.0), "camber.noise_mg", _CAMBER["noise_mg"]),
+        pose=pose,
+    )
+
+
 __all__ = ["DT", "Scenario", "load_scenario", "scenario_from_dict", "scenario_dir", "scenario_path",
-           "list_scenarios", "truth_dtype", "truth_to_numpy"]
+           "list_scenarios", "truth_dtype", "truth_to_numpy", "Camber"]

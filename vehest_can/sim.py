@@ -43,6 +43,8 @@ def struct_dtype(ctype: str) -> np.dtype:
 
 
 TRUTH_DTYPE = struct_dtype("vh_dlp_truth_t")
+#: DBC nodes the simulated car plays (everything but the ECU)
+CAR_NODES = frozenset({"DLS", "CIS", "SIM"})
 
 
 @dataclass
@@ -56,6 +58,7 @@ class Drive:
     plant_seed: int
     node_config: object           # vh_dls_config_t *
     initial_speed: float = 0.0    # m/s; > 0 starts rolling in gear[0]
+    camber: tuple | None = None   # (vh_cambernode_config_t[4], pose): inspection devices on
 
     @property
     def n(self) -> int:
@@ -81,7 +84,7 @@ def drive_from_scenario(scenario, duration_s: float | None = None) -> Drive:
     """A scenario file's drive. A longer duration repeats the scenario's driver profile."""
     duration = scenario.duration_s if duration_s is None else duration_s
     n = int(round(duration / TICK_S))
-    t = (np.arange(n) * TICK_S) % scenario.duration_s
+    t = ((np.arange(n) + 1) * TICK_S) % scenario.duration_s  # the scenario's times(), repeated
     return Drive(
         name=scenario.name,
         throttle=np.asarray(scenario.throttle_at(t), dtype=np.float64),
@@ -90,6 +93,7 @@ def drive_from_scenario(scenario, duration_s: float | None = None) -> Drive:
         plant_seed=scenario.seed,
         node_config=scenario.node_config(ffi, lib),
         initial_speed=scenario.initial_speed_kmh / 3.6,
+        camber=scenario.camber_configs(ffi, lib),
     )
 
 
@@ -100,6 +104,8 @@ class Car:
         self.drive = drive
         self.c = ffi.new("vh_dlsim_t *")
         check(lib.vh_dlsim_init(self.c, drive.plant_params, drive.plant_seed, drive.node_config), "car set-up")
+        if drive.camber is not None:
+            check(lib.vh_dlsim_set_camber(self.c, *drive.camber), "camber inspection devices")
         self._out = ffi.new("vh_frame_t[]", lib.VH_DLSIM_MAX_TX)
         self.reset()
 
@@ -156,7 +162,7 @@ class SimMaster:
         self.stop_event = threading.Event()
         self._frames: list = []
         self._ticks: list[int] = []
-        self._own = sent_by({"DLS", "SIM"})
+        self._own = sent_by(CAR_NODES)
 
     def _record(self, msg: can.Message, tick: int) -> None:
         self._frames.append(msg)

@@ -12,6 +12,7 @@
 #ifndef VH_ECU_H
 #define VH_ECU_H
 
+#include "vh_camber.h"
 #include "vh_dkf.h"
 #include "vh_e2e.h"
 #include "vh_types.h"
@@ -20,12 +21,16 @@
 enum { VH_ECU_DKF_T = 0, VH_ECU_DKF_S = 1, VH_ECU_N_DKF = 2 };
 #define VH_ECU_MAX_TX 4
 #define VH_ECU_N_GEARS 6 /* index = GearEngaged 1..5; 0 = neutral */
+#define VH_ECU_N_WHEELS 4 /* camber inspection devices: FL, FR, RL, RR */
+#define VH_ECU_CAMBER_NO_RESULT 7u /* CamberReason SNA: no window completed yet */
 
 typedef struct {
     vh_dkf_config_t dkf[VH_ECU_N_DKF]; /* ri is taken from gear_ratio[gear] at run time */
     double gear_ratio[VH_ECU_N_GEARS]; /* R_i per gear (w_o = R_i w_t); 0 = gear not usable */
     double we_min;                     /* engine speed below which eq. 9 is not used [rad/s] */
     uint16_t status_period_ticks;      /* VEHEST_Status every N ticks (20 = 10 ms) */
+    vh_camber_config_t camber;         /* inspection window and acceptance (seed 002) */
+    double camber_still_ww;            /* |wheel speed| below which the car counts as stationary [rad/s] */
 } vh_ecu_config_t;
 
 /* Saturating fault counters (uint16, as on the bus). */
@@ -42,27 +47,43 @@ typedef struct {
     uint16_t deadline_miss;
 } vh_ecu_counters_t;
 
+/* Reception state of one cyclic message: E2E, freshness, timeout. */
+typedef struct {
+    vh_e2e_rx_t e2e;
+    uint16_t age;      /* ticks since the last good frame */
+    uint8_t fresh;     /* a good frame arrived since the last tick */
+    uint8_t timed_out; /* no good frame for the message's timeout (set at start) */
+} vh_ecu_rxmsg_t;
+
 /* Last good driveline sensor sample (physical units) with per-signal validity. */
 typedef struct {
     double wo, wwl, wwr, to, we, wt;
     uint8_t valid;   /* bit i: signal i valid (order as above) */
     uint8_t gear;    /* 0..14, 15 = SNA */
-    uint8_t fresh;   /* a good frame arrived since the last tick */
-    uint16_t age;    /* ticks since the last good frame */
-    uint8_t timed_out;
-    vh_e2e_rx_t e2e;
+    vh_ecu_rxmsg_t rx;
 } vh_ecu_dls_t;
+
+/* Camber inspection: last raw sample per device and the running windows. */
+typedef struct {
+    int16_t raw[VH_ECU_N_WHEELS][3];
+    uint8_t present;  /* bit i: device i sampling */
+    vh_ecu_rxmsg_t rx;
+    vh_camber_t cmb[VH_ECU_N_WHEELS];
+    vh_camber_result_t last[VH_ECU_N_WHEELS];
+    uint8_t have[VH_ECU_N_WHEELS]; /* a window completed since reset */
+} vh_ecu_cis_t;
 
 typedef struct {
     vh_ecu_config_t cfg;
     vh_dkf_t dkf[VH_ECU_N_DKF];
     vh_ecu_dls_t dls;
+    vh_ecu_cis_t cis;
     vh_ecu_counters_t cnt;
     double ti;        /* last turbine torque input (eq. 9) */
     uint8_t ti_valid;
     uint8_t gear;     /* gear the filters are discretised for */
     uint32_t tick;
-    uint8_t tx_counter[2]; /* E2E counters: DrivelineEst, Status */
+    uint8_t tx_counter[3]; /* E2E counters: DrivelineEst, Status, Camber */
 } vh_ecu_t;
 
 void vh_ecu_config_default(vh_ecu_config_t *cfg);
@@ -72,6 +93,9 @@ void vh_ecu_reset(vh_ecu_t *ecu);
 void vh_ecu_rx(vh_ecu_t *ecu, const vh_frame_t *frame);
 /* One 500 us tick. Writes up to cap frames to tx; returns how many (VH_ECU_MAX_TX is enough). */
 size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap);
+/* Load one device's calibration (seed 002 eq. 19); VH_EINVAL for a wheel index >= 4 or an invalid
+ * calibration (the wheel then reports NOT_CALIBRATED). Survives vh_ecu_reset. */
+int vh_ecu_set_camber_calibration(vh_ecu_t *ecu, unsigned wheel, const vh_camber_cal_t *cal);
 /* The daemon's wall-clock scheduler reports ticks that started late; published in VEHEST_Status. */
 void vh_ecu_note_deadline_miss(vh_ecu_t *ecu, uint32_t n);
 

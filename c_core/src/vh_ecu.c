@@ -1,5 +1,6 @@
 /* vh_ecu.c - the ECU tick: RX checks, driveline filters, TX. See vh_ecu.h. */
 #include <math.h>
+#include <stdbool.h>
 #include <string.h>
 
 #include "vh_ecu.h"
@@ -9,6 +10,10 @@
 /* Signal order of vh_ecu_dls_t.valid */
 enum { SIG_WO = 0, SIG_WWL, SIG_WWR, SIG_TO, SIG_WE, SIG_WT, N_SIG };
 #define GEAR_SNA 15u
+/* RX timeouts in ticks: RxTimeoutCycles of the DBC times the cycle time */
+#define DLS_TIMEOUT_TICKS (VH_PT_DLS_SENSORS_RX_TIMEOUT_CYCLES * (VH_PT_DLS_SENSORS_CYCLE_TIME_US / VH_TICK_US))
+#define CIS_TIMEOUT_TICKS (VH_PT_CIS_ACCEL_RX_TIMEOUT_CYCLES * (VH_PT_CIS_ACCEL_CYCLE_TIME_US / VH_TICK_US))
+#define CAMBER_PERIOD_TICKS (VH_PT_VEHEST_CAMBER_CYCLE_TIME_US / VH_TICK_US)
 
 static void inc(uint16_t *c)
 {
@@ -30,13 +35,18 @@ void vh_ecu_config_default(vh_ecu_config_t *cfg)
     cfg->gear_ratio[5] = 1.18;
     cfg->we_min = 40.0; /* well below idle (~80 rad/s): an engine this slow is stalling */
     cfg->status_period_ticks = (uint16_t)(VH_PT_VEHEST_STATUS_CYCLE_TIME_US / VH_TICK_US);
+    vh_camber_config_default(&cfg->camber);
+    cfg->camber_still_ww = 0.5; /* 0.15 m/s at the wheel: parked, not rolling */
 }
 
 int vh_ecu_init(vh_ecu_t *ecu, const vh_ecu_config_t *cfg)
 {
     int i;
     vh_dkf_t probe;
-    if (cfg->status_period_ticks == 0u || !(cfg->we_min > 0.0) || !isfinite(cfg->we_min)) {
+    vh_camber_t cprobe;
+    if (cfg->status_period_ticks == 0u || !(cfg->we_min > 0.0) || !isfinite(cfg->we_min) ||
+        !(cfg->camber_still_ww >= 0.0) || !isfinite(cfg->camber_still_ww) ||
+        vh_camber_init(&cprobe, &cfg->camber, NULL) != VH_OK) {
         return VH_EINVAL;
     }
     for (i = 1; i < VH_ECU_N_GEARS; ++i) {
@@ -55,26 +65,51 @@ int vh_ecu_init(vh_ecu_t *ecu, const vh_ecu_config_t *cfg)
     return VH_OK;
 }
 
+static void rxmsg_init(vh_ecu_rxmsg_t *m)
+{
+    vh_e2e_rx_init(&m->e2e);
+    m->age = 0u;
+    m->fresh = 0u;
+    m->timed_out = 1u; /* nothing received yet: not a fault, so not counted */
+}
+
 void vh_ecu_reset(vh_ecu_t *ecu)
 {
     int i;
     const vh_ecu_config_t cfg = ecu->cfg;
+    vh_camber_cal_t cal[VH_ECU_N_WHEELS]; /* calibrations are data, not state: they survive */
+    for (i = 0; i < VH_ECU_N_WHEELS; ++i) {
+        cal[i] = ecu->cis.cmb[i].cal;
+    }
     memset(ecu, 0, sizeof *ecu);
     ecu->cfg = cfg;
     for (i = 0; i < VH_ECU_N_DKF; ++i) {
         (void)vh_dkf_init(&ecu->dkf[i], &cfg.dkf[i]); /* validated in vh_ecu_init */
     }
+    for (i = 0; i < VH_ECU_N_WHEELS; ++i) {
+        (void)vh_camber_init(&ecu->cis.cmb[i], &cfg.camber, cal[i].valid ? &cal[i] : NULL);
+    }
     ecu->gear = 0u;
     ecu->dls.gear = GEAR_SNA;
-    ecu->dls.timed_out = 1u; /* nothing received yet */
-    vh_e2e_rx_init(&ecu->dls.e2e);
+    rxmsg_init(&ecu->dls.rx);
+    rxmsg_init(&ecu->cis.rx);
+}
+
+int vh_ecu_set_camber_calibration(vh_ecu_t *ecu, unsigned wheel, const vh_camber_cal_t *cal)
+{
+    if (wheel >= VH_ECU_N_WHEELS) {
+        return VH_EINVAL;
+    }
+    ecu->cis.have[wheel] = 0u;
+    return vh_camber_set_calibration(&ecu->cis.cmb[wheel], cal);
 }
 
 static int known_id(uint32_t id)
 {
     return id == VH_PT_DLS_SENSORS_FRAME_ID || id == VH_PT_VEHEST_DRIVELINE_EST_FRAME_ID ||
            id == VH_PT_VEHEST_STATUS_FRAME_ID || id == VH_PT_SIM_SYNC_FRAME_ID ||
-           id == VH_PT_VEHEST_SYNC_ACK_FRAME_ID;
+           id == VH_PT_VEHEST_SYNC_ACK_FRAME_ID || id == VH_PT_CIS_ACCEL_FRAME_ID ||
+           id == VH_PT_VEHEST_CAMBER_FRAME_ID;
 }
 
 /* One speed/torque signal: raw SNA value or a cleared qualifier makes it invalid. */
@@ -90,15 +125,14 @@ static int take(vh_ecu_t *ecu, int ok, double value, double *dst, int sig)
     return 1;
 }
 
-static void rx_dls(vh_ecu_t *ecu, const vh_frame_t *f)
+/* Length and E2E checks of one received frame, counted; 1 if its data may be used. */
+static int rx_accept(vh_ecu_t *ecu, vh_ecu_rxmsg_t *m, const vh_frame_t *f, size_t len, uint16_t data_id)
 {
-    struct vh_pt_dls_sensors_t m;
-    vh_ecu_dls_t *d = &ecu->dls;
-    if (f->len != VH_PT_DLS_SENSORS_LENGTH || (f->flags & VH_FRAME_EXT) != 0u) {
+    if (f->len != len) {
         inc(&ecu->cnt.dlc_error);
-        return;
+        return 0;
     }
-    switch (vh_e2e_p01_check(&d->e2e, f->data, f->len, VH_PT_DLS_SENSORS_E2E_DATA_ID)) {
+    switch (vh_e2e_p01_check(&m->e2e, f->data, f->len, data_id)) {
     case VH_E2E_OK:
     case VH_E2E_INITIAL:
         break;
@@ -107,11 +141,56 @@ static void rx_dls(vh_ecu_t *ecu, const vh_frame_t *f)
         break;
     case VH_E2E_REPEATED:
         inc(&ecu->cnt.counter_repeat);
-        return;
+        return 0;
     case VH_E2E_WRONG_CRC:
     case VH_E2E_BAD_LEN:
     default:
         inc(&ecu->cnt.crc_error);
+        return 0;
+    }
+    m->fresh = 1u;
+    return 1;
+}
+
+/* Once per tick: age, timeout (counted on entry), cleared by a fresh frame. */
+static void rx_tick(vh_ecu_t *ecu, vh_ecu_rxmsg_t *m, unsigned timeout_ticks)
+{
+    if (m->fresh) {
+        m->age = 0u;
+        m->timed_out = 0u;
+    } else if (m->age < UINT16_MAX) {
+        ++m->age;
+    }
+    if (!m->timed_out && m->age >= timeout_ticks) {
+        m->timed_out = 1u;
+        inc(&ecu->cnt.timeout);
+    }
+}
+
+static void rx_cis(vh_ecu_t *ecu, const vh_frame_t *f)
+{
+    struct vh_pt_cis_accel_t m;
+    vh_ecu_cis_t *c = &ecu->cis;
+    if (!rx_accept(ecu, &c->rx, f, VH_PT_CIS_ACCEL_LENGTH, VH_PT_CIS_ACCEL_E2E_DATA_ID)) {
+        return;
+    }
+    (void)vh_pt_cis_accel_unpack(&m, f->data, f->len);
+    c->raw[0][0] = m.cis_acc_x_fl; c->raw[0][1] = m.cis_acc_y_fl; c->raw[0][2] = m.cis_acc_z_fl;
+    c->raw[1][0] = m.cis_acc_x_fr; c->raw[1][1] = m.cis_acc_y_fr; c->raw[1][2] = m.cis_acc_z_fr;
+    c->raw[2][0] = m.cis_acc_x_rl; c->raw[2][1] = m.cis_acc_y_rl; c->raw[2][2] = m.cis_acc_z_rl;
+    c->raw[3][0] = m.cis_acc_x_rr; c->raw[3][1] = m.cis_acc_y_rr; c->raw[3][2] = m.cis_acc_z_rr;
+    c->present = m.cis_present;
+}
+
+static void rx_dls(vh_ecu_t *ecu, const vh_frame_t *f)
+{
+    struct vh_pt_dls_sensors_t m;
+    vh_ecu_dls_t *d = &ecu->dls;
+    if ((f->flags & VH_FRAME_EXT) != 0u) {
+        inc(&ecu->cnt.dlc_error);
+        return;
+    }
+    if (!rx_accept(ecu, &d->rx, f, VH_PT_DLS_SENSORS_LENGTH, VH_PT_DLS_SENSORS_E2E_DATA_ID)) {
         return;
     }
     (void)vh_pt_dls_sensors_unpack(&m, f->data, f->len);
@@ -136,13 +215,14 @@ static void rx_dls(vh_ecu_t *ecu, const vh_frame_t *f)
     } else {
         d->gear = m.gear_engaged;
     }
-    d->fresh = 1u;
 }
 
 void vh_ecu_rx(vh_ecu_t *ecu, const vh_frame_t *frame)
 {
     if (frame->id == VH_PT_DLS_SENSORS_FRAME_ID) {
         rx_dls(ecu, frame);
+    } else if (frame->id == VH_PT_CIS_ACCEL_FRAME_ID && (frame->flags & VH_FRAME_EXT) == 0u) {
+        rx_cis(ecu, frame);
     } else if (!known_id(frame->id)) {
         inc(&ecu->cnt.unknown_id);
     }
@@ -166,22 +246,14 @@ static uint16_t enc_u16(double v, double scale)
 static unsigned update_inputs(vh_ecu_t *ecu)
 {
     vh_ecu_dls_t *d = &ecu->dls;
+    const int fresh = d->rx.fresh;
     unsigned mask = 0u;
     int i;
-    if (d->fresh) {
-        d->age = 0u;
-        d->timed_out = 0u;
-    } else if (d->age < UINT16_MAX) {
-        ++d->age;
-    }
-    if (!d->timed_out && d->age >= VH_PT_DLS_SENSORS_RX_TIMEOUT_CYCLES) {
-        d->timed_out = 1u;
-        inc(&ecu->cnt.timeout);
-    }
-    if (d->timed_out) {
+    rx_tick(ecu, &d->rx, DLS_TIMEOUT_TICKS);
+    if (d->rx.timed_out) {
         d->valid = 0u;
     }
-    if (d->gear != GEAR_SNA && d->gear != ecu->gear && !d->timed_out) {
+    if (d->gear != GEAR_SNA && d->gear != ecu->gear && !d->rx.timed_out) {
         if (d->gear > 0u) {
             for (i = 0; i < VH_ECU_N_DKF; ++i) {
                 (void)vh_dkf_set_ratio(&ecu->dkf[i], ecu->cfg.gear_ratio[d->gear]);
@@ -190,7 +262,7 @@ static unsigned update_inputs(vh_ecu_t *ecu)
         ecu->gear = d->gear;
     }
     /* turbine torque reaches the output only with a gear engaged; neutral gives u = 0 */
-    if (d->timed_out || d->gear == GEAR_SNA) {
+    if (d->rx.timed_out || d->gear == GEAR_SNA) {
         ecu->ti_valid = 0u;
     } else if (d->gear == 0u) {
         ecu->ti = 0.0;
@@ -218,10 +290,10 @@ static unsigned update_inputs(vh_ecu_t *ecu)
     if (d->valid & (1u << SIG_TO)) {
         mask |= VH_DKF_Z_TO;
     }
-    if (!d->fresh) { /* measurement update only with samples new since the last tick */
+    if (!fresh) { /* measurement update only with samples new since the last tick */
         mask |= VH_DKF_STALE;
     }
-    d->fresh = 0u;
+    d->rx.fresh = 0u;
     return mask;
 }
 
@@ -234,6 +306,61 @@ static size_t emit(vh_frame_t *tx, size_t n, size_t cap, uint32_t id, size_t len
     tx[n].len = (uint8_t)len;
     tx[n].flags = fd ? (uint8_t)(VH_FRAME_FD | VH_FRAME_BRS) : 0u;
     return n + 1u;
+}
+
+/* One wheel's result in VEHEST_Camber units; no completed window yet: reason SNA. */
+static void camber_fields(const vh_ecu_cis_t *c, int w, int16_t *theta, int16_t *psi, uint16_t *bound, uint8_t *reason)
+{
+    const double rad2deg = 57.29577951308232;
+    if (!c->have[w]) {
+        *reason = VH_ECU_CAMBER_NO_RESULT;
+        return;
+    }
+    *reason = c->last[w].reason;
+    if (c->last[w].reason == VH_CAMBER_OK) {
+        *theta = enc_s16(c->last[w].theta_rad * rad2deg, 0.001);
+        *psi = enc_s16(c->last[w].psi_rad * rad2deg, 0.01);
+        *bound = enc_u16(c->last[w].bound_rad * rad2deg, 0.0001);
+    }
+}
+
+/* Camber inspection (seed 002): a window step per device on every fresh CIS_Accel frame, with
+ * "stationary" from the driveline wheel speeds; VEHEST_Camber every 100 ms while devices talk. */
+static size_t camber_task(vh_ecu_t *ecu, vh_frame_t *tx, size_t n, size_t cap)
+{
+    vh_ecu_cis_t *c = &ecu->cis;
+    const vh_ecu_dls_t *d = &ecu->dls;
+    const int fresh = c->rx.fresh;
+    struct vh_pt_vehest_camber_t m;
+    int w;
+    rx_tick(ecu, &c->rx, CIS_TIMEOUT_TICKS);
+    if (fresh) {
+        const double lim = ecu->cfg.camber_still_ww;
+        const bool still = !d->rx.timed_out && (d->valid & (1u << SIG_WWL)) && (d->valid & (1u << SIG_WWR)) &&
+                           fabs(d->wwl) < lim && fabs(d->wwr) < lim;
+        for (w = 0; w < VH_ECU_N_WHEELS; ++w) {
+            if (c->present & (1u << w)) {
+                vh_camber_result_t r;
+                if (vh_camber_step(&c->cmb[w], c->raw[w], still, &r)) {
+                    c->last[w] = r;
+                    c->have[w] = 1u;
+                }
+            }
+        }
+        c->rx.fresh = 0u;
+    }
+    if (c->rx.timed_out || ecu->tick % CAMBER_PERIOD_TICKS != 0u || n >= cap) {
+        return n;
+    }
+    memset(&m, 0, sizeof m);
+    camber_fields(c, 0, &m.camber_fl, &m.misalign_fl, &m.camber_bound_fl, &m.camber_reason_fl);
+    camber_fields(c, 1, &m.camber_fr, &m.misalign_fr, &m.camber_bound_fr, &m.camber_reason_fr);
+    camber_fields(c, 2, &m.camber_rl, &m.misalign_rl, &m.camber_bound_rl, &m.camber_reason_rl);
+    camber_fields(c, 3, &m.camber_rr, &m.misalign_rr, &m.camber_bound_rr, &m.camber_reason_rr);
+    memset(tx[n].data, 0, sizeof tx[n].data);
+    (void)vh_pt_vehest_camber_pack(tx[n].data, &m, VH_PT_VEHEST_CAMBER_LENGTH);
+    vh_e2e_p01_protect(tx[n].data, VH_PT_VEHEST_CAMBER_LENGTH, VH_PT_VEHEST_CAMBER_E2E_DATA_ID, &ecu->tx_counter[2]);
+    return emit(tx, n, cap, VH_PT_VEHEST_CAMBER_FRAME_ID, VH_PT_VEHEST_CAMBER_LENGTH, VH_PT_VEHEST_CAMBER_IS_FD);
 }
 
 size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap)
@@ -289,7 +416,7 @@ size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap)
         st.cnt_input_invalid = ecu->cnt.input_invalid;
         st.cnt_filter_reset = ecu->cnt.filter_reset;
         st.cnt_deadline_miss = ecu->cnt.deadline_miss;
-        st.rx_fault_active = (uint8_t)((d->timed_out ? 1u : 0u) |
+        st.rx_fault_active = (uint8_t)((d->rx.timed_out ? 1u : 0u) |
                                        (((d->valid & 0x3Fu) != 0x3Fu) ? 2u : 0u) | (ecu->ti_valid ? 0u : 4u));
         memset(tx[n].data, 0, sizeof tx[n].data);
         (void)vh_pt_vehest_status_pack(tx[n].data, &st, VH_PT_VEHEST_STATUS_LENGTH);
@@ -297,6 +424,7 @@ size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap)
                            &ecu->tx_counter[1]);
         n = emit(tx, n, cap, VH_PT_VEHEST_STATUS_FRAME_ID, VH_PT_VEHEST_STATUS_LENGTH, VH_PT_VEHEST_STATUS_IS_FD);
     }
+    n = camber_task(ecu, tx, n, cap);
     ++ecu->tick;
     return n;
 }

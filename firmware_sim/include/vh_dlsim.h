@@ -8,6 +8,7 @@
 #ifndef VH_DLSIM_H
 #define VH_DLSIM_H
 
+#include "vh_cambernode.h"
 #include "vh_dlplant.h"
 #include "vh_dlsnode.h"
 #include "vh_ecu.h"
@@ -15,13 +16,22 @@
 
 #define VH_DLSIM_MAX_TX 2
 
+#define VH_DLSIM_N_CIS 4 /* camber inspection devices FL, FR, RL, RR */
+
 typedef struct {
     vh_dlp_t plant;
     vh_dls_t node;
+    vh_cambernode_t cis[VH_DLSIM_N_CIS];
+    uint8_t cis_on;      /* devices clamped on: CIS_Accel every 10 ms */
+    uint8_t cis_counter; /* E2E alive counter of CIS_Accel */
+    uint32_t ticks;      /* since reset */
 } vh_dlsim_t;
 
 int vh_dlsim_init(vh_dlsim_t *sim, const vh_dlp_params_t *prm, uint64_t plant_seed, const vh_dls_config_t *node);
 void vh_dlsim_reset(vh_dlsim_t *sim);
+/* Clamp the four camber inspection devices on (seed 002), in a fixture pose
+ * (vh_cambernode_pose_t); NULL switches them off. VH_EINVAL for a bad config (nothing changed). */
+int vh_dlsim_set_camber(vh_dlsim_t *sim, const vh_cambernode_config_t cfg[VH_DLSIM_N_CIS], int pose);
 /* One tick of the car with the driver's throttle and gear; returns the frames written to out. */
 size_t vh_dlsim_tick(vh_dlsim_t *sim, double throttle, int gear, vh_frame_t *out, size_t cap);
 

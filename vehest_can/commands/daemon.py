@@ -10,7 +10,9 @@ from pathlib import Path
 import can
 
 from .. import bus as busmod
+from ..camber import load_calibrations
 from ..daemon import EcuDaemon
+from ..ecu import Ecu
 from ..errors import ConfigError
 
 
@@ -22,6 +24,8 @@ def add_subparser(subparsers) -> None:
     p.add_argument("--log", metavar="FILE", help="log every frame (candump -L for .log; any python-can format)")
     p.add_argument("--duration", type=float, metavar="S", help="realtime: stop after S seconds")
     p.add_argument("--exit-on-end", action="store_true", help="lockstep: stop when the simulator sends END")
+    p.add_argument("--camber-cal", metavar="FILE",
+                   help="camber inspection calibration file (written by `vehest-can camber calibrate`)")
     p.add_argument("--stats", metavar="FILE", help="write the run's statistics as JSON on exit")
     p.add_argument("--idle-timeout", type=float, metavar="S", help="lockstep: stop after S seconds without a frame")
     busmod.add_arguments(p)
@@ -31,10 +35,13 @@ def add_subparser(subparsers) -> None:
 def run(args) -> int:
     if args.duration is not None and args.duration <= 0:
         raise ConfigError("--duration must be positive")
+    ecu = Ecu()
+    if args.camber_cal:
+        ecu.set_camber_calibrations(load_calibrations(args.camber_cal))
     config = busmod.bus_config(args)
     bus = busmod.open_bus(config)
     writer = can.Logger(args.log) if args.log else None
-    daemon = EcuDaemon(bus, log_writer=writer,
+    daemon = EcuDaemon(bus, ecu, log_writer=writer,
                        log_channel=config.get("channel") if config["interface"] == "socketcan" else "vcan0")
 
     def stop(signum, _frame):

@@ -13,8 +13,13 @@ from pathlib import Path
 import can
 import numpy as np
 
+from dataclasses import replace
+
 from .. import bus as busmod
-from .. import report
+from .. import inspection, report
+from ..camber import WHEELS, Calibration, load_calibrations, save_calibrations
+from ..ecu import Ecu
+from ..replay import read_log
 from ..errors import VehestError
 from ..progress import Progress
 from ..scenario import load_scenario, scenario_dir
@@ -64,7 +69,13 @@ def run(args) -> int:
     config = busmod.bus_config(args)
     print(f"bus: {config['interface']} {config.get('channel')}; ECU daemon in its own process; output in {out}/")
 
-    ecu_proc = subprocess.Popen(_daemon_cmd(args, "lockstep", ["--idle-timeout", "60"]),
+    camber_args, cals = [], {}
+    camber_sc = next((sc for sc in scenarios if sc.camber is not None), None)
+    if camber_sc is not None:
+        cal_file = _calibrate_devices(camber_sc, out)
+        cals = load_calibrations(cal_file)
+        camber_args = ["--camber-cal", str(cal_file)]
+    ecu_proc = subprocess.Popen(_daemon_cmd(args, "lockstep", ["--idle-timeout", "60", *camber_args]),
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy())
     all_metrics = []
     try:
@@ -79,16 +90,21 @@ def run(args) -> int:
                     master = SimMaster(bus, drive, log_writer=writer, progress=progress)
                     session = master.run_lockstep(end=False)
                 progress.done(f"{session.stats['realtime_factor']:.1f}x real time over the bus")
-                local = run_inprocess(drive_from_scenario(sc))
+                local_ecu = Ecu()  # configured like the daemon
+                local_ecu.set_camber_calibrations(cals)
+                local = run_inprocess(drive_from_scenario(sc), local_ecu)
                 same = (len(local.frames) == len(session.frames)
                         and np.array_equal(local.frames, session.frames))
                 print(f"  bus lockstep == in-process lockstep: {'identical' if same else 'DIFFERENT'} "
                       f"({len(session.frames)} frames)")
-                metrics = report.driveline_metrics(session)
+                if sc.camber is not None:
+                    metrics = _camber_report(sc, session, sdir)
+                else:
+                    metrics = report.driveline_metrics(session)
+                    report.plots(session, sdir)
                 metrics["bus_equals_inprocess"] = bool(same)
                 metrics["inprocess_realtime_factor"] = local.stats["realtime_factor"]
                 all_metrics.append(metrics)
-                report.plots(session, sdir)
         finally:
             bus.shutdown()
     finally:
@@ -96,7 +112,8 @@ def run(args) -> int:
     print("ECU daemon: " + " | ".join(line for line in err.strip().splitlines()[-4:]))
 
     if args.realtime > 0:
-        all_metrics.append(_realtime(args, config, scenarios[0], out))
+        driveline = [sc for sc in scenarios if sc.camber is None]
+        all_metrics.append(_realtime(args, config, (driveline or scenarios)[0], out))
 
     report.write_metrics(all_metrics, out / "metrics.json")
     print()
@@ -104,6 +121,49 @@ def run(args) -> int:
     print(f"\nplots: {', '.join(str(p) for p in sorted(out.glob('*/*.png')))}")
     print(f"metrics: {out / 'metrics.json'}; candump logs: {', '.join(str(p) for p in sorted(out.glob('*/session.log')))}")
     return 0
+
+
+def _write_log(session, path: Path) -> Path:
+    with can.Logger(str(path)) as writer:
+        for m in session.messages():
+            writer.on_message_received(m)
+    return path
+
+
+def _calibrate_devices(sc, out: Path) -> Path:
+    """The calibration step of an inspection line: each device in its x-down and z-down fixture
+    (simulated in-process, logged as candump), then `camber calibrate` from those logs."""
+    sdir = out / sc.name
+    sdir.mkdir(parents=True, exist_ok=True)
+    captures = []
+    for pose in ("x_down", "z_down"):
+        drive = drive_from_scenario(replace(sc, camber=replace(sc.camber, pose=pose)), duration_s=6.0)
+        log = _write_log(run_inprocess(drive), sdir / f"calibration_{pose}.log")
+        captures.append(inspection.capture_messages(read_log(log)))
+    cals = inspection.calibrate_wheels(*captures)
+    path = out / "camber_cal.json"
+    save_calibrations(path, cals)
+    print(f"camber: calibrated {', '.join(cals)} from fixture captures -> {path}")
+    return path
+
+
+def _camber_report(sc, session, sdir: Path) -> dict:
+    """The ECU's published camber beside the truth, and what it would be without calibration."""
+    truth = {w: (sc.camber.theta_deg[i], sc.camber.psi_deg[i]) for i, w in enumerate(WHEELS)}
+    results = inspection.ecu_results(session.messages())
+    uncal_ecu = Ecu()
+    uncal_ecu.set_camber_calibrations({w: Calibration.identity(sc.camber.lsb_mg * 1e-3) for w in WHEELS})
+    uncal = inspection.ecu_results(run_inprocess(drive_from_scenario(sc), uncal_ecu).messages())
+    print(inspection.results_table(results, truth))
+    for w in WHEELS:
+        if uncal[w]["reason"] == "OK":
+            print(f"  {w} without calibration: {uncal[w]['camber_deg']:.3f}° "
+                  f"(error {uncal[w]['camber_deg'] - truth[w][0]:+.3f}°)")
+    inspection.bound_plot(sdir / "bound.png", sc.camber.lsb_mg)
+    print(f"  eq. 22 minimum worst-case error at camber 0: {inspection.min_worst_case_deg(sc.camber.lsb_mg):.4f}° "
+          f"(paper: 0.2292° at 4 mg)")
+    return {"scenario": sc.name, "mode": session.mode, "camber": results, "uncalibrated": uncal,
+            "truth_deg": {w: {"camber": t[0], "misalign": t[1]} for w, t in truth.items()}}
 
 
 def _realtime(args, config, sc, out: Path) -> dict:
