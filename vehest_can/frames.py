@@ -7,18 +7,13 @@ import can
 import cantools
 import numpy as np
 
-from .native import ffi, lib
+from .native import ffi, lib, struct_dtype
 from .paths import dbc_path
 
 TICK_S = lib.VH_TICK_US * 1e-6
 
 #: numpy view of ``vh_frame_t`` (for bulk frame buffers filled by C loops)
-FRAME_DTYPE = np.dtype({
-    "names": ["id", "len", "flags", "data"],
-    "formats": [np.uint32, np.uint8, np.uint8, (np.uint8, 64)],
-    "offsets": [ffi.offsetof("vh_frame_t", f) for f in ("id", "len", "flags", "data")],
-    "itemsize": ffi.sizeof("vh_frame_t"),
-})
+FRAME_DTYPE = struct_dtype("vh_frame_t")
 
 
 @lru_cache(maxsize=None)

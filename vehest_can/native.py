@@ -14,4 +14,22 @@ def check(status: int, what: str) -> int:
     return status
 
 
-__all__ = ["ffi", "lib", "check"]
+_KINDS = {"double": "f8", "float": "f4", "int": "i4", "int8_t": "i1", "uint8_t": "u1", "int16_t": "i2",
+          "uint16_t": "u2", "int32_t": "i4", "uint32_t": "u4", "int64_t": "i8", "uint64_t": "u8"}
+
+
+def struct_dtype(ctype: str):
+    """numpy dtype laid out exactly like a C struct of scalars and scalar arrays (offsets from
+    the compiler, through cffi), so C arrays of it can be viewed without copying."""
+    import numpy as np
+
+    fields = ffi.typeof(ctype).fields
+    formats = []
+    for _, f in fields:
+        t = f.type
+        formats.append((_KINDS[t.item.cname], t.length) if t.kind == "array" else _KINDS[t.cname])
+    return np.dtype({"names": [name for name, _ in fields], "formats": formats,
+                     "offsets": [f.offset for _, f in fields], "itemsize": ffi.sizeof(ctype)})
+
+
+__all__ = ["ffi", "lib", "check", "struct_dtype"]

@@ -232,13 +232,9 @@ class Scenario:
 
 def truth_dtype(ffi) -> np.dtype:
     """numpy dtype laid out like ``vh_dlp_truth_t`` (offsets from the compiler, via cffi)."""
-    fields = ffi.typeof("vh_dlp_truth_t").fields
-    return np.dtype({
-        "names": [name for name, _ in fields],
-        "formats": ["f8" if f.type.cname == "double" else "i4" for _, f in fields],
-        "offsets": [f.offset for _, f in fields],
-        "itemsize": ffi.sizeof("vh_dlp_truth_t"),
-    })
+    from .native import struct_dtype
+
+    return struct_dtype("vh_dlp_truth_t")
 
 
 def truth_to_numpy(ffi, truth_array, n: int) -> np.ndarray:

@@ -23,23 +23,10 @@ from . import lockstep
 from .ecu import Ecu
 from .errors import BusError, VehestError
 from .frames import FRAME_DTYPE, TICK_S, is_own, sent_by, to_frame, to_message
-from .native import check, ffi, lib
+from .native import check, ffi, lib, struct_dtype
 from .rt import Ticker, percentiles_us
 
 log = logging.getLogger(__name__)
-
-
-def struct_dtype(ctype: str) -> np.dtype:
-    """numpy dtype mirroring a C struct of scalars (names, types and offsets from cffi)."""
-    kinds = {"double": np.float64, "int": np.int32, "uint8_t": np.uint8, "uint32_t": np.uint32,
-             "uint64_t": np.uint64, "int32_t": np.int32}
-    fields = ffi.typeof(ctype).fields
-    return np.dtype({
-        "names": [name for name, _ in fields],
-        "formats": [kinds[f.type.cname] for _, f in fields],
-        "offsets": [f.offset for _, f in fields],
-        "itemsize": ffi.sizeof(ctype),
-    })
 
 
 TRUTH_DTYPE = struct_dtype("vh_dlp_truth_t")
