@@ -29,6 +29,8 @@ OPT_FLAGS = ["-O3"]
 SOURCE_DIRS = [ROOT / "c_core" / "src", ROOT / "firmware_sim" / "src"]
 INCLUDE_DIRS = [ROOT / "c_core" / "include", ROOT / "firmware_sim" / "include", GEN_DIR]
 CDEF_DIRS = [ROOT / "c_core" / "cdef", ROOT / "firmware_sim" / "cdef"]
+# Declarations other cdef files use by value go first (cffi needs a type before a struct embeds it).
+CDEF_FIRST = ("vh_e2e.h", "vh_rng.h")
 
 
 def firmware_sources(gen_dir: Path = GEN_DIR) -> list[Path]:
@@ -39,7 +41,9 @@ def firmware_sources(gen_dir: Path = GEN_DIR) -> list[Path]:
 
 
 def cdef_text(gen_dir: Path = GEN_DIR) -> str:
-    parts = [p.read_text() for d in CDEF_DIRS for p in sorted(d.glob("*.h"))]
+    files = sorted((p for d in CDEF_DIRS for p in d.glob("*.h")),
+                   key=lambda p: (p.name not in CDEF_FIRST, str(p.parent) != str(CDEF_DIRS[0]), p.name))
+    parts = [p.read_text() for p in files]
     parts += [p.read_text() for p in sorted(gen_dir.glob("*.cdef"))]
     return "\n".join(parts)
 

@@ -18,9 +18,7 @@ typedef struct {
     vh_cambernode_config_t cfg;
     double r_sa[9];
     double dist_s[3];
-    uint64_t rng;
-    double spare;
-    uint8_t has_spare;
+    vh_rng_t rng;
     uint8_t pose;
 } vh_cambernode_t;
 

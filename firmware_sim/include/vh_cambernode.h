@@ -10,12 +10,13 @@
  * Sign: the node reports the paper's down-positive reading, i.e. minus the chip's specific
  * force: r_S = g_S - d_S, where d_S is a disturbing acceleration of the device (vehicle or hand
  * motion) given in S. Counts = round((R_SA^T r_S + bias + noise) / lsb), saturated to int16.
- * Noise: white Gaussian, std noise_std_g per axis, from a private xorshift64* + Box-Muller
- * generator seeded from the config (to be replaced by the shared vh_rng).
+ * Noise: white Gaussian, std noise_std_g per axis, from the simulated car's vh_rng seeded from
+ * the config.
  */
 #ifndef VH_CAMBERNODE_H
 #define VH_CAMBERNODE_H
 
+#include "vh_rng.h"
 #include "vh_types.h"
 
 typedef enum {
@@ -32,16 +33,14 @@ typedef struct {
     double noise_std_g; /* per-axis white noise std; default 0.004 */
     double bias_g[3];   /* per-axis offset in A; default 0 */
     double gravity_g;   /* local gravity in units of the chip's g; default 1 */
-    uint64_t seed;      /* RNG seed; 0 is replaced by a fixed non-zero constant */
+    uint64_t seed;      /* RNG seed (vh_rng_seed) */
 } vh_cambernode_config_t;
 
 typedef struct {
     vh_cambernode_config_t cfg;
     double r_sa[9];     /* row-major, a_S = R_SA a_A */
     double dist_s[3];   /* disturbing acceleration in S, g */
-    uint64_t rng;       /* xorshift64* state, never 0 */
-    double spare;       /* second Box-Muller deviate */
-    uint8_t has_spare;
+    vh_rng_t rng;       /* the simulated car's shared generator, seeded from cfg.seed */
     uint8_t pose;       /* vh_cambernode_pose_t */
 } vh_cambernode_t;
 

@@ -3,43 +3,6 @@
 
 #include "vh_cambernode.h"
 
-static const uint64_t SEED_DEFAULT = UINT64_C(0x9E3779B97F4A7C15); /* replaces a seed of 0 */
-static const double PI = 3.14159265358979323846;
-
-/* ---- Private RNG (to be replaced by the shared vh_rng.h) ---------------------------------- */
-
-/* xorshift64* (Vigna 2016): full period 2^64 - 1 over non-zero states. */
-static uint64_t rng_next(uint64_t *s)
-{
-    uint64_t x = *s;
-    x ^= x >> 12;
-    x ^= x << 25;
-    x ^= x >> 27;
-    *s = x;
-    return x * 0x2545F4914F6CDD1Du;
-}
-
-/* Uniform in (0, 1]: 53 random bits, never 0 so log() below is finite. */
-static double rng_uniform(uint64_t *s)
-{
-    return ((double)(rng_next(s) >> 11) + 1.0) * (1.0 / 9007199254740992.0);
-}
-
-/* Standard normal by Box-Muller; the second deviate is kept for the next call. */
-static double rng_gauss(vh_cambernode_t *node)
-{
-    double r;
-    double phi;
-    if (node->has_spare) {
-        node->has_spare = 0u;
-        return node->spare;
-    }
-    r = sqrt(-2.0 * log(rng_uniform(&node->rng)));
-    phi = 2.0 * PI * rng_uniform(&node->rng);
-    node->spare = r * sin(phi);
-    node->has_spare = 1u;
-    return r * cos(phi);
-}
 
 /* ---- Node ---------------------------------------------------------------------------------- */
 
@@ -111,9 +74,7 @@ void vh_cambernode_reset(vh_cambernode_t *node)
     for (k = 0; k < 3; ++k) {
         node->dist_s[k] = 0.0;
     }
-    node->rng = (node->cfg.seed != 0u) ? node->cfg.seed : SEED_DEFAULT;
-    node->spare = 0.0;
-    node->has_spare = 0u;
+    vh_rng_seed(&node->rng, node->cfg.seed);
     node->pose = (uint8_t)VH_CAMBERNODE_WHEEL;
 }
 
@@ -205,7 +166,7 @@ void vh_cambernode_step(vh_cambernode_t *node, int16_t raw[3])
         /* a_A = R_SA^T r_S: column k of R_SA */
         double a = node->r_sa[0 * 3 + k] * r_s[0] + node->r_sa[1 * 3 + k] * r_s[1]
                    + node->r_sa[2 * 3 + k] * r_s[2];
-        double noise = (node->cfg.noise_std_g > 0.0) ? node->cfg.noise_std_g * rng_gauss(node) : 0.0;
+        double noise = (node->cfg.noise_std_g > 0.0) ? node->cfg.noise_std_g * vh_rng_gauss(&node->rng) : 0.0;
         raw[k] = quantise(a + node->cfg.bias_g[k] + noise, node->cfg.lsb_g[k]);
     }
 }
