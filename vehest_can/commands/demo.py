@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import random
 import signal
 import subprocess
 import sys
@@ -67,6 +68,11 @@ def run(args) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     config = busmod.bus_config(args)
+    if config["interface"] == busmod.DEFAULT_INTERFACE and getattr(args, "channel", None) is None \
+            and config.get("channel") == busmod.DEFAULT_CHANNEL:
+        # both processes are ours: a group of this run's own keeps other runs on the machine out
+        args.channel = config["channel"] = f"239.74.{random.randint(1, 254)}.{random.randint(1, 254)}"
+        args.interface = config["interface"]
     print(f"bus: {config['interface']} {config.get('channel')}; ECU daemon in its own process; output in {out}/")
 
     camber_args, cals = [], {}
