@@ -15,6 +15,7 @@ import can
 import numpy as np
 import pytest
 
+from vehest_can.bus import cli_args, private_multicast
 from vehest_can.daemon import EcuDaemon
 from vehest_can.frames import database
 from vehest_can.replay import read_log, replay
@@ -29,12 +30,13 @@ def short_drive(seconds=1.5):
     return drive_from_scenario(LAUNCH, duration_s=seconds)
 
 
-def group() -> str:
-    return f"239.74.{random.randint(1, 254)}.{random.randint(1, 254)}"
+def group() -> dict:
+    """A udp_multicast bus of the test's own (a port of its own: groups alone do not isolate)."""
+    return private_multicast()
 
 
-def mc_bus(channel):
-    return can.Bus(interface="udp_multicast", channel=channel, fd=True)
+def mc_bus(config):
+    return can.Bus(**config)
 
 
 def ecu_frames(session):
@@ -42,9 +44,9 @@ def ecu_frames(session):
     return session.frames[sel], session.frame_tick[sel]
 
 
-def start_daemon(channel, *extra):
+def start_daemon(config, *extra):
     proc = subprocess.Popen(
-        [sys.executable, "-m", "vehest_can.cli", "daemon", "-i", "udp_multicast", "-c", channel, *extra],
+        [sys.executable, "-m", "vehest_can.cli", "daemon", *cli_args(config), *extra],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )
     return proc

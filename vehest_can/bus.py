@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import random
 
 import can
 from can.cli import add_bus_arguments
@@ -51,6 +52,30 @@ def bus_config(args: argparse.Namespace, **overrides) -> dict:
         config["fd"] = True  # the PT bus is CAN FD; these interfaces carry it as is
     config.update(overrides)
     return config
+
+
+def private_multicast() -> dict:
+    """A udp_multicast bus that no other session on this machine hears. Linux hands a multicast
+    datagram to every socket bound to its port whatever group it joined (IP_MULTICAST_ALL), so a
+    group of one's own is not enough: the session needs a port of its own."""
+    return {"interface": "udp_multicast", "channel": DEFAULT_CHANNEL, "port": random.randint(49152, 64999), "fd": True}
+
+
+def cli_args(config: dict) -> list[str]:
+    """python-can CLI flags that reopen the bus of a resolved config (for a child process)."""
+    out = ["-i", str(config["interface"])]
+    if config.get("channel") is not None:
+        out += ["-c", str(config["channel"])]
+    for key, flag in (("bitrate", "-b"), ("data_bitrate", "--data-bitrate")):
+        if config.get(key) is not None:
+            out += [flag, str(config[key])]
+    if config.get("fd"):
+        out.append("--fd")
+    extra = {k: v for k, v in config.items()
+             if k not in ("interface", "channel", "bitrate", "data_bitrate", "fd") and isinstance(v, (int, float, str, bool))}
+    if extra:
+        out += ["--bus-kwargs", *(f"{k}={v}" for k, v in extra.items())]
+    return out
 
 
 def open_bus(config: dict) -> can.BusABC:

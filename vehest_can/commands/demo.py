@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import os
-import random
 import signal
 import subprocess
 import sys
@@ -40,15 +39,8 @@ def add_subparser(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _daemon_cmd(args, mode: str, extra: list[str]) -> list[str]:
-    cmd = [sys.executable, "-m", "vehest_can.cli", "daemon", "--mode", mode, *extra]
-    for key, flag in (("interface", "-i"), ("channel", "-c"), ("bitrate", "-b"), ("data_bitrate", "--data-bitrate"),
-                      ("bus_config", "--bus-config"), ("bus_context", "--bus-context")):
-        if getattr(args, key, None) is not None:
-            cmd += [flag, str(getattr(args, key))]
-    if getattr(args, "fd", False):
-        cmd.append("--fd")
-    return cmd
+def _daemon_cmd(config: dict, mode: str, extra: list[str]) -> list[str]:
+    return [sys.executable, "-m", "vehest_can.cli", "daemon", "--mode", mode, *extra, *busmod.cli_args(config)]
 
 
 def _stop(proc: subprocess.Popen) -> str:
@@ -68,12 +60,11 @@ def run(args) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     config = busmod.bus_config(args)
-    if config["interface"] == busmod.DEFAULT_INTERFACE and getattr(args, "channel", None) is None \
-            and config.get("channel") == busmod.DEFAULT_CHANNEL:
-        # both processes are ours: a group of this run's own keeps other runs on the machine out
-        args.channel = config["channel"] = f"239.74.{random.randint(1, 254)}.{random.randint(1, 254)}"
-        args.interface = config["interface"]
-    print(f"bus: {config['interface']} {config.get('channel')}; ECU daemon in its own process; output in {out}/")
+    if config == {"interface": busmod.DEFAULT_INTERFACE, "channel": busmod.DEFAULT_CHANNEL, "fd": True}:
+        # nothing chosen and both processes are ours: a bus of this run's own keeps other runs out
+        config = busmod.private_multicast()
+    port = f" port {config['port']}" if "port" in config else ""
+    print(f"bus: {config['interface']} {config.get('channel')}{port}; ECU daemon in its own process; output in {out}/")
 
     camber_args, cals = [], {}
     camber_sc = next((sc for sc in scenarios if sc.camber is not None), None)
@@ -81,7 +72,7 @@ def run(args) -> int:
         cal_file = _calibrate_devices(camber_sc, out)
         cals = load_calibrations(cal_file)
         camber_args = ["--camber-cal", str(cal_file)]
-    ecu_proc = subprocess.Popen(_daemon_cmd(args, "lockstep", ["--idle-timeout", "60", *camber_args]),
+    ecu_proc = subprocess.Popen(_daemon_cmd(config, "lockstep", ["--idle-timeout", "60", *camber_args]),
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy())
     all_metrics = []
     try:
@@ -177,7 +168,7 @@ def _realtime(args, config, sc, out: Path) -> dict:
     stats_file = out / "realtime_daemon.json"
     stats_file.unlink(missing_ok=True)
     # no --duration: the daemon runs until the car is done and SIGTERM stops it (clean shutdown)
-    ecu_proc = subprocess.Popen(_daemon_cmd(args, "realtime", ["--stats", str(stats_file)]),
+    ecu_proc = subprocess.Popen(_daemon_cmd(config, "realtime", ["--stats", str(stats_file)]),
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     time.sleep(1.0)  # let the daemon open its bus
     bus = busmod.open_bus(config)
