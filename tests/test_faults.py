@@ -437,13 +437,20 @@ def test_faultbus_on_udp_multicast_injects_faults():
         _, msgs = stream(5)
         for m in msgs:
             bus.send(m)
-        got = []
+        sent = [bytes(m.data) for m in msgs]
+        flips = {}
         end = time.monotonic() + 5
-        while len(got) < 5 and time.monotonic() < end:
+        while len(flips) < 5 and time.monotonic() < end:
             m = rx.recv(0.5)
-            if m is not None and m.arbitration_id == DLS.frame_id:
-                got.append(bytes(m.data))
-        assert len(got) == 5 and not any(p01_ok(d, DLS_DATA_ID) for d in got)
+            if m is None or m.arbitration_id != DLS.frame_id or len(m.data) != 16:
+                continue
+            # Linux hands a socket bound to the port every group's datagrams: other runs' frames may
+            # arrive too. Ours are the sent payloads with bits flipped.
+            dist = [sum(bin(x ^ y).count("1") for x, y in zip(bytes(m.data), d)) for d in sent]
+            i = int(np.argmin(dist))
+            if dist[i] <= 4:
+                flips[i] = (dist[i], p01_ok(bytes(m.data), DLS_DATA_ID))
+        assert flips == {i: (1, False) for i in range(5)}
     finally:
         bus.shutdown()
         rx.shutdown()

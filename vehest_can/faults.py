@@ -85,11 +85,17 @@ class FaultSpec:
         for key in KINDS[self.kind]:
             value = getattr(self, key)
             if value != _DEFAULTS[key]:
-                parts.append(f"{key}=0x{value:03X}" if key == "id" else f"{key}={value:g}")
+                parts.append(f"{key}=0x{value:03X}" if key == "id" else f"{key}={_num(value)}")
         if self.start_s > 0 or math.isfinite(self.end_s):
-            end = f"{self.end_s:g}" if math.isfinite(self.end_s) else ""
-            parts.append(f"{self.start_s:g}-{end}")
+            end = _num(self.end_s) if math.isfinite(self.end_s) else ""
+            parts.append(f"{_num(self.start_s)}-{end}")
         return ":".join(parts)
+
+
+def _num(value) -> str:
+    """Short but exact: 2 rather than 2.0, 0.1 as 0.1."""
+    short = f"{value:g}"
+    return short if float(short) == value else repr(float(value))
 
 
 @dataclass(frozen=True)
@@ -100,6 +106,8 @@ class FaultConfig:
     seed: int = 0
 
     def __post_init__(self):
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed < 2**64:
+            raise ConfigError(f"fault seed: must be an integer in [0, 2^64), not {self.seed!r}")
         for spec in self.faults:
             _validate(spec, f"fault {spec.kind!r}")
 
