@@ -224,7 +224,8 @@ class Wire:
     """A :class:`WireModel` on the wall clock, shared by the FaultBus nodes of one process.
 
     One thread hands each frame to its node's inner bus at the end of its wire time. Times are seconds
-    since the wire was made (fault windows count from then).
+    since the wire was made (fault windows count from then). A wire given to FaultBus instances is
+    theirs to use, not to close: ``close()`` it after shutting them down.
     """
 
     def __init__(self, bitrate: int = 500_000, data_bitrate: int | None = 4_000_000, *,
@@ -421,19 +422,17 @@ def bus_run(drive, config=None, *, bus_config: dict | None = None, bitrate: int 
     if switch_interval is not None:
         sys.setswitchinterval(switch_interval)
     wire = Wire(bitrate, data_bitrate, stuffing=stuffing, tx_queue=tx_queue, tx_policy=tx_policy)
-    buses = []
+    buses, daemon, thread, result, snaps = [], None, None, {}, []
     try:
-        ecu_bus = FaultBus(can.Bus(**bus_config), FaultInjector(no_flood), wire=wire)
+        ecu_bus = FaultBus(can.Bus(**bus_config), FaultInjector(no_flood, stream=1), wire=wire)
         buses.append(ecu_bus)
         sim_bus = FaultBus(can.Bus(**bus_config), FaultInjector(config), wire=wire)
         buses.append(sim_bus)
         daemon = EcuDaemon(ecu_bus)
-        result: dict = {}
         thread = threading.Thread(target=lambda: result.setdefault("stats", daemon.serve_realtime()),
                                   name="vehest-ecu", daemon=True)
         thread.start()
         time.sleep(0.1)
-        snaps = []
 
         def measure():
             time.sleep(settle_s)
@@ -446,9 +445,10 @@ def bus_run(drive, config=None, *, bus_config: dict | None = None, bitrate: int 
         meter.start()
         session = sim.run_realtime(settle_s=0.1)
         meter.join()
-        daemon.stop_event.set()
-        thread.join(5)
     finally:
+        if daemon is not None:
+            daemon.stop_event.set()
+            thread.join(5)
         for b in buses:
             b.shutdown()
         wire.close()

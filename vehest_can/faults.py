@@ -337,8 +337,9 @@ class FaultInjector:
     ``applied[i]`` counts the frames fault ``i`` changed (dropped, corrupted, delayed, ...).
     """
 
-    def __init__(self, config: FaultConfig | None = None, *, bus: str = "pt"):
+    def __init__(self, config: FaultConfig | None = None, *, stream: int = 0, bus: str = "pt"):
         self.config = config or FaultConfig()
+        self.stream = stream   # several nodes with one config: give each its own stream of draws
         self.db = database(bus)
         self._targets = [None if f.target in (None, "*") else _target_ids(f.target, bus)
                          for f in self.config.faults]
@@ -348,7 +349,7 @@ class FaultInjector:
 
     def reset(self) -> None:
         seed = self.config.seed
-        self._rng = [np.random.default_rng([seed, i]) for i in range(len(self.config.faults))]
+        self._rng = [np.random.default_rng([seed, i, self.stream]) for i in range(len(self.config.faults))]
         self._state: dict[tuple[int, bool], _State] = {}
         self.applied = [0] * len(self.config.faults)
         self._counter = ffi.new("uint8_t *")
@@ -523,7 +524,7 @@ def run_with_faults(drive, config: FaultConfig | None = None, *, bitrate: int = 
     for spec in config.floods:
         wire.add_flood(spec, "FLOOD")
     car, ecu = Car(drive), Ecu()
-    sensors, vehest = FaultInjector(config), FaultInjector(config)
+    sensors, vehest = FaultInjector(config, stream=0), FaultInjector(config, stream=1)
     est_id, dls_id = frame_id("VEHEST_DrivelineEst"), frame_id("DLS_Sensors")
     cnt = ecu.c.cnt
     n = drive.n
