@@ -637,7 +637,9 @@ class FaultRow:
         return f"valid at tick {self.recovery} after the fault"
 
 
-def analyse(run: FaultRun, label: str, fault: str, expect: tuple[str, ...], window_s: tuple[float, float]) -> FaultRow:
+def analyse(run: FaultRun, label: str, fault: str, expect: tuple[str, ...],
+            window_s: tuple[float, float]) -> FaultRow:
+    """One row of the fault table from a run; window_s = the fault's [start, end) in seconds."""
     from .ecu import COUNTERS
     from .frames import TICK_S
 
