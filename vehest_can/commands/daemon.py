@@ -10,6 +10,7 @@ from pathlib import Path
 import can
 
 from .. import bus as busmod
+from .. import sdnotify
 from ..daemon import EcuDaemon
 from ..errors import ConfigError
 
@@ -24,6 +25,7 @@ def add_subparser(subparsers) -> None:
     p.add_argument("--exit-on-end", action="store_true", help="lockstep: stop when the simulator sends END")
     p.add_argument("--stats", metavar="FILE", help="write the run's statistics as JSON on exit")
     p.add_argument("--idle-timeout", type=float, metavar="S", help="lockstep: stop after S seconds without a frame")
+    sdnotify.add_log_level(p)
     busmod.add_arguments(p)
     p.set_defaults(func=run)
 
@@ -31,11 +33,13 @@ def add_subparser(subparsers) -> None:
 def run(args) -> int:
     if args.duration is not None and args.duration <= 0:
         raise ConfigError("--duration must be positive")
+    sdnotify.apply_log_level(args.log_level)
     config = busmod.bus_config(args)
     bus = busmod.open_bus(config)
     writer = can.Logger(args.log) if args.log else None
     daemon = EcuDaemon(bus, log_writer=writer,
-                       log_channel=config.get("channel") if config["interface"] == "socketcan" else "vcan0")
+                       log_channel=config.get("channel") if config["interface"] == "socketcan" else "vcan0",
+                       notifier=sdnotify.Notifier.from_env())
 
     def stop(signum, _frame):
         daemon.stop_event.set()
