@@ -15,7 +15,7 @@ import can
 import numpy as np
 import pytest
 
-from vehest_can.bus import cli_args, private_multicast
+from vehest_can.bus import cli_args, open_bus, private_multicast
 from vehest_can.daemon import EcuDaemon
 from vehest_can.frames import database
 from vehest_can.replay import read_log, replay
@@ -149,3 +149,20 @@ def test_daemon_bad_arguments_are_clear_errors():
     r = subprocess.run([sys.executable, "-m", "vehest_can.cli", "daemon", "-i", "socketcan", "-c", "nosuchcan0"],
                        capture_output=True, text=True, timeout=30)
     assert r.returncode == 1 and "error:" in r.stderr and "Traceback" not in r.stderr
+
+
+@pytest.mark.multicast
+def test_udp_multicast_sessions_on_other_groups_do_not_hear_each_other():
+    """Linux delivers every joined group to every socket on the port unless IP_MULTICAST_ALL is off;
+    open_bus switches it off, so a session on one group never sees another group's frames."""
+    port = private_multicast()["port"]
+    a = open_bus({"interface": "udp_multicast", "channel": "239.74.11.1", "port": port, "fd": True})
+    b = open_bus({"interface": "udp_multicast", "channel": "239.74.11.2", "port": port, "fd": True})
+    c = open_bus({"interface": "udp_multicast", "channel": "239.74.11.2", "port": port, "fd": True})
+    try:
+        b.send(can.Message(arbitration_id=0x123, is_extended_id=False, data=b"\x01"))
+        assert c.recv(1.0) is not None  # same group: delivered
+        assert a.recv(0.3) is None      # other group, same port: not delivered
+    finally:
+        for x in (a, b, c):
+            x.shutdown()

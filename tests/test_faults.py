@@ -6,6 +6,8 @@ import random
 import time
 
 import can
+
+from vehest_can.bus import open_bus, private_multicast
 import numpy as np
 import pytest
 
@@ -433,9 +435,9 @@ def test_faultbus_delivers_no_faster_than_the_wire_in_order():
 
 @pytest.mark.multicast
 def test_faultbus_on_udp_multicast_injects_faults():
-    channel = f"239.74.{random.randint(1, 254)}.{random.randint(1, 254)}"
-    rx = can.Bus(interface="udp_multicast", channel=channel, fd=True)
-    bus = FaultBus(can.Bus(interface="udp_multicast", channel=channel, fd=True),
+    config = private_multicast()
+    rx = open_bus(config)
+    bus = FaultBus(open_bus(config),
                    FaultInjector(faults_from_cli(["corrupt_crc:DLS_Sensors"])))
     try:
         _, msgs = stream(5)

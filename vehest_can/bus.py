@@ -9,6 +9,8 @@ from __future__ import annotations
 import argparse
 import logging
 import random
+import socket
+import sys
 
 import can
 from can.cli import add_bus_arguments
@@ -78,11 +80,28 @@ def cli_args(config: dict) -> list[str]:
     return out
 
 
+IP_MULTICAST_ALL = getattr(socket, "IP_MULTICAST_ALL", 49)  # Linux <linux/in.h>
+
+
+def _only_own_group(bus: can.BusABC) -> None:
+    """Linux hands a socket bound to INADDR_ANY:port the datagrams of *every* group joined on the
+    machine (IP_MULTICAST_ALL defaults to 1), so two udp_multicast sessions on different groups
+    but one port hear each other. Switch that off on python-can's socket where we can reach it."""
+    sock = getattr(getattr(bus, "_multicast", None), "_socket", None)
+    if sock is not None and sock.family == socket.AF_INET and sys.platform.startswith("linux"):
+        try:
+            sock.setsockopt(socket.IPPROTO_IP, IP_MULTICAST_ALL, 0)
+        except OSError as exc:  # pragma: no cover - kernel without the option
+            log.debug("IP_MULTICAST_ALL not settable: %s", exc)
+
+
 def open_bus(config: dict) -> can.BusABC:
     try:
         bus = can.Bus(**config)
     except (can.CanError, OSError, ValueError, ImportError, TypeError) as exc:
         raise BusError(f"cannot open bus {_describe(config)}: {exc}") from exc
+    if config.get("interface") == "udp_multicast":
+        _only_own_group(bus)
     log.info("bus open: %s", _describe(config))
     return bus
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import can
 
-from . import lockstep
+from . import lockstep, sdnotify
 from .ecu import Ecu
 from .frames import TICK_S, frame_id, is_own, sent_by
 from .rt import Ticker, percentiles_us
@@ -58,8 +58,9 @@ def _fmt(p: dict) -> str:
 
 class EcuDaemon:
     def __init__(self, bus: can.BusABC, ecu: Ecu | None = None, *, log_writer: can.Listener | None = None,
-                 log_channel: str = "vcan0"):
+                 log_channel: str = "vcan0", notifier: sdnotify.Notifier | None = None):
         self.bus = bus
+        self.notifier = notifier or sdnotify.Notifier()  # systemd's sd_notify; a no-op by default
         self.ecu = ecu or Ecu()
         self.log_writer = log_writer
         self.log_channel = log_channel
@@ -82,15 +83,26 @@ class EcuDaemon:
         stats.wall_s = time.perf_counter() - t0
         stats.counters = self.ecu.counters()
         stats.health = self.ecu.health()
+        self.notifier.stopping(sdnotify.status_line(f"{stats.mode} stopping", stats.ticks, stats.counters))
+        log.info("ECU daemon stopped: %s", stats.lines()[0])
         return stats
+
+    def _start(self, stats: DaemonStats) -> sdnotify.Watchdog:
+        """READY=1 (the bus is open, the loop starts) and the loop's keep-alive (WATCHDOG=1, STATUS=)."""
+        where = self.bus.channel_info if self.bus.channel_info != "unknown" else type(self.bus).__name__
+        log.info("ECU daemon serving in %s mode on %s", stats.mode, where)
+        self.notifier.ready(f"{stats.mode}: serving on {where}")
+        return sdnotify.Watchdog(self.notifier, stats.mode, lambda: stats.ticks, self.ecu.counters, logger=log)
 
     # -- lockstep -----------------------------------------------------------------------------
     def serve_lockstep(self, *, exit_on_end: bool = False, idle_timeout: float | None = None) -> DaemonStats:
         """Answer SIM_Sync frames until stopped (or END with exit_on_end, or idle_timeout s of silence)."""
         stats = DaemonStats("lockstep")
         t0 = last = time.perf_counter()
+        watchdog = self._start(stats)
         while not self.stop_event.is_set():
             msg = self.bus.recv(timeout=0.05)
+            watchdog.tick()
             if msg is None:
                 if idle_timeout is not None and time.perf_counter() - last > idle_timeout:
                     log.warning("no frame for %.1f s, stopping", idle_timeout)
@@ -137,6 +149,7 @@ class EcuDaemon:
         ticker = Ticker(TICK_S)
         latencies: list[float] = []
         t0 = time.perf_counter()
+        watchdog = self._start(stats)
         ticker.start()
         try:
             while not self.stop_event.is_set():
@@ -166,6 +179,7 @@ class EcuDaemon:
                 latencies.extend(t_tx - t for t in pending)
                 stats.frames_tx += len(out)
                 stats.ticks += 1
+                watchdog.tick()
         finally:
             notifier.stop()
         stats.lateness_us = percentiles_us(ticker.lateness)

@@ -10,6 +10,7 @@ from pathlib import Path
 import can
 
 from .. import bus as busmod
+from .. import sdnotify
 from ..camber import load_calibrations
 from ..daemon import EcuDaemon
 from ..ecu import Ecu
@@ -28,6 +29,7 @@ def add_subparser(subparsers) -> None:
                    help="camber inspection calibration file (written by `vehest-can camber calibrate`)")
     p.add_argument("--stats", metavar="FILE", help="write the run's statistics as JSON on exit")
     p.add_argument("--idle-timeout", type=float, metavar="S", help="lockstep: stop after S seconds without a frame")
+    sdnotify.add_log_level(p)
     busmod.add_arguments(p)
     p.set_defaults(func=run)
 
@@ -35,6 +37,7 @@ def add_subparser(subparsers) -> None:
 def run(args) -> int:
     if args.duration is not None and args.duration <= 0:
         raise ConfigError("--duration must be positive")
+    sdnotify.apply_log_level(args.log_level)
     ecu = Ecu()
     if args.camber_cal:
         ecu.set_camber_calibrations(load_calibrations(args.camber_cal))
@@ -42,7 +45,8 @@ def run(args) -> int:
     bus = busmod.open_bus(config)
     writer = can.Logger(args.log) if args.log else None
     daemon = EcuDaemon(bus, ecu, log_writer=writer,
-                       log_channel=config.get("channel") if config["interface"] == "socketcan" else "vcan0")
+                       log_channel=config.get("channel") if config["interface"] == "socketcan" else "vcan0",
+                       notifier=sdnotify.Notifier.from_env())
 
     def stop(signum, _frame):
         daemon.stop_event.set()
