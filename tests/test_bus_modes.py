@@ -6,6 +6,7 @@ import json
 import os
 import random
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -36,7 +37,7 @@ def group() -> dict:
 
 
 def mc_bus(config):
-    return can.Bus(**config)
+    return open_bus(config)
 
 
 def ecu_frames(session):
@@ -44,11 +45,26 @@ def ecu_frames(session):
     return session.frames[sel], session.frame_tick[sel]
 
 
-def start_daemon(config, *extra):
+def start_daemon(config, *extra, tmp_path=None):
+    """The daemon as its own process; with tmp_path, wait for its sd_notify READY=1 (bus open,
+    loop starting) instead of guessing how long start-up takes on a loaded machine."""
+    env = dict(os.environ)
+    sock = None
+    if tmp_path is not None:
+        sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+        sock.bind(str(tmp_path / "notify.sock"))
+        sock.settimeout(60)
+        env["NOTIFY_SOCKET"] = str(tmp_path / "notify.sock")
     proc = subprocess.Popen(
         [sys.executable, "-m", "vehest_can.cli", "daemon", *cli_args(config), *extra],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
     )
+    if sock is not None:
+        try:
+            while b"READY=1" not in sock.recv(4096):
+                pass
+        finally:
+            sock.close()
     return proc
 
 
@@ -114,8 +130,7 @@ def test_lockstep_over_multicast_two_processes_is_deterministic(tmp_path):
 def test_realtime_daemon_exchanges_frames_and_reports_timing(tmp_path):
     channel = group()
     stats = tmp_path / "stats.json"
-    proc = start_daemon(channel, "--mode", "realtime", "--duration", "20", "--stats", str(stats))
-    time.sleep(1.0)
+    proc = start_daemon(channel, "--mode", "realtime", "--duration", "20", "--stats", str(stats), tmp_path=tmp_path)
     bus = mc_bus(channel)
     try:
         session = SimMaster(bus, short_drive(2.0)).run_realtime()
