@@ -124,7 +124,7 @@ CASES = [
      "lower than the nominal"),
     (dict(buses__pt__fd=False), "buses.pt.fd", "must be true: vehest_pt.dbc has CAN FD frames"),
     (dict(buses__pt__bitrate=500_000, buses__pt__data_bitrate=2_000_000), "buses.pt.data_bitrate",
-     "worst-case bus load 67.7% at 500k/2M bit/s exceeds 60%"),
+     "worst-case bus load 70.4% at 500k/2M bit/s exceeds 60%"),
     (dict(buses__pt__dbc="nowhere/pt.dbc"), "buses.pt.dbc", "no such file"),
     (dict(buses__pt__dbc="vehest_body"), "buses.pt.dbc", "no bundled DBC named 'vehest_body'"),
     (dict(buses__pt__kwargs={"bitrate": 500_000}), "buses.pt.kwargs.bitrate", "set bitrate in buses.pt"),
@@ -140,8 +140,9 @@ CASES = [
      "disagrees with buses.pt.timing (500000 bit/s)"),
     (dict(buses={}), "buses", "no bus"),
     (dict(buses=None), "buses", "missing"),
-    (dict(nodes__real=["ABS"]), "nodes.real", "node ABS is in no bus's DBC (buses.pt: DLS, SIM, VEHEST)"),
+    (dict(nodes__real=["ABS"]), "nodes.real", "node ABS is in no bus's DBC (buses.pt: CIS, DLS, SIM, VEHEST)"),
     (dict(nodes__real=["VEHEST"]), "nodes.real", "node VEHEST is declared twice (also in nodes.simulated)"),
+    (dict(nodes__real=["CIS"]), "nodes.real", "node CIS belongs to the car: it is simulated like DLS"),
     (dict(nodes__simulated=["DLS", "SIM", "DLS", "VEHEST"]), "nodes.simulated", "node DLS is declared twice"),
     (dict(nodes__simulated=["DLS", "SIM"]), "nodes", "node VEHEST (on buses.pt, DBC vehest_pt.dbc) is not declared"),
     (dict(nodes__simulated=["DLS", "VEHEST"], nodes__real=["SIM"]), "nodes.simulated", "simulate both or neither"),
@@ -191,7 +192,7 @@ def test_dbc_files_that_do_not_load_or_do_not_match_the_firmware(tmp_path):
     # ... which is fine when DLS is real: the bench defines its frames
     cfg = load_hil_config(write(tmp_path, mutate(buses__pt__dbc="moved.dbc", nodes__simulated=["VEHEST"],
                                                  nodes__real=["DLS", "SIM"], scenario=None)))
-    assert cfg.real == ("DLS", "SIM") and cfg.buses[0].dbc == tmp_path / "moved.dbc"
+    assert cfg.real == ("DLS", "SIM", "CIS") and cfg.buses[0].dbc == tmp_path / "moved.dbc"
 
 
 def test_nodes_of_other_dbcs_must_be_declared_and_only_ours_can_be_simulated(tmp_path):

@@ -34,7 +34,10 @@ BUS_LOAD_LIMIT_PCT = 60.0
 SIMULATED, REAL = "simulated", "real"
 ECU_NODE = "VEHEST"
 CAR_NODES = ("DLS", "SIM")  # one simulated car: sensor node + plant/simulation master, one SimMaster
-SIMULATABLE = (*CAR_NODES, ECU_NODE)
+# Nodes the simulated car also plays when its DBC has them (the camber inspection devices): they
+# follow the car's role unless declared, and may not be declared otherwise.
+CAR_ACCESSORIES = ("CIS",)
+SIMULATABLE = (*CAR_NODES, *CAR_ACCESSORIES, ECU_NODE)
 MODES = ("realtime", "lockstep")
 
 _TOP = {"description", "mode", "scenario", "duration_s", "buses", "nodes"}
@@ -234,6 +237,13 @@ def hil_config_from_dict(doc: dict, path: str | Path = "<hil config>") -> HilCon
             declared[node] = role
     on_bus = {b.name: set(b.nodes) for b in buses}
     in_dbc = {b.name: _dbc_nodes(databases[b.dbc]) for b in buses}
+    car_role = declared.get(CAR_NODES[0])
+    for node in CAR_ACCESSORIES:
+        if node in declared and car_role is not None and declared[node] != car_role:
+            c.fail(f"nodes.{declared[node]}", f"node {node} belongs to the car: it is {car_role} like "
+                                              f"{CAR_NODES[0]}, or leave it out")
+        if node not in declared and car_role is not None and any(node in n for n in on_bus.values()):
+            declared[node] = car_role
     for node, role in declared.items():
         if not any(node in names for names in in_dbc.values()):
             known = "; ".join(f"buses.{b}: {', '.join(sorted(n)) or 'none'}" for b, n in in_dbc.items())
