@@ -209,29 +209,39 @@ class SimMaster:
                 continue
         raise BusError("lockstep: the ECU daemon did not answer RESET (is it running on this bus?)")
 
-    def run_lockstep(self, *, end: bool = True) -> Session:
-        """Mode 2. Deterministic: the ECU sees exactly each tick's frames, whatever the bus."""
+    def run_lockstep(self, *, end: bool = True, window: int = 16) -> Session:
+        """Mode 2. Deterministic: the ECU sees exactly each tick's frames, whatever the bus.
+
+        Up to `window` ticks are in flight: the ECU steps on each SIM_Sync in the order the
+        frames were sent, so its output does not depend on the window; the window only saves
+        round trips (and bounds what a lossy bus like udp_multicast has to buffer)."""
         self.car.reset()
         self.connect()
         n = self.drive.n
         truth = np.zeros(n, dtype=TRUTH_DTYPE)
+        sent: dict[int, list] = {}
         t0 = time.perf_counter()
-        for k in range(n):
-            if self.stop_event.is_set():
-                truth = truth[:k]
+        k_sent = k_done = 0
+        while k_done < n:
+            while k_sent < n and k_sent - k_done < max(1, window) and not self.stop_event.is_set():
+                sent[k_sent] = [to_message(f) for f in self.car.tick(k_sent)]
+                for msg in sent[k_sent]:
+                    self.bus.send(msg)
+                self.bus.send(lockstep.sync_message(k_sent))
+                truth[k_sent] = self.car.truth()
+                k_sent += 1
+            if k_done == k_sent:  # stopped
                 break
-            for f in self.car.tick(k):
-                msg = to_message(f)
-                self.bus.send(msg)
-                self._record(msg, k)
-            sync = lockstep.sync_message(k)
-            self.bus.send(sync)
-            self._log(sync, k)
-            for msg in self._await_ack(k, self.ack_timeout):
-                self._record(msg, k)
-            truth[k] = self.car.truth()
-            if self.progress and k % 200 == 0:
-                self.progress(k, n)
+            answer = self._await_ack(k_done, self.ack_timeout)
+            for msg in sent.pop(k_done):  # recorded in tick order: car frames, then the ECU's
+                self._record(msg, k_done)
+            self._log(lockstep.sync_message(k_done), k_done)
+            for msg in answer:
+                self._record(msg, k_done)
+            k_done += 1
+            if self.progress and k_done % 200 == 0:
+                self.progress(k_done, n)
+        truth = truth[:k_done]
         if end:
             self.bus.send(lockstep.sync_message(n, lockstep.END))
         wall = time.perf_counter() - t0
