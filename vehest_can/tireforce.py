@@ -322,3 +322,77 @@ def synthetic_manoeuvre(profile="paper", duration=8.0, ts=5e-4, v0=70 / 3.6, dm=
         for name, sigma in NOISE.items():
             meas[name] = meas[name] + rng.normal(0.0, sigma, meas[name].shape)
     return tr_, Inputs(**meas)
+
+
+class TireForceFixed:
+    """SKFMEC in fixed point (``vh_skfq_t``): the ECU's integer filter.
+
+    Its integer constants come from the double configuration through the C calibration function
+    (``vh_skfq_params_from_config``); inputs are quantised to the documented Q formats by the C core
+    (round half up, saturating), outputs converted back to physical units here.
+    """
+
+    def __init__(self, config: SkfConfig | None = None):
+        self.config = config or SkfConfig.default(SKFMEC)
+        if not self.config.scaled:
+            raise ConfigError("the fixed-point estimator runs scaled only (scaled=True)")
+        self.params = ffi.new("vh_skfq_params_t *")
+        check(lib.vh_skfq_params_from_config(self.config.to_c(), self.params), "fixed-point constants")
+        self._f = ffi.new("vh_skfq_t *")
+        check(lib.vh_skfq_init(self._f, self.params), "fixed-point estimator")
+
+    def reset(self) -> None:
+        lib.vh_skfq_reset(self._f)
+
+    @property
+    def saturations(self) -> int:
+        return int(self._f.sat)
+
+    @property
+    def caps(self) -> int:
+        return int(self._f.caps)
+
+    @staticmethod
+    def quantise(inputs: Inputs) -> np.ndarray:
+        """(n, 13) int32 rows laid out as ``vh_skfq_input_t`` (the C core's own rounding)."""
+        u = inputs.matrix()
+        q = np.empty(u.shape, dtype=np.int32)
+        lib.vh_skfq_quantise_inputs(u.shape[0], _ptr(u, "double *"), _ptr(q, "int32_t *"))
+        return q
+
+    def run_raw(self, q: np.ndarray, mask=None, *, covariances: bool = False) -> dict:
+        """Run on quantised inputs; returns the raw integer outputs (x in Q.FX scaled, fy/fz in Q.FN)."""
+        q = np.ascontiguousarray(q, dtype=np.int32)
+        if q.ndim != 2 or q.shape[1] != 13:
+            raise ConfigError(f"quantised inputs must have shape (n, 13), got {q.shape}")
+        n = q.shape[0]
+        m = _mask(mask, n)
+        out = {"x": np.empty((n, 7), np.int32), "fy": np.empty((n, 4), np.int32), "fz": np.empty((n, 4), np.int32),
+               "health": np.empty(n, np.uint8), "p": np.empty((n, 7, 7), np.int32) if covariances else None}
+        sat0 = self._f.sat
+        out["resets"] = int(lib.vh_skfq_run(self._f, n, _ptr(q, "int32_t *"), _ptr(m, "uint8_t *"),
+                                            _ptr(out["x"], "int32_t *"), _ptr(out["fy"], "int32_t *"),
+                                            _ptr(out["fz"], "int32_t *"), _ptr(out["p"], "int32_t *"),
+                                            _ptr(out["health"], "uint8_t *")))
+        out["saturations"] = int(self._f.sat - sat0)
+        return out
+
+    def run(self, inputs: Inputs, mask=None, *, covariances: bool = False) -> TireForceRun:
+        raw = self.run_raw(self.quantise(inputs), mask, covariances=covariances)
+        s = np.asarray(self.config.s)
+        return TireForceRun(
+            x=raw["x"] / 2.0 ** lib.VH_SKFQ_FX / s,
+            fy=raw["fy"] / 2.0 ** lib.VH_SKFQ_FN,
+            fz=raw["fz"] / 2.0 ** lib.VH_SKFQ_FN,
+            health=raw["health"], resets=raw["resets"], saturations=raw["saturations"],
+            p=None if raw["p"] is None else raw["p"] / 2.0 ** lib.VH_SKFQ_FP,
+        )
+
+
+def estimator(variant: str = SKFMEC, config: SkfConfig | None = None):
+    """The estimator object for a variant name: 'skfmec', 'skfmec-fixed' or 'ekf'."""
+    if variant == FIXED:
+        return TireForceFixed(config)
+    if variant in (SKFMEC, EKF):
+        return TireForceKF(config, variant)
+    raise ConfigError(f"estimator {variant!r}: expected one of {list(VARIANTS)}")

@@ -110,4 +110,12 @@ void vh_skf_state(const vh_skf_t *f, double x[VH_SKF_NX]);
 uint32_t vh_skf_run(vh_skf_t *f, size_t n, const double *u, const uint8_t *mask, double *x_out,
                     double *fy_out, double *fz_out, double *p_out, uint8_t *health_out);
 
+/* The fixed-point filter's integer constants (vh_skfq.h) from a configuration with scaled = 1:
+ * VH_OK, or VH_EINVAL if the configuration is invalid, not scaled, or a constant does not fit. */
+struct vh_skfq_params_s;
+int vh_skfq_params_from_config(const vh_skf_config_t *cfg, struct vh_skfq_params_s *prm);
+/* Inputs to the fixed-point formats (round half up, saturating): u[n*13] doubles as
+ * vh_skf_input_t rows -> q[n*13] int32 as vh_skfq_input_t rows. */
+void vh_skfq_quantise_inputs(size_t n, const double *u, int32_t *q);
+
 #endif /* VH_SKF_H */
