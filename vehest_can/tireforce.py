@@ -396,3 +396,36 @@ def estimator(variant: str = SKFMEC, config: SkfConfig | None = None):
     if variant in (SKFMEC, EKF):
         return TireForceKF(config, variant)
     raise ConfigError(f"estimator {variant!r}: expected one of {list(VARIANTS)}")
+
+
+def bench_c_loop(cc: str | None = None) -> dict[str, tuple[float, float]] | None:
+    """Build and run ``c_core/bench/vh_bench_skf.c`` with the extension's flags.
+
+    Returns {name: (median_ns, p99_ns)} for ``skfmec_double_step``, ``ekf_double_step`` and
+    ``skfmec_fixed_step`` (one step timed call by call in a C loop), or None without a compiler.
+    """
+    import shutil
+    import subprocess
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    src = root / "c_core" / "bench" / "vh_bench_skf.c"
+    cc = cc or shutil.which("cc") or shutil.which("gcc")
+    if not src.exists() or cc is None:
+        return None
+    sys.path.insert(0, str(root / "c_core"))
+    import vehest_build
+
+    sources = [src] + [root / "c_core" / "src" / f for f in ("vh_skf.c", "vh_skfq.c", "vh_fix.c")]
+    with tempfile.TemporaryDirectory() as tmp:
+        exe = Path(tmp) / "vh_bench_skf"
+        subprocess.run([cc, *vehest_build.STRICT_FLAGS, *vehest_build.OPT_FLAGS, f"-I{root / 'c_core' / 'include'}",
+                        *map(str, sources), "-lm", "-o", str(exe)], check=True, capture_output=True, text=True)
+        out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout
+    rows = {}
+    for line in out.splitlines():
+        name, _, med, p99 = line.split()
+        rows[name] = (float(med), float(p99))
+    return rows

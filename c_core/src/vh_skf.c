@@ -32,7 +32,7 @@ void vh_skf_config_default(vh_skf_config_t *cfg, int variant)
     /* Tuning (docs/skfmec.md, "Tuning"): scaled coordinates, per 0.5 ms step. */
     static const double q[NX] = {1e-7, 1e-6, 1e-6, 1e-4, 1e-4, 1e-5, 1e-5};
     static const double p0[NX] = {1e-2, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0};
-    static const double gp[NX] = {0.0, 0.0, 0.0, 0.0, 0.0, 1e4, 1e4};
+    static const double gp[NX] = {0.0, 0.0, 0.0, 0.0, 0.0, 3000.0, 3000.0};
     int i;
     memset(cfg, 0, sizeof *cfg);
     /* Ford FC/HVE (nomenclature) */
@@ -69,8 +69,8 @@ void vh_skf_config_default(vh_skf_config_t *cfg, int variant)
     cfg->r[1] = 2.5e-3;
     cfg->r[2] = 4e-6;
     cfg->r[3] = 9e-6;
-    cfg->gy[0] = 0.0;
-    cfg->gy[1] = 0.0;
+    cfg->gy[0] = 100.0;
+    cfg->gy[1] = -100.0;
     cfg->p_cap = 8.0;
     cfg->p_max = 1e6;
     cfg->x_max = 1e4;
