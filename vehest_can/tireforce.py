@@ -398,7 +398,7 @@ def estimator(variant: str = SKFMEC, config: SkfConfig | None = None):
     raise ConfigError(f"estimator {variant!r}: expected one of {list(VARIANTS)}")
 
 
-def bench_c_loop(cc: str | None = None) -> dict[str, tuple[float, float]] | None:
+def bench_c_loop(cc: str | None = None, samples: int = 40000) -> dict[str, tuple[float, float]] | None:
     """Build and run ``c_core/bench/vh_bench_skf.c`` with the extension's flags.
 
     Returns {name: (median_ns, p99_ns)} for ``skfmec_double_step``, ``ekf_double_step`` and
@@ -423,7 +423,7 @@ def bench_c_loop(cc: str | None = None) -> dict[str, tuple[float, float]] | None
         exe = Path(tmp) / "vh_bench_skf"
         subprocess.run([cc, *vehest_build.STRICT_FLAGS, *vehest_build.OPT_FLAGS, f"-I{root / 'c_core' / 'include'}",
                         *map(str, sources), "-lm", "-o", str(exe)], check=True, capture_output=True, text=True)
-        out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout
+        out = subprocess.run([str(exe), str(samples)], check=True, capture_output=True, text=True).stdout
     rows = {}
     for line in out.splitlines():
         name, _, med, p99 = line.split()
