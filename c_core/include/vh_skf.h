@@ -34,8 +34,9 @@
 enum { VH_SKF_VX = 0, VH_SKF_VY = 1, VH_SKF_R = 2, VH_SKF_PHI = 3, VH_SKF_P = 4, VH_SKF_FYF = 5, VH_SKF_FYR = 6 };
 enum { VH_SKF_AX = 0, VH_SKF_AY = 1, VH_SKF_YR = 2, VH_SKF_YP = 3 };
 /* Validity mask of a step: measurement bits, and one bit for the inputs (steer, wheel speeds,
- * torques). Without a measurement bit that row is not used; without U_VALID the last wheel
- * accelerations are held. Either makes the step DEGRADED. */
+ * torques). Without a measurement bit that row is not used (and eq. 39 takes 0 for an invalid
+ * ax or ay); without U_VALID the last longitudinal forces and steering angle are held. Either
+ * makes the step DEGRADED. A non-finite input clears the whole mask for that step. */
 enum {
     VH_SKF_Y_AX = 1u, VH_SKF_Y_AY = 2u, VH_SKF_Y_R = 4u, VH_SKF_Y_P = 8u, VH_SKF_Y_ALL = 15u,
     VH_SKF_U_VALID = 16u, VH_SKF_ALL_VALID = 31u
@@ -67,8 +68,8 @@ typedef struct {
     double gp[VH_SKF_NX];  /* MEC gain on r - r^ [(scaled unit)/s per rad/s] (eq. 38) */
     double gy[2];          /* Gy1, Gy2 [N per m/s^2] (eq. 39) */
     double p_cap;          /* scaled variance above which the congruence halving applies */
-    double p_max;          /* divergence limit on any scaled variance */
-    double x_max;          /* divergence limit on any |x*| */
+    double p_max;          /* divergence limit on any scaled variance (fixed point: at most 30) */
+    double x_max;          /* divergence limit on any |x*| (fixed point: at most 1000) */
     int scaled;            /* 1: filter in x* = S x; 0: in x */
     int mec;               /* 1: apply Gp and Gy */
 } vh_skf_config_t;
