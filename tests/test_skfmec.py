@@ -221,8 +221,10 @@ def test_missing_measurement_degrades_and_nan_does_not_crash(short_drive):
     bad = inp.slice(0, 600)
     bad.ay = np.array(bad.ay, copy=True)
     bad.ay[500] = np.nan
-    run = tf.TireForceKF().run(bad)
-    assert np.all(np.isfinite(run.x)) and run.health[500] == lib.VH_HEALTH_DEGRADED
+    for est in (tf.TireForceKF(), tf.TireForceFixed()):
+        run = est.run(bad)
+        assert np.all(np.isfinite(run.x)) and run.health[500] == lib.VH_HEALTH_DEGRADED
+        assert run.saturations == 0 and run.health[599] == lib.VH_HEALTH_OK
 
 
 @pytest.mark.parametrize("bad", [dict(m=0.0), dict(ms=5000.0), dict(ts=float("nan")), dict(r=(1, 1, 0, 1)),

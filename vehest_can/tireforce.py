@@ -378,6 +378,14 @@ class TireForceFixed:
         return out
 
     def run(self, inputs: Inputs, mask=None, *, covariances: bool = False) -> TireForceRun:
+        """As TireForceKF.run. A row with a non-finite input gets an empty mask (the double filter's
+        rule), since an integer cannot carry NaN: the quantiser saturates it."""
+        u = inputs.matrix()
+        bad = ~np.all(np.isfinite(u), axis=1)
+        if bad.any():
+            m = np.full(len(u), lib.VH_SKF_ALL_VALID, np.uint8) if mask is None else _mask(mask, len(u)).copy()
+            m[bad] = 0
+            mask = m
         raw = self.run_raw(self.quantise(inputs), mask, covariances=covariances)
         s = np.asarray(self.config.s)
         return TireForceRun(
