@@ -399,22 +399,33 @@ def test_fixed_point_units_need_no_soft_float_on_cortex_m(tmp_path):
     assert arm_soft_float_symbols(neg, tmp_path) != []
 
 
-@pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
-def test_estimators_under_undefined_behaviour_sanitizer(tmp_path):
-    """libfixmath practice: the fixed-point code (shifts of negative values, int64 products) and
-    the double filters run clean under UBSan + ASan. The driver is the C-loop benchmark
-    (c_core/bench/vh_bench_skf.c, also what tireforce.bench_c_loop builds at -O3), so this also
-    shows the benchmark entry works: one timing line per estimator, no saturation."""
-    exe = tmp_path / "skf_san"
+def build_bench(tmp: Path, name: str, flags: list[str]) -> Path:
+    exe = tmp / name
     sources = [ROOT / "c_core" / "bench" / "vh_bench_skf.c"] + [ROOT / "c_core" / "src" / f
                                                                   for f in ("vh_skf.c", "vh_skfq.c", "vh_fix.c")]
-    build = subprocess.run(["cc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-O1", "-g",
-                            "-fsanitize=address,undefined", "-fno-sanitize-recover=all", f"-I{INCLUDE}",
+    build = subprocess.run(["cc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", *flags, f"-I{INCLUDE}",
                             *map(str, sources), "-lm", "-o", str(exe)], capture_output=True, text=True)
     assert build.returncode == 0, build.stderr
+    return exe
+
+
+def run_bench(exe: Path) -> dict:
     run = subprocess.run([str(exe), "3000"], capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stdout + run.stderr
     assert "runtime error" not in run.stderr
-    names = {line.split()[0]: line.split()[1:] for line in run.stdout.splitlines()}
-    assert {"skfmec_double_step", "ekf_double_step", "skfmec_fixed_step"} <= set(names)
-    assert names["skfmec_fixed_saturations"][0] == "0"
+    return {line.split()[0]: line.split()[1:] for line in run.stdout.splitlines()}
+
+
+@pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
+def test_estimators_under_sanitizers_and_bit_exact_across_builds(tmp_path):
+    """libfixmath practice: the fixed-point code (shifts of negative values, int64 products) and
+    the double filters run clean under UBSan + ASan. The driver is the C-loop benchmark
+    (c_core/bench/vh_bench_skf.c, also what tireforce.bench_c_loop builds), so this also shows the
+    benchmark entry works. The fixed filter's final state is the same, bit for bit, in the
+    sanitized -O1 build and a plain -O3 build."""
+    san = run_bench(build_bench(tmp_path, "skf_san", ["-O1", "-g", "-fsanitize=address,undefined",
+                                                      "-fno-sanitize-recover=all"]))
+    fast = run_bench(build_bench(tmp_path, "skf_o3", ["-O3"]))
+    assert {"skfmec_double_step", "ekf_double_step", "skfmec_fixed_step"} <= set(san)
+    assert san["skfmec_fixed_saturations"][0] == "0"
+    assert san["skfmec_fixed_checksum"] == fast["skfmec_fixed_checksum"]
