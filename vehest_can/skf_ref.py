@@ -174,6 +174,9 @@ def run(cfg, ax, ay, r, p, delta, omega, torque):
                 d = np.ones(N_X)
                 d[i] = 0.5
                 pm = d[:, None] * pm * d[None, :]
+        for i in (0, 1):  # vx, vy: unobservable, clamped to |x*| <= x_max
+            lim = cfg.x_max * s[i, i] / cfg.s[i]
+            xs[i] = min(max(xs[i], -lim), lim)
         nu_ay = innov[1]
         x = s_inv @ xs
         fz = loads(cfg, x[3], ax[t], ay[t], nu_ay, mec)

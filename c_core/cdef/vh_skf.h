@@ -65,6 +65,7 @@ void vh_fix_sincos(int32_t angle_q30, int32_t *sin_q30, int32_t *cos_q30, uint32
 #define VH_SKFQ_FPHI 29
 #define VH_SKFQ_FH 27
 #define VH_SKFQ_FU 24
+#define VH_SKFQ_FK 15
 #define VH_SKFQ_NX 7
 #define VH_SKFQ_NY 4
 #define VH_SKFQ_NU 13

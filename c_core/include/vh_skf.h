@@ -69,7 +69,7 @@ typedef struct {
     double gy[2];          /* Gy1, Gy2 [N per m/s^2] (eq. 39) */
     double p_cap;          /* scaled variance above which the congruence halving applies */
     double p_max;          /* divergence limit on any scaled variance (fixed point: at most 30) */
-    double x_max;          /* divergence limit on any |x*| (fixed point: at most 1000) */
+    double x_max;          /* divergence limit on |x*|; vx*, vy* are clamped to it (fixed point: <= 1000) */
     int scaled;            /* 1: filter in x* = S x; 0: in x */
     int mec;               /* 1: apply Gp and Gy */
 } vh_skf_config_t;

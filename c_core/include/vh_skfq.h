@@ -35,6 +35,7 @@
 #define VH_SKFQ_FPHI 29 /* Q2.29  transition matrix Phi* = I + Ts F* */
 #define VH_SKFQ_FH 27   /* Q4.27  measurement Jacobian H* = T H S^-1 */
 #define VH_SKFQ_FU 24   /* Q7.24  P* h^T, innovation variance s, gains k, R* */
+#define VH_SKFQ_FK 15   /* Q16.15 products of two scaled states (r* vx*, r* vy*, p* r*) */
 
 #define VH_SKFQ_NX 7
 #define VH_SKFQ_NY 4
@@ -59,7 +60,7 @@ typedef struct vh_skfq_params_s {
     vh_fix_k_t c_phi_p;           /* Ts s_phi / s_p  (phi' = p) */
     vh_fix_k_t c_fy_p[2];         /* Ts s_Fyf zeta1 / s_p, Ts s_Fyr zeta2 / s_p (eq. 31-32) */
     int32_t phi_row[3];           /* the same three in FPHI: Phi* entries (phi,p), (Fyf,p), (Fyr,p) */
-    /* kinematic terms [N per unit of the product of two scaled states] */
+    /* kinematic terms [N per unit of the product of two scaled states, FK] */
     vh_fix_k_t k_m_rvy, k_m_rvx;  /* m / (s_r s_vy), m / (s_r s_vx) */
     vh_fix_k_t k_mse_pr, k_mse_rvx; /* ms e / (s_p s_r), ms e / (s_r s_vx) */
     vh_fix_k_t k_kphi, k_cphi;    /* (kphif + kphir) / s_phi, (cphif + cphir) / s_p */
@@ -90,7 +91,7 @@ typedef struct vh_skfq_params_s {
     int32_t p0[VH_SKFQ_NX];       /* FP */
     int32_t r[VH_SKFQ_NY];        /* R* = T^2 R, FU */
     int32_t p_cap, p_max;         /* FP */
-    int32_t x_max;                /* FX */
+    int32_t x_max;                /* FX: divergence limit; vx*, vy* are clamped to it */
     int32_t mec;
     /* seeding */
     vh_fix_k_t k_seed_vx;         /* s_vx rw / 4: sum of wheel speeds -> vx* */

@@ -73,7 +73,7 @@ void vh_skf_config_default(vh_skf_config_t *cfg, int variant)
     cfg->gy[1] = -100.0;
     cfg->p_cap = 8.0;
     cfg->p_max = 1e6;
-    cfg->x_max = 1e4;
+    cfg->x_max = 1000.0; /* |x*|: the fixed-point state format holds 1024 */
     cfg->scaled = variant == VH_SKF_EKF ? 0 : 1;
     cfg->mec = variant == VH_SKF_EKF ? 0 : 1;
 }
@@ -373,8 +373,9 @@ static int sane(const vh_skf_t *f)
     }
     for (i = 0; i < NX; ++i) {
         const double d = f->p[i * NX + i] * f->w[i];
+        const int observable = i != VH_SKF_VX && i != VH_SKF_VY; /* vx, vy are clamped instead */
         if (!isfinite(f->x[i]) || !(d > 0.0) || d > f->cfg.p_max ||
-            fabs(f->x[i] * f->cfg.s[i] / f->d[i]) > f->cfg.x_max) {
+            (observable && fabs(f->x[i] * f->cfg.s[i] / f->d[i]) > f->cfg.x_max)) {
             return 0;
         }
     }
@@ -527,6 +528,12 @@ int vh_skf_step(vh_skf_t *f, const vh_skf_input_t *in, unsigned mask)
             }
             ++f->caps;
         }
+    }
+    /* vx, vy: no output sees them, so sensor bias makes them drift open loop; they are held in
+     * |x*| <= x_max like a saturating integrator instead of resetting the whole filter */
+    for (i = VH_SKF_VX; i <= VH_SKF_VY; ++i) {
+        const double lim = c->x_max * f->d[i] / c->s[i];
+        f->x[i] = f->x[i] > lim ? lim : (f->x[i] < -lim ? -lim : f->x[i]);
     }
     if (!sane(f)) {
         goto diverged;

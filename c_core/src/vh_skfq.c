@@ -21,6 +21,7 @@
 #define FPHI VH_SKFQ_FPHI
 #define FH VH_SKFQ_FH
 #define FU VH_SKFQ_FU
+#define FK VH_SKFQ_FK
 
 #define INIT_STEPS 400u
 
@@ -223,7 +224,8 @@ static int sane(const vh_skfq_t *f)
     int i;
     for (i = 0; i < NX; ++i) {
         const int32_t d = f->p[i * NX + i];
-        if (d <= 0 || d > f->prm.p_max || f->x[i] > f->prm.x_max || f->x[i] < -f->prm.x_max) {
+        const int observable = i != VH_SKF_VX && i != VH_SKF_VY; /* vx, vy are clamped instead */
+        if (d <= 0 || d > f->prm.p_max || (observable && (f->x[i] > f->prm.x_max || f->x[i] < -f->prm.x_max))) {
             return 0;
         }
     }
@@ -274,13 +276,13 @@ int vh_skfq_step(vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask)
 
     /* predict: x* += C g(x) + Ts Gp (r* - r^*)  (eq. 35, 38) */
     sums(k, &ctx, f->x, &sm, sat);
-    rvx = MUL(f->x[VH_SKF_R], FX, f->x[VH_SKF_VX], FX, FX);
-    rvy = MUL(f->x[VH_SKF_R], FX, f->x[VH_SKF_VY], FX, FX);
-    pr = MUL(f->x[VH_SKF_P], FX, f->x[VH_SKF_R], FX, FX);
+    rvx = MUL(f->x[VH_SKF_R], FX, f->x[VH_SKF_VX], FX, FK);
+    rvy = MUL(f->x[VH_SKF_R], FX, f->x[VH_SKF_VY], FX, FK);
+    pr = MUL(f->x[VH_SKF_P], FX, f->x[VH_SKF_R], FX, FK);
     {
-        const int32_t g0 = SUB(ADD(sm.sfx, KM(k->k_m_rvy, rvy, FX, FN)), KM(k->k_mse_pr, pr, FX, FN));
-        const int32_t g1 = SUB(sm.sfy, KM(k->k_m_rvx, rvx, FX, FN));
-        const int32_t g4 = ADD(sm.smx, KM(k->k_mse_rvx, rvx, FX, FN));
+        const int32_t g0 = SUB(ADD(sm.sfx, KM(k->k_m_rvy, rvy, FK, FN)), KM(k->k_mse_pr, pr, FK, FN));
+        const int32_t g1 = SUB(sm.sfy, KM(k->k_m_rvx, rvx, FK, FN));
+        const int32_t g4 = ADD(sm.smx, KM(k->k_mse_rvx, rvx, FK, FN));
         const int32_t p_s = f->x[VH_SKF_P];
         dx[VH_SKF_VX] = KM(k->c_vx0, g0, FN, FX);
         dx[VH_SKF_VY] = ADD(KM(k->c_vy1, g1, FN, FX), KM(k->c_vy4, g4, FN, FX));
@@ -348,8 +350,8 @@ int vh_skfq_step(vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask)
 
     /* update: outputs and H* at the prior, sequential scalar updates */
     sums(k, &ctx, f->x, &sm, sat);
-    pr = MUL(f->x[VH_SKF_P], FX, f->x[VH_SKF_R], FX, FX);
-    yhat[VH_SKF_AX] = SUB(KM(k->k_inv_m, sm.sfx, FN, FX), KM(k->k_mse_pr_m, pr, FX, FX));
+    pr = MUL(f->x[VH_SKF_P], FX, f->x[VH_SKF_R], FX, FK);
+    yhat[VH_SKF_AX] = SUB(KM(k->k_inv_m, sm.sfx, FN, FX), KM(k->k_mse_pr_m, pr, FK, FX));
     yhat[VH_SKF_AY] = ADD(KM(k->k_ixx_det, sm.sfy, FN, FX), KM(k->k_mse_det, sm.smx, FN, FX));
     yhat[VH_SKF_YR] = f->x[VH_SKF_R];
     yhat[VH_SKF_YP] = f->x[VH_SKF_P];
@@ -413,6 +415,10 @@ int vh_skfq_step(vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask)
             f->p[i * NX + i] = vh_fix_rshift_rnd(f->p[i * NX + i], 2, sat);
             ++f->caps;
         }
+    }
+    /* vx, vy: unobservable, held in |x*| <= x_max (as vh_skf) */
+    for (i = VH_SKF_VX; i <= VH_SKF_VY; ++i) {
+        f->x[i] = f->x[i] > k->x_max ? k->x_max : (f->x[i] < -k->x_max ? -k->x_max : f->x[i]);
     }
     if (!sane(f)) {
         goto diverged;
