@@ -17,8 +17,8 @@
  * updates in the symmetric expanded Joseph form), Qd = Qc Ts, R = per-sample variances.
  * Unobservable states (vx, vy: no output depends on them) get their variance capped by a
  * congruence P <- D P D with D = diag(1, .., 1/2, .., 1), which keeps P symmetric PSD and
- * leaves every other state's estimate untouched. Non-finite or divergent state/covariance resets
- * the filter (health FAULT), as vh_dkf.
+ * leaves every other state's estimate untouched; their values are clamped to |x*| <= x_max.
+ * Non-finite or divergent state/covariance resets the filter (health FAULT), as vh_dkf.
  */
 #ifndef VH_SKF_H
 #define VH_SKF_H

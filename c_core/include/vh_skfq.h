@@ -11,7 +11,8 @@
  * vh_skfq_params_from_config (in vh_skf.c, the double-precision "calibration tool").
  * Arithmetic: round-half-up everywhere, saturating operations that count (vh_fix.h); a step with
  * a saturation is DEGRADED, the count is kept (`sat`), the filter carries on. Divergence (a
- * non-positive variance, a variance above p_max, |x*| above x_max) resets it (FAULT), as vh_skf.
+ * non-positive variance, a variance above p_max, |x*| above x_max) resets it (FAULT), as vh_skf;
+ * the unobservable vx*, vy* are clamped to x_max instead.
  */
 #ifndef VH_SKFQ_H
 #define VH_SKFQ_H
