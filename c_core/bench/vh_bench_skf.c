@@ -1,0 +1,137 @@
+/* vh_bench_skf.c - C-loop benchmark of the tire-force estimators' step (seed 000).
+ *
+ * Prints "name n median_ns p99_ns" per estimator (the format of vh_bench.c): one step of SKFMEC
+ * in double, of the plain EKF, and of SKFMEC in fixed point, timed call by call with
+ * CLOCK_MONOTONIC (the clock's own cost is measured and subtracted). Inputs: a 0.5 Hz sine steer
+ * at 70 km/h with a consistent yaw rate and lateral acceleration, small deterministic noise.
+ * Build: cc -O3 -Ic_core/include c_core/bench/vh_bench_skf.c c_core/src/vh_skf.c
+ *        c_core/src/vh_skfq.c c_core/src/vh_fix.c -lm  (vehest_can.tireforce.bench_c_loop does it).
+ */
+#define _POSIX_C_SOURCE 199309L
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <time.h>
+
+#include "vh_skf.h"
+#include "vh_skfq.h"
+
+#define N_SAMPLES 40000 /* 20 s of driving at 2 kHz */
+
+static double now_ns(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec * 1e9 + (double)ts.tv_nsec;
+}
+
+static int cmp(const void *a, const void *b)
+{
+    const double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static void report(const char *name, double *s, int n, double clock_ns)
+{
+    qsort(s, (size_t)n, sizeof *s, cmp);
+    printf("%s %d %.1f %.1f\n", name, n, s[n / 2] - clock_ns, s[(n * 99) / 100] - clock_ns);
+}
+
+static double samples[N_SAMPLES];
+static vh_skf_input_t inputs[N_SAMPLES];
+static int32_t qinputs[N_SAMPLES * VH_SKFQ_NU];
+
+int main(int argc, char **argv)
+{
+    static vh_skf_t kf;
+    static vh_skfq_t kq;
+    vh_skf_config_t cfg;
+    vh_skfq_params_t prm;
+    double clock_ns, t0;
+    int i, v;
+    unsigned lcg = 12345u;
+    volatile int sink = 0;
+    /* optional sample count (the test suite runs a short one) */
+    const int n = argc > 1 && atoi(argv[1]) > 100 && atoi(argv[1]) <= N_SAMPLES ? atoi(argv[1]) : N_SAMPLES;
+
+    for (i = 0; i < n; ++i) {
+        t0 = now_ns();
+        samples[i] = now_ns() - t0;
+    }
+    qsort(samples, (size_t)n, sizeof samples[0], cmp);
+    clock_ns = samples[n / 2];
+    printf("clock %d %.1f 0\n", n, clock_ns);
+
+    for (i = 0; i < n; ++i) {
+        const double t = i * 5e-4, vx = 19.44;
+        const double delta = 0.035 * sin(2.0 * 3.14159265358979 * 0.5 * t);
+        double noise;
+        int w;
+        lcg = lcg * 1103515245u + 12345u;
+        noise = ((double)(lcg >> 16) / 65536.0 - 0.5) * 0.02;
+        inputs[i].delta = delta;
+        inputs[i].r = vx * delta / 2.693 + noise;
+        inputs[i].ay = vx * inputs[i].r + noise;
+        inputs[i].ax = noise;
+        inputs[i].p = 0.01 * cos(2.0 * 3.14159265358979 * 0.5 * t) + noise;
+        for (w = 0; w < 4; ++w) {
+            inputs[i].omega[w] = vx / 0.305 + noise;
+            inputs[i].torque[w] = 10.0;
+        }
+    }
+    vh_skfq_quantise_inputs((size_t)n, &inputs[0].ax, qinputs);
+
+    for (v = 0; v < 2; ++v) { /* double: SKFMEC, EKF */
+        vh_skf_config_default(&cfg, v == 0 ? VH_SKF_SKFMEC : VH_SKF_EKF);
+        if (vh_skf_init(&kf, &cfg) != VH_OK) {
+            return 1;
+        }
+        for (i = 0; i < n; ++i) {
+            t0 = now_ns();
+            sink += vh_skf_step(&kf, &inputs[i], VH_SKF_ALL_VALID);
+            samples[i] = now_ns() - t0;
+        }
+        report(v == 0 ? "skfmec_double_step" : "ekf_double_step", samples, n, clock_ns);
+    }
+
+    vh_skf_config_default(&cfg, VH_SKF_SKFMEC);
+    if (vh_skfq_params_from_config(&cfg, &prm) != VH_OK || vh_skfq_init(&kq, &prm) != VH_OK) {
+        return 1;
+    }
+    for (i = 0; i < n; ++i) {
+        vh_skfq_input_t in;
+        const int32_t *row = qinputs + i * VH_SKFQ_NU;
+        int w;
+        in.ax = row[0];
+        in.ay = row[1];
+        in.r = row[2];
+        in.p = row[3];
+        in.delta = row[4];
+        for (w = 0; w < 4; ++w) {
+            in.omega[w] = row[5 + w];
+            in.torque[w] = row[9 + w];
+        }
+        t0 = now_ns();
+        sink += vh_skfq_step(&kq, &in, VH_SKF_ALL_VALID);
+        samples[i] = now_ns() - t0;
+    }
+    report("skfmec_fixed_step", samples, n, clock_ns);
+    printf("skfmec_fixed_saturations %u 0 0\n", (unsigned)kq.sat);
+    { /* FNV-1a of the final integer state: equal for every build of the same sources */
+        uint32_t h = 2166136261u;
+        const int32_t *parts[4] = {kq.x, kq.p, kq.fy, kq.fz};
+        const int len[4] = {VH_SKFQ_NX, VH_SKFQ_NX * VH_SKFQ_NX, 4, 4};
+        int a, b;
+        for (a = 0; a < 4; ++a) {
+            for (b = 0; b < len[a]; ++b) {
+                const uint32_t v = (uint32_t)parts[a][b];
+                int byte;
+                for (byte = 0; byte < 4; ++byte) {
+                    h = (h ^ ((v >> (8 * byte)) & 0xffu)) * 16777619u;
+                }
+            }
+        }
+        printf("skfmec_fixed_checksum %u 0 0\n", (unsigned)h);
+    }
+    return sink == 0 ? 0 : 2;
+}

@@ -1,0 +1,71 @@
+/* vh_fix.c - fixed-point helpers that are too big to inline, see vh_fix.h. Integer only. */
+#include "vh_fix.h"
+
+int64_t vh_fix_dot(const int32_t *a, int sa, const int32_t *b, int sb, int n)
+{
+    int64_t acc = 0;
+    int i;
+    for (i = 0; i < n; ++i) {
+        acc += vh_fix_asr64((int64_t)a[i * sa] * b[i * sb], VH_FIX_GUARD);
+    }
+    return acc;
+}
+
+int32_t vh_fix_div(int32_t num, int32_t den, int s, uint32_t *sat)
+{
+    int64_t n2, d2, q;
+    if (den <= 0) {
+        if (num == 0) {
+            return 0;
+        }
+        vh_fix_count(sat);
+        return num > 0 ? INT32_MAX : INT32_MIN;
+    }
+    if (s < 0) {
+        s = 0;
+    } else if (s > 30) {
+        s = 30;
+    }
+    /* floor((2 num 2^s + den) / (2 den)): |2 num 2^s| <= 2^62 */
+    n2 = (int64_t)num * ((int64_t)1 << (s + 1)) + den;
+    d2 = 2 * (int64_t)den;
+    q = n2 / d2;
+    if (n2 % d2 != 0 && n2 < 0) {
+        --q; /* C division truncates; floor for negatives */
+    }
+    return vh_fix_sat32(q, sat);
+}
+
+#define ONE_Q30 1073741824 /* 1.0 in Q1.30 */
+
+/* 1 - x2 * inv * p, Q1.30 throughout: one Horner step of the Taylor series. */
+static int32_t horner(int32_t x2, int32_t inv, int32_t p, uint32_t *sat)
+{
+    const int32_t t = vh_fix_mul(x2, 30, inv, 30, 30, sat);
+    return vh_fix_sub(ONE_Q30, vh_fix_mul(t, 30, p, 30, 30, sat), sat);
+}
+
+void vh_fix_sincos(int32_t angle, int32_t *s_out, int32_t *c_out, uint32_t *sat)
+{
+    /* round(2^30 / k) for the Taylor denominators */
+    static const int32_t inv_sin[4] = {14913081, 25565282, 53687091, 178956971};        /* 72 42 20 6 */
+    static const int32_t inv_cos[5] = {11930465, 19173961, 35791394, 89478485, 536870912}; /* 90 56 30 12 2 */
+    int32_t x2, ps = ONE_Q30, pc = ONE_Q30;
+    int i;
+    if (angle > ONE_Q30) {
+        angle = ONE_Q30;
+        vh_fix_count(sat);
+    } else if (angle < -ONE_Q30) {
+        angle = -ONE_Q30;
+        vh_fix_count(sat);
+    }
+    x2 = vh_fix_mul(angle, 30, angle, 30, 30, sat);
+    for (i = 0; i < 4; ++i) {
+        ps = horner(x2, inv_sin[i], ps, sat);
+    }
+    for (i = 0; i < 5; ++i) {
+        pc = horner(x2, inv_cos[i], pc, sat);
+    }
+    *s_out = vh_fix_mul(angle, 30, ps, 30, 30, sat);
+    *c_out = pc;
+}
