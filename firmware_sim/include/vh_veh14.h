@@ -33,7 +33,8 @@
  * one sub-step at road speeds. Heun's first stage is the truth of the step: the state at the
  * step's start with the forces of the step's inputs, the tyres evaluated exactly. Its second stage
  * takes the tyres' slip stiffness on its tangent in the load (an O(h^2) change of the stage, so
- * still second order) and holds their peak slips; docs/chassis_plant.md has the figures.
+ * still second order). The peak slips normalising combined slip are refreshed for one tyre per
+ * step (each every 2 ms) and held in between; docs/chassis_plant.md has the figures.
  */
 #ifndef VH_VEH14_H
 #define VH_VEH14_H
@@ -156,7 +157,7 @@ typedef struct {
     double ip, iq;              /* Ix + ms e^2, Iy + ms hp^2 */
     double det_x, det_y;        /* determinants of the (vx, q) and (vy, p) mass blocks */
     double rate_fixed;          /* fastest rate not from the tyres [1/s] */
-    vh_mft_state_t pk[VH_V14_NW]; /* tyres at the step-start loads: peak slips held over the step */
+    vh_mft_state_t pk[VH_V14_NW]; /* tyres at the step-start loads (tangent base, held peak slips) */
     double ck[VH_V14_NW];       /* longitudinal slip stiffness at the step-start loads [N] */
 } vh_v14_t;
 

@@ -24,6 +24,7 @@ typedef struct {
     double mu[VH_V14_NW];
     /* parameter combinations, so the right-hand side multiplies instead of divides */
     double inv_iw, inv_mu[VH_V14_NW], jack[VH_V14_NW], arb_f, arb_r;
+    unsigned refresh;              /* bit i: the truth stage refreshes tyre i's peak slips */
 } ctx_t;
 
 /* What the right-hand side computes besides the derivative (for the truth). */
@@ -159,10 +160,15 @@ static void deriv(const vh_v14_t *p, const ctx_t *c, const double *x, double *dx
         fz = p->fz0[i] - prm->kt * zu - prm->ct * vzu; /* tyre load from the unsprung motion */
         fz = fz > 0.0 ? fz : 0.0;                       /* lift-off */
         if (aux != NULL) {
-            /* the truth stage: the tyre exactly at its load, peak slips refined (one Newton
-             * iteration from the last step's: E moves ~1e-5 in a step) */
+            /* the truth stage: the tyre exactly at its load. Its peak slips (the combined-slip
+             * normalisation, never the pure-slip curves) are refreshed for one tyre per tick, each
+             * every 2 ms (one Newton iteration from the last: E moves ~1e-5 per tick), else held */
             vh_mft_load(&ts, &prm->tyre, fz, c->mu[i]);
-            vh_mft_peaks(&ts, p->pk[i].ux, p->pk[i].uy, 1);
+            if (c->refresh & (1u << i)) {
+                vh_mft_peaks(&ts, p->pk[i].ux, p->pk[i].uy, 1);
+            } else {
+                vh_mft_hold_peaks(&ts, &p->pk[i]);
+            }
         } else {
             /* later stages: slip stiffness on its tangent about the truth stage's load (error
              * O(dFz^2) = O(h^2): Heun stays second order), peak slips held */
@@ -417,6 +423,7 @@ static void make_ctx(const vh_v14_t *p, const vh_v14_input_t *in, double h, ctx_
         c->jack[i] = (front ? prm->hf / prm->tf : prm->hr / prm->tr) * (p->cy[i] > 0.0 ? -1.0 : 1.0);
     }
     c->inv_iw = 1.0 / prm->iw;
+    c->refresh = 1u << (unsigned)(p->steps % VH_V14_NW);
     c->arb_f = p->k_arb_f / (4.0 * prm->tf * prm->tf); /* bar force per compression difference */
     c->arb_r = p->k_arb_r / (4.0 * prm->tr * prm->tr);
 }
@@ -435,6 +442,7 @@ static void settle(vh_v14_t *p)
     }
     vh_v14_input_init(&in, 1.0);
     make_ctx(p, &in, VH_V14_DT, &c);
+    c.refresh = 0xFu;
     deriv(p, &c, p->x, dx, &aux);
     fill_truth(p, &c, dx, &aux, 0.0, 0);
 }
