@@ -68,8 +68,8 @@ void vh_mft_coef_default(vh_mft_coef_t *c);
 int vh_mft_check(const vh_mft_coef_t *c);
 
 /* u_m of the MF peak for shape C (1 < C < 2) and curvature E (< 1), by Newton from u0 (<= 0:
- * from the E = 0 solution) with `iters` iterations (<= 0: until converged). g(u) = (1 - E) u + E atan(u) - tan(pi/2C)
- * has g' >= min(1, 1 - E) > 0, so the root is unique and Newton converges from any start. */
+ * from the E = 0 solution) with `iters` iterations (<= 0: until converged).
+ * g(u) = (1 - E) u + E atan(u) - tan(pi/2C) has g' >= min(1, 1 - E) > 0: the root is unique. */
 double vh_mft_peak_u(double c, double e, double u0, int iters);
 
 /* Factors B, C, D, E at load fz [N] (negative taken as 0) and road friction mu (>= 0). */
