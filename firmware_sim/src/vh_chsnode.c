@@ -1,0 +1,159 @@
+/* vh_chsnode.c - see vh_chsnode.h. */
+#include "vh_chsnode.h"
+
+#include <math.h>
+
+#include "vh_ch.h"
+#include "vh_ch_meta.h"
+#include "vh_e2e.h"
+
+/* Resolutions of dbc/vehest_ch.dbc, per channel. */
+static const double SCALE[VH_CHS_NCH] = {0.001, 0.001, 0.0001, 0.0001, 0.0001, 0.01, 0.01,
+                                         0.01,  0.01,  0.25,   0.25,   0.25,   0.25};
+
+void vh_chs_config_default(vh_chs_config_t *cfg)
+{
+    int i;
+    /* Automotive MEMS inertial cluster sampled at 2 kHz (no filtering in the node): 0.05 m/s^2
+     * and 0.3 deg/s rms. Steering-angle sensor 0.1 deg at the steering wheel over a 16:1 ratio:
+     * ~0.1 mrad at the road wheel. ABS wheel speeds 0.1 rad/s (tooth jitter at 2 kHz). Wheel
+     * torques (powertrain torque model and caliper pressure) 2 Nm. */
+    cfg->noise_std[VH_CHS_CH_AX] = 0.05;
+    cfg->noise_std[VH_CHS_CH_AY] = 0.05;
+    cfg->noise_std[VH_CHS_CH_YAW] = 0.005;
+    cfg->noise_std[VH_CHS_CH_ROLL] = 0.005;
+    cfg->noise_std[VH_CHS_CH_STEER] = 0.0001;
+    for (i = 0; i < 4; ++i) {
+        cfg->noise_std[VH_CHS_CH_W + i] = 0.1;
+        cfg->noise_std[VH_CHS_CH_T + i] = 2.0;
+    }
+    for (i = 0; i < VH_CHS_NCH; ++i) {
+        cfg->bias[i] = 0.0;
+    }
+    cfg->seed = 0x434853u; /* "CHS" */
+    cfg->fail_mask = 0u;
+    cfg->accel_gravity = 0;
+}
+
+int vh_chs_init(vh_chs_t *n, const vh_chs_config_t *cfg)
+{
+    int i;
+    if (n == NULL || cfg == NULL) {
+        return VH_EINVAL;
+    }
+    for (i = 0; i < VH_CHS_NCH; ++i) {
+        if (!(cfg->noise_std[i] >= 0.0) || !isfinite(cfg->noise_std[i]) || !isfinite(cfg->bias[i])) {
+            return VH_EINVAL;
+        }
+    }
+    n->cfg = *cfg;
+    vh_chs_reset(n);
+    return VH_OK;
+}
+
+void vh_chs_reset(vh_chs_t *n)
+{
+    int i;
+    vh_rng_seed(&n->rng, n->cfg.seed);
+    for (i = 0; i < VH_CHS_NCH; ++i) {
+        n->meas[i] = 0.0;
+    }
+    n->counter = 0u;
+    n->frames = 0u;
+}
+
+/* raw = round(phys / scale), clamped to [-32767, 32767] (-32768 is SNA). */
+static int16_t quant_s16(double v, double scale)
+{
+    double r = floor(v / scale + 0.5);
+    r = r > 32767.0 ? 32767.0 : (r < -32767.0 ? -32767.0 : r);
+    return (int16_t)r;
+}
+
+/* raw = round(phys / scale), clamped to [0, 65534] (65535 is SNA). */
+static uint16_t quant_u16(double v, double scale)
+{
+    double r = floor(v / scale + 0.5);
+    r = r > 65534.0 ? 65534.0 : (r < 0.0 ? 0.0 : r);
+    return (uint16_t)r;
+}
+
+size_t vh_chs_step(vh_chs_t *n, const vh_v14_truth_t *truth, vh_frame_t *out, size_t cap)
+{
+    struct vh_ch_chs_sensors_t m;
+    double phys[VH_CHS_NCH];
+    uint8_t ok[VH_CHS_NCH];
+    int16_t raw_s[VH_CHS_NCH];
+    uint16_t raw_w[4];
+    int i;
+
+    if (out == NULL || cap == 0u || truth == NULL) {
+        return 0u;
+    }
+    phys[VH_CHS_CH_AX] = truth->ax;
+    phys[VH_CHS_CH_AY] = truth->ay;
+    if (n->cfg.accel_gravity) {
+        /* specific force along the rolled and pitched body axes (y up-tilted by phi, x nose-down
+         * by theta): f = a + g z_up projected, small vertical acceleration left out */
+        phys[VH_CHS_CH_AX] = truth->ax * cos(truth->theta) - VH_V14_GRAVITY * sin(truth->theta);
+        phys[VH_CHS_CH_AY] = truth->ay * cos(truth->phi) + VH_V14_GRAVITY * sin(truth->phi);
+    }
+    phys[VH_CHS_CH_YAW] = truth->r;
+    phys[VH_CHS_CH_ROLL] = truth->p;
+    phys[VH_CHS_CH_STEER] = truth->steer;
+    for (i = 0; i < 4; ++i) {
+        phys[VH_CHS_CH_W + i] = truth->omega[i];
+        phys[VH_CHS_CH_T + i] = truth->torque[i];
+    }
+    for (i = 0; i < VH_CHS_NCH; ++i) {
+        n->meas[i] = phys[i] + n->cfg.bias[i] + n->cfg.noise_std[i] * vh_rng_gauss(&n->rng);
+        /* a sensor that reads garbage reports it rather than sending a clamped number */
+        ok[i] = (uint8_t)(isfinite(n->meas[i]) && !(n->cfg.fail_mask & (1u << i)));
+        raw_s[i] = ok[i] ? quant_s16(n->meas[i], SCALE[i]) : (int16_t)-32768;
+    }
+    for (i = 0; i < 4; ++i) {
+        raw_w[i] = ok[VH_CHS_CH_W + i] ? quant_u16(n->meas[VH_CHS_CH_W + i], SCALE[VH_CHS_CH_W + i])
+                                        : (uint16_t)VH_CH_CHS_SENSORS_WHEEL_SPEED_FL_SNA_CHOICE;
+    }
+
+    (void)vh_ch_chs_sensors_init(&m);
+    m.long_accel = raw_s[VH_CHS_CH_AX];
+    m.lat_accel = raw_s[VH_CHS_CH_AY];
+    m.yaw_rate = raw_s[VH_CHS_CH_YAW];
+    m.roll_rate = raw_s[VH_CHS_CH_ROLL];
+    m.steer_angle = raw_s[VH_CHS_CH_STEER];
+    m.wheel_speed_fl = raw_w[0];
+    m.wheel_speed_fr = raw_w[1];
+    m.wheel_speed_rl = raw_w[2];
+    m.wheel_speed_rr = raw_w[3];
+    m.wheel_torque_fl = raw_s[VH_CHS_CH_T + 0];
+    m.wheel_torque_fr = raw_s[VH_CHS_CH_T + 1];
+    m.wheel_torque_rl = raw_s[VH_CHS_CH_T + 2];
+    m.wheel_torque_rr = raw_s[VH_CHS_CH_T + 3];
+    m.qf_long_accel = ok[VH_CHS_CH_AX];
+    m.qf_lat_accel = ok[VH_CHS_CH_AY];
+    m.qf_yaw_rate = ok[VH_CHS_CH_YAW];
+    m.qf_roll_rate = ok[VH_CHS_CH_ROLL];
+    m.qf_steer_angle = ok[VH_CHS_CH_STEER];
+    m.qf_wheel_speed_fl = ok[VH_CHS_CH_W + 0];
+    m.qf_wheel_speed_fr = ok[VH_CHS_CH_W + 1];
+    m.qf_wheel_speed_rl = ok[VH_CHS_CH_W + 2];
+    m.qf_wheel_speed_rr = ok[VH_CHS_CH_W + 3];
+    m.qf_wheel_torque_fl = ok[VH_CHS_CH_T + 0];
+    m.qf_wheel_torque_fr = ok[VH_CHS_CH_T + 1];
+    m.qf_wheel_torque_rl = ok[VH_CHS_CH_T + 2];
+    m.qf_wheel_torque_rr = ok[VH_CHS_CH_T + 3];
+
+    for (i = 0; i < VH_FRAME_MAX_LEN; ++i) {
+        out->data[i] = 0u;
+    }
+    out->id = VH_CH_CHS_SENSORS_FRAME_ID;
+    out->len = (uint8_t)VH_CH_CHS_SENSORS_LENGTH;
+    out->flags = (uint8_t)(VH_FRAME_FD | VH_FRAME_BRS);
+    (void)vh_ch_chs_sensors_pack(out->data, &m, VH_CH_CHS_SENSORS_LENGTH);
+    vh_e2e_p01_protect(out->data, VH_CH_CHS_SENSORS_LENGTH, VH_CH_CHS_SENSORS_E2E_DATA_ID, &n->counter);
+    if (n->frames < UINT32_MAX) {
+        ++n->frames;
+    }
+    return 1u;
+}
