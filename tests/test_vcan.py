@@ -1,14 +1,14 @@
 """vcan loopback testing: the ECU daemon on a real SocketCAN vcan0, inside user-mode Linux.
 
-Two guest boots, each running one script from ``tests/vcan_guest/`` that drives real processes
+Three guest boots, each running one script from ``tests/vcan_guest/`` that drives real processes
 (the ``vehest-can daemon``, the simulator, can-utils) and prints JSON; the tests here judge what
 they saw against references computed on the host (the in-process lockstep run, the plant's
 truth, an independent CRC). No timing is asserted: the guest's clock is not a real-time one.
 
-* lockstep boot: both paper scenarios at full length, simulator and daemon as two processes on
-  vcan0, captured by ``candump -L``; at the same time, on the host, the same sessions over
-  udp_multicast. Everything must equal the in-process run bit for bit, and so must the replay
-  of the capture.
+* lockstep boots: both paper scenarios at full length, simulator and daemon as two processes
+  on vcan0, captured by ``candump -L``; at the same time, in a second guest, the same sessions
+  over udp_multicast. Everything must equal the in-process run bit for bit, and so must the
+  replay of the capture.
 * faults boot: ``canplayer`` plays a sensor log into a real-time daemon; ``cansend``/``cangen``
   inject malformed and hostile frames; the link goes down and up under a real-time and a
   lockstep daemon.
@@ -26,6 +26,7 @@ import subprocess
 import sys
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -90,10 +91,6 @@ def ecu_part(frames: np.ndarray, ticks: np.ndarray):
 
 def std(msgs, ident: int) -> list[can.Message]:
     return [m for m in msgs if m.arbitration_id == ident and not m.is_extended_id]
-
-
-def mc_group() -> str:
-    return f"239.74.{random.randint(1, 254)}.{random.randint(1, 254)}"
 
 
 def guest_json(result, what: str) -> dict:
@@ -182,25 +179,42 @@ def test_daemon_stats_report_no_bus_errors_when_there_are_none():
 
 @pytest.fixture(scope="module")
 def lockstep_runs(uml, tmp_path_factory):
-    """The paper scenarios in lockstep: over vcan0 in the guest (captured by candump) and, at the
-    same time, over udp_multicast on the host (the guest uses one core, the host run the other)."""
+    """The paper scenarios in lockstep, in two guests booted side by side (one core each): over
+    vcan0, captured by candump, and over udp_multicast.
+
+    udp_multicast runs in a guest rather than on the host for isolation: python-can binds its
+    socket to 0.0.0.0:43113, and Linux then delivers every IPv4 group joined on the host at that
+    port to it (IP_MULTICAST_ALL), so another multicast session on the same host (a demo, a
+    parallel test run) can leak into ours; it did once on this shared machine.
+    """
     out = tmp_path_factory.mktemp("vcan-lockstep")
-    names = [sc.name for sc in SCENARIOS]
-    script = GUEST / "lockstep_sessions.py"
+    names = " ".join(sc.name for sc in SCENARIOS)
+    script = shlex.quote(str(GUEST / "lockstep_sessions.py"))
+    runs = {
+        "vcan": f"{PY} {script} {shlex.quote(str(out / 'vcan'))} --capture {names}",
+        "multicast": f"{PY} {script} {shlex.quote(str(out / 'multicast'))} -i udp_multicast "
+                     f"-c 239.74.163.2 --daemon-log {names}",
+    }
     t0 = time.monotonic()
-    host = subprocess.Popen(
-        [sys.executable, str(script), str(out / "multicast"), "-i", "udp_multicast", "-c", mc_group(),
-         "--daemon-log", *names], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO)
-    try:
-        guest = uml.run(f"{PY} {shlex.quote(str(script))} {shlex.quote(str(out / 'vcan'))} --capture "
-                        + " ".join(names), timeout=1200, cwd=REPO, workdir=out / "uml")
-        guest_s = time.monotonic() - t0
-    finally:
-        host_out, host_err = host.communicate(timeout=1200)
-    host_s = time.monotonic() - t0
-    assert host.returncode == 0, host_err
-    return SimpleNamespace(out=out, vcan=guest_json(guest, "lockstep guest"), multicast=json.loads(host_out),
-                           guest_s=guest_s, host_s=host_s, boot_s=guest.boot_seconds)
+    with ThreadPoolExecutor(2) as pool:
+        futures = {k: pool.submit(uml.run, cmd, timeout=1200, cwd=REPO, workdir=out / f"uml-{k}",
+                                  interfaces=("vcan0",) if k == "vcan" else ())
+                   for k, cmd in runs.items()}
+        results = {k: f.result() for k, f in futures.items()}
+    return SimpleNamespace(out=out, vcan=guest_json(results["vcan"], "vcan guest"),
+                           multicast=guest_json(results["multicast"], "multicast guest"),
+                           guest_s={k: r.total_seconds for k, r in results.items()},
+                           wall_s=time.monotonic() - t0)
+
+
+@pytest.fixture(scope="module")
+def captures(lockstep_runs):
+    """candump's capture of each vcan session (read once) and its replay through a fresh ECU."""
+    out = {}
+    for sc in SCENARIOS:
+        msgs = read_log(lockstep_runs.out / "vcan" / f"{sc.name}.candump.log")
+        out[sc.name] = SimpleNamespace(messages=msgs, replay=replay(msgs))
+    return out
 
 
 def _session(path: Path):
@@ -209,7 +223,7 @@ def _session(path: Path):
 
 
 @pytest.mark.uml
-def test_vcan_lockstep_daemon_process_equals_inprocess(lockstep_runs, inprocess):
+def test_vcan_lockstep_daemon_process_equals_inprocess(lockstep_runs, inprocess, captures):
     """Simulator and ECU daemon as two processes on vcan0 give the in-process run, bit for bit:
     every frame, its tick and the plant's truth; candump, a third process on the bus, saw the
     same frames."""
@@ -232,7 +246,7 @@ def test_vcan_lockstep_daemon_process_equals_inprocess(lockstep_runs, inprocess)
 
         # candump's record of the bus: the same sensor and ECU frames, in the same order
         assert run["sessions"][sc.name]["candump_rc"] == 0
-        captured = [m for m in can.LogReader(str(lockstep_runs.out / "vcan" / f"{sc.name}.candump.log"))]
+        captured = captures[sc.name].messages
         assert {m.channel for m in captured} == {"vcan0"}
         got = [m for m in captured if m.arbitration_id in ECU_IDS | {DLS.frame_id}]
         assert wire_msgs(got) == wire(local.frames)
@@ -248,18 +262,18 @@ def test_vcan_lockstep_daemon_process_equals_inprocess(lockstep_runs, inprocess)
     assert not any(stats["counters"].values()), stats["counters"]
     assert (stats["bus_outages"], stats["send_failures"], stats["recv_errors"]) == (0, 0, 0)
     print(f"\nvcan lockstep: {total_ticks} ticks, {total_ecu} ECU frames equal in-process; guest "
-          f"{lockstep_runs.guest_s:.1f} s (boot {lockstep_runs.boot_s:.1f} s), "
+          f"{lockstep_runs.guest_s['vcan']:.1f} s, "
           + ", ".join(f"{k} {v['wall_s']:.1f} s" for k, v in run["sessions"].items()))
 
 
 @pytest.mark.uml
-def test_candump_capture_replays_to_the_same_estimates(lockstep_runs, inprocess, tmp_path):
+def test_candump_capture_replays_to_the_same_estimates(lockstep_runs, inprocess, captures, tmp_path):
     """``vehest-can replay`` of the candump capture reproduces the ECU's frames bit for bit."""
     for sc in SCENARIOS:
         capture = lockstep_runs.out / "vcan" / f"{sc.name}.candump.log"
         expected = wire(ecu_part(inprocess[sc.name].frames, inprocess[sc.name].frame_tick)[0])
 
-        result = replay(read_log(capture))
+        result = captures[sc.name].replay
         assert result.paced_by == "sync"
         assert wire_msgs(result.produced) == expected
         assert not any(result.counters.values())
@@ -289,16 +303,16 @@ def test_cli_replay_of_the_full_capture_reports_identical(lockstep_runs):
 
 
 @pytest.mark.uml
-def test_lockstep_identical_inprocess_multicast_vcan_replay(lockstep_runs, inprocess):
-    """One drive, five ways to the same ECU output: in-process, two processes over udp_multicast
-    (host), two processes over vcan0 (guest), candump's record of vcan0, and the replay of it."""
+def test_lockstep_identical_inprocess_multicast_vcan_replay(lockstep_runs, inprocess, captures):
+    """One drive, five ways to the same ECU output: in-process, two processes over udp_multicast,
+    two processes over vcan0, candump's record of vcan0, and the replay of that record."""
     assert lockstep_runs.multicast["interface"] == "udp_multicast"
     for sc in SCENARIOS:
         local_frames, local_ticks = ecu_part(inprocess[sc.name].frames, inprocess[sc.name].frame_tick)
         mc_frames, mc_ticks = ecu_part(*_session(lockstep_runs.out / "multicast" / f"{sc.name}.session.npz")[:2])
         vc_frames, vc_ticks = ecu_part(*_session(lockstep_runs.out / "vcan" / f"{sc.name}.session.npz")[:2])
-        captured = list(can.LogReader(str(lockstep_runs.out / "vcan" / f"{sc.name}.candump.log")))
-        replayed = replay(captured).produced
+        captured = captures[sc.name].messages
+        replayed = captures[sc.name].replay.produced
         reference = wire(local_frames)
         assert len(reference) > 20000
         assert wire(mc_frames) == reference and np.array_equal(mc_ticks, local_ticks)
@@ -313,8 +327,9 @@ def test_lockstep_identical_inprocess_multicast_vcan_replay(lockstep_runs, inpro
     # the multicast daemon's own log holds every ECU frame it sent
     logged = list(can.LogReader(str(lockstep_runs.out / "multicast" / "daemon.log")))
     assert len([m for m in logged if m.arbitration_id in ECU_IDS]) == mc["frames_tx"]
-    print(f"\nmulticast (host, alongside the guest): {lockstep_runs.host_s:.1f} s; "
-          + ", ".join(f"{k} {v['wall_s']:.1f} s" for k, v in lockstep_runs.multicast["sessions"].items()))
+    print(f"\nmulticast guest (beside the vcan one): {lockstep_runs.guest_s['multicast']:.1f} s, "
+          + ", ".join(f"{k} {v['wall_s']:.1f} s" for k, v in lockstep_runs.multicast["sessions"].items())
+          + f"; both guests {lockstep_runs.wall_s:.1f} s")
 
 
 # --------------------------------------------------------------------------- faults boot
