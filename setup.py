@@ -6,7 +6,8 @@ from setuptools import setup
 from setuptools.command.build_py import build_py
 
 
-DATA = {"dbc": ("dbc", "*.dbc"), "scenarios": ("firmware_sim/scenarios", "*.toml")}
+DATA = {"dbc": ("dbc", "*.dbc"), "scenarios": ("firmware_sim/scenarios", "*.toml"),
+        "scenarios/chassis": ("firmware_sim/scenarios/chassis", "*.toml")}
 
 
 class BuildPyWithData(build_py):

@@ -5,6 +5,10 @@
   arrive (the core holds the last sample of each signal), deadline misses, tick lateness and
   frame-to-estimate latency are measured.
 
+Bus errors (``can.CanError``/``OSError`` on send or receive, e.g. a SocketCAN link that goes
+down) do not stop the daemon: it counts them, warns once per outage, keeps ticking and goes on
+when the bus is back; the outages and failures are in the statistics.
+
 Stops cleanly on SIGINT/SIGTERM (or END in lockstep with ``exit_on_end``): log flushed, bus
 closed, summary returned.
 """
@@ -39,6 +43,10 @@ class DaemonStats:
     deadline_misses: int = 0
     counters: dict = field(default_factory=dict)
     health: dict = field(default_factory=dict)
+    bus_outages: int = 0      # runs of bus errors, each ended by a frame sent or received
+    send_failures: int = 0    # frames the bus refused (not sent, not logged)
+    recv_errors: int = 0      # errors raised by the bus's receive
+    bus_down_s: float = 0.0   # wall time from the first error of an outage to its end
 
     def lines(self) -> list[str]:
         out = [f"mode {self.mode}: {self.ticks} ticks, {self.frames_rx} frames in, {self.frames_tx} out, "
@@ -48,6 +56,11 @@ class DaemonStats:
             out.append(f"frame-to-estimate latency µs {_fmt(self.latency_us)}")
         faults = {k: v for k, v in self.counters.items() if v}
         out.append("faults: " + (", ".join(f"{k}={v}" for k, v in faults.items()) or "none"))
+        if self.bus_outages:
+            out.append(f"bus errors: {self.bus_outages} outage(s), {self.send_failures} failed sends, "
+                       f"{self.recv_errors} receive errors, down {self.bus_down_s:.1f} s")
+        else:
+            out.append("bus errors: none")
         out.append("health: " + ", ".join(f"{k}={v}" for k, v in self.health.items()))
         return out
 
@@ -67,6 +80,9 @@ class EcuDaemon:
         self.stop_event = threading.Event()
         self._dls_id = frame_id("DLS_Sensors")
         self._own = sent_by({"VEHEST"})
+        self.stats = DaemonStats("idle")
+        self._down_since: float | None = None  # perf_counter() of an open outage's first error
+        self._down_send = False                # a send failed in the open outage
 
     # -- shared -------------------------------------------------------------------------------
     def _log(self, msg: can.Message, timestamp: float) -> None:
@@ -75,11 +91,40 @@ class EcuDaemon:
             msg.channel = self.log_channel
             self.log_writer.on_message_received(msg)
 
-    def _send(self, msg: can.Message, timestamp: float) -> None:
-        self.bus.send(msg)
+    def _send(self, msg: can.Message, timestamp: float) -> bool:
+        """Send and log one frame; a bus error is counted and the frame dropped (returns False)."""
+        try:
+            self.bus.send(msg)
+        except (can.CanError, OSError) as exc:
+            self.stats.send_failures += 1
+            self._bus_error("send", exc)
+            return False
+        self._bus_ok("send")
         self._log(msg, timestamp)
+        return True
+
+    def _bus_error(self, what: str, exc: Exception) -> None:
+        self._down_send |= what == "send"
+        if self._down_since is None:
+            self._down_since = time.perf_counter()
+            self.stats.bus_outages += 1
+            log.warning("bus error on %s (%s): keeping on ticking, counting failures until the bus is back",
+                        what, exc)
+
+    def _bus_ok(self, what: str) -> None:
+        """A frame went out or came in: that ends an outage (once sending failed, only a send does)."""
+        if self._down_since is not None and (what == "send" or not self._down_send):
+            down = time.perf_counter() - self._down_since
+            self.stats.bus_down_s += down
+            self._down_since = None
+            self._down_send = False
+            log.warning("bus back after %.1f s (%d failed sends, %d receive errors so far)",
+                        down, self.stats.send_failures, self.stats.recv_errors)
 
     def _finish(self, stats: DaemonStats, t0: float) -> DaemonStats:
+        if self._down_since is not None:  # still down at exit
+            stats.bus_down_s += time.perf_counter() - self._down_since
+            self._down_since = None
         stats.wall_s = time.perf_counter() - t0
         stats.counters = self.ecu.counters()
         stats.health = self.ecu.health()
@@ -97,11 +142,17 @@ class EcuDaemon:
     # -- lockstep -----------------------------------------------------------------------------
     def serve_lockstep(self, *, exit_on_end: bool = False, idle_timeout: float | None = None) -> DaemonStats:
         """Answer SIM_Sync frames until stopped (or END with exit_on_end, or idle_timeout s of silence)."""
-        stats = DaemonStats("lockstep")
+        stats = self.stats = DaemonStats("lockstep")
         t0 = last = time.perf_counter()
         watchdog = self._start(stats)
         while not self.stop_event.is_set():
-            msg = self.bus.recv(timeout=0.05)
+            try:
+                msg = self.bus.recv(timeout=0.05)
+            except (can.CanError, OSError) as exc:
+                stats.recv_errors += 1
+                self._bus_error("receive", exc)
+                msg = None
+                self.stop_event.wait(0.05)  # a bus that fails at once must not make us spin
             watchdog.tick()
             if msg is None:
                 if idle_timeout is not None and time.perf_counter() - last > idle_timeout:
@@ -109,6 +160,7 @@ class EcuDaemon:
                     break
                 continue
             last = time.perf_counter()
+            self._bus_ok("receive")
             if msg.is_error_frame or msg.is_remote_frame or is_own(msg, self._own):
                 continue
             stats.frames_rx += 1
@@ -124,9 +176,7 @@ class EcuDaemon:
                 self._send(lockstep.ack_message(tick, 0), 0.0)
             elif cmd == lockstep.STEP:
                 out = self.ecu.step()
-                for m in out:
-                    self._send(m, now)
-                stats.frames_tx += len(out)
+                stats.frames_tx += sum(self._send(m, now) for m in out)
                 stats.ticks += 1
                 self._send(lockstep.ack_message(tick, len(out)), now)
             elif cmd == lockstep.END:
@@ -138,12 +188,18 @@ class EcuDaemon:
     # -- real time ----------------------------------------------------------------------------
     def serve_realtime(self, *, duration: float | None = None) -> DaemonStats:
         """Tick at 2 kHz of wall clock until stopped or for duration seconds."""
-        stats = DaemonStats("realtime")
+        stats = self.stats = DaemonStats("realtime")
         inbox: queue.SimpleQueue = queue.SimpleQueue()
+        stop_event = self.stop_event
 
         class Inbox(can.Listener):
             def on_message_received(self, msg: can.Message) -> None:
                 inbox.put((time.perf_counter(), msg))
+
+            def on_error(self, exc: Exception) -> None:
+                # The notifier goes on receiving after this; counted on the ticking thread.
+                inbox.put((time.perf_counter(), exc))
+                stop_event.wait(0.05)  # a bus that fails at once must not make it spin
 
         notifier = can.Notifier(self.bus, [Inbox()], timeout=0.005)
         ticker = Ticker(TICK_S)
@@ -165,6 +221,11 @@ class EcuDaemon:
                         t_rx, msg = inbox.get_nowait()
                     except queue.Empty:
                         break
+                    if isinstance(msg, Exception):
+                        stats.recv_errors += 1
+                        self._bus_error("receive", msg)
+                        continue
+                    self._bus_ok("receive")
                     if msg.is_error_frame or msg.is_remote_frame or is_own(msg, self._own):
                         continue
                     stats.frames_rx += 1
@@ -173,11 +234,11 @@ class EcuDaemon:
                     if msg.arbitration_id == self._dls_id:
                         pending.append(t_rx)
                 out = self.ecu.step()
-                for m in out:
-                    self._send(m, now)
+                sent = sum(self._send(m, now) for m in out)
                 t_tx = time.perf_counter()
-                latencies.extend(t_tx - t for t in pending)
-                stats.frames_tx += len(out)
+                if sent:
+                    latencies.extend(t_tx - t for t in pending)
+                stats.frames_tx += sent
                 stats.ticks += 1
                 watchdog.tick()
         finally:

@@ -11,6 +11,8 @@ import can
 from .frames import database
 
 STEP, RESET, END = 0, 1, 2
+#: RESET handshakes number their attempts from here, above every STEP tick of a session
+RESET_TICK_BASE = 0x8000_0000
 
 
 def _msg(name: str):

@@ -16,7 +16,8 @@ from .ecu import Ecu
 from .errors import ConfigError
 from .frames import TICK_S, database, same_frame
 
-ECU_TX = {m.frame_id for m in database("pt").messages if "VEHEST" in m.senders}
+# What the ECU core transmits (the lockstep acknowledge is the daemon's, not the core's)
+ECU_TX = {m.frame_id for m in database("pt").messages if "VEHEST" in m.senders and m.name != "VEHEST_SyncAck"}
 
 
 @dataclass

@@ -197,12 +197,16 @@ class SimMaster:
             got.append(msg)
 
     def connect(self, attempts: int = 50) -> None:
-        """RESET handshake: the ECU starts from scratch; retried while the daemon is starting."""
-        for _ in range(attempts):
-            reset = lockstep.sync_message(0, lockstep.RESET)
+        """RESET handshake: the ECU starts from scratch; retried while the daemon is starting.
+
+        Each attempt carries its own tick number, above any STEP tick, so a late answer to an
+        earlier attempt is never taken for the answer to a later one (or to tick 0)."""
+        for attempt in range(attempts):
+            nonce = lockstep.RESET_TICK_BASE + attempt
+            reset = lockstep.sync_message(nonce, lockstep.RESET)
             self.bus.send(reset)
             try:
-                self._await_ack(0, 0.2)
+                self._await_ack(nonce, 0.2)
                 self._log(reset, 0)
                 return
             except BusError:
