@@ -44,7 +44,8 @@ from vehest_can.sim import drive_from_scenario, run_inprocess
 GUEST = Path(__file__).resolve().parent / "vcan_guest"
 PY = shlex.quote(sys.executable)
 REPO = Path(__file__).resolve().parent.parent
-SCENARIOS = [load_scenario(p) for p in sorted(scenario_dir().glob("*.toml"))]  # full length
+# the driveline (seed 001) scenarios, full length; the camber inspection has its own bus tests
+SCENARIOS = [sc for sc in (load_scenario(p) for p in sorted(scenario_dir().glob("*.toml"))) if sc.camber is None]
 
 DB = database("pt")
 EST = DB.get_message_by_name("VEHEST_DrivelineEst")
@@ -244,12 +245,15 @@ def test_vcan_lockstep_daemon_process_equals_inprocess(lockstep_runs, inprocess,
         total_ticks += n
         total_ecu += len(ecu_frames)
 
-        # candump's record of the bus: the same sensor and ECU frames, in the same order
+        # candump's record of the bus: the same sensor frames and the same ECU frames, each in the
+        # same order (the lockstep master keeps several ticks in flight, so the two streams
+        # interleave on the wire differently from the in-process run)
         assert run["sessions"][sc.name]["candump_rc"] == 0
         captured = captures[sc.name].messages
         assert {m.channel for m in captured} == {"vcan0"}
-        got = [m for m in captured if m.arbitration_id in ECU_IDS | {DLS.frame_id}]
-        assert wire_msgs(got) == wire(local.frames)
+        for ids in (ECU_IDS, {DLS.frame_id}):
+            got = [m for m in captured if m.arbitration_id in ids]
+            assert wire_msgs(got) == wire(local.frames[np.isin(local.frames["id"], list(ids))])
         # and the daemon's VEHEST_SyncAck after the RESET and after every tick
         acks = [ACK.decode(m.data) for m in std(captured, ACK.frame_id)]
         steps = [a for a in acks if a["AckTxCount"] > 0]
