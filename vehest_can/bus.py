@@ -83,16 +83,26 @@ def cli_args(config: dict) -> list[str]:
 IP_MULTICAST_ALL = getattr(socket, "IP_MULTICAST_ALL", 49)  # Linux <linux/in.h>
 
 
-def _only_own_group(bus: can.BusABC) -> None:
-    """Linux hands a socket bound to INADDR_ANY:port the datagrams of *every* group joined on the
-    machine (IP_MULTICAST_ALL defaults to 1), so two udp_multicast sessions on different groups
-    but one port hear each other. Switch that off on python-can's socket where we can reach it."""
+RCVBUF_BYTES = 4 << 20  # ~2 s of this project's traffic; the kernel caps it at net.core.rmem_max
+
+
+def _tune_multicast(bus: can.BusABC) -> None:
+    """Two fixes for python-can's udp_multicast socket, where we can reach it:
+
+    * Linux hands a socket bound to INADDR_ANY:port the datagrams of *every* group joined on the
+      machine (IP_MULTICAST_ALL defaults to 1), so two sessions on different groups but one port
+      hear each other: switch that off.
+    * The default receive buffer (~200 kB) holds ~0.1 s of a 2 kHz exchange; a process descheduled
+      longer loses frames. A larger buffer turns such a stall into latency instead of loss."""
     sock = getattr(getattr(bus, "_multicast", None), "_socket", None)
-    if sock is not None and sock.family == socket.AF_INET and sys.platform.startswith("linux"):
-        try:
+    if sock is None or not sys.platform.startswith("linux"):
+        return
+    try:
+        if sock.family == socket.AF_INET:
             sock.setsockopt(socket.IPPROTO_IP, IP_MULTICAST_ALL, 0)
-        except OSError as exc:  # pragma: no cover - kernel without the option
-            log.debug("IP_MULTICAST_ALL not settable: %s", exc)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RCVBUF_BYTES)
+    except OSError as exc:  # pragma: no cover - a kernel without the option
+        log.debug("udp_multicast socket options not set: %s", exc)
 
 
 def open_bus(config: dict) -> can.BusABC:
@@ -101,7 +111,7 @@ def open_bus(config: dict) -> can.BusABC:
     except (can.CanError, OSError, ValueError, ImportError, TypeError) as exc:
         raise BusError(f"cannot open bus {_describe(config)}: {exc}") from exc
     if config.get("interface") == "udp_multicast":
-        _only_own_group(bus)
+        _tune_multicast(bus)
     log.info("bus open: %s", _describe(config))
     return bus
 
