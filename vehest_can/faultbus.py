@@ -467,7 +467,10 @@ def bus_run(drive, config=None, *, bus_config: dict | None = None, bitrate: int 
     load["total"] = b.load_since(a)
     worst = {f.name: f.worst_pct / 100 for f in expected.frames if not f.event}
     nominal = {f.name: f.nominal_pct / 100 for f in expected.frames if not f.event}
-    worst["total"], nominal["total"] = expected.worst_pct / 100, expected.nominal_pct / 100
+    # total: the cyclic frames this run put on the wire (the camber inspection frames, for one,
+    # are in the DBC but on the bus only while the devices are clamped on)
+    seen = [n for n in load if n != "total" and n in worst]
+    worst["total"], nominal["total"] = sum(worst[n] for n in seen), sum(nominal[n] for n in seen)
     return BusRun(b.t - a.t, load, worst, nominal, rate, per_frame, stuffing, session.stats,
                   result.get("stats"), 1e3 * wire.late_s, sum(wire.model.overflow.values()), wire.send_errors,
                   drive.n, session, frozenset(names.values()))
