@@ -4,7 +4,6 @@ import sys
 from pathlib import Path
 
 import cffi
-import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "c_core"))

@@ -1,6 +1,5 @@
 """The C codec generated from the DBC equals cantools, byte for byte, for every message."""
 import re
-import subprocess
 import sys
 from pathlib import Path
 

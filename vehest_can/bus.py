@@ -9,8 +9,10 @@ from __future__ import annotations
 import argparse
 import logging
 import random
+import signal
 import socket
 import sys
+from contextlib import contextmanager
 
 import can
 from can.cli import add_bus_arguments
@@ -114,6 +116,30 @@ def open_bus(config: dict) -> can.BusABC:
         _tune_multicast(bus)
     log.info("bus open: %s", _describe(config))
     return bus
+
+
+@contextmanager
+def stop_on_signals(stop):
+    """SIGINT/SIGTERM call `stop()` (a clean shutdown, not an exception) while the block runs;
+    the previous handlers come back afterwards."""
+    old = {s: signal.signal(s, lambda *_: stop()) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
+@contextmanager
+def serving(bus: can.BusABC, writer: can.Listener | None, stop):
+    """A node's run: stop() on SIGINT/SIGTERM; then the log is flushed and the bus closed."""
+    try:
+        with stop_on_signals(stop):
+            yield
+    finally:
+        if writer is not None:
+            writer.stop()
+        bus.shutdown()
 
 
 def _describe(config: dict) -> str:

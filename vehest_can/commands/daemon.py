@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import json
-import signal
 import sys
 from dataclasses import asdict
 from pathlib import Path
@@ -47,22 +46,11 @@ def run(args) -> int:
     daemon = EcuDaemon(bus, ecu, log_writer=writer,
                        log_channel=config.get("channel") if config["interface"] == "socketcan" else "vcan0",
                        notifier=sdnotify.Notifier.from_env())
-
-    def stop(signum, _frame):
-        daemon.stop_event.set()
-
-    old = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
+    with busmod.serving(bus, writer, daemon.stop_event.set):
         if args.mode == "lockstep":
             stats = daemon.serve_lockstep(exit_on_end=args.exit_on_end, idle_timeout=args.idle_timeout)
         else:
             stats = daemon.serve_realtime(duration=args.duration)
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
-        if writer is not None:
-            writer.stop()
-        bus.shutdown()
     print("\n".join(stats.lines()), file=sys.stderr)
     if args.stats:
         Path(args.stats).write_text(json.dumps(asdict(stats), indent=2) + "\n")

@@ -1,11 +1,11 @@
 """``vehest-can hil CONFIG``: residual-bus simulation on the buses a HIL configuration names."""
 from __future__ import annotations
 
-import signal
 from dataclasses import asdict
 
 import numpy as np
 
+from .. import bus as busmod
 from .. import report, sdnotify
 from ..errors import ConfigError, VehestError
 from ..frames import TICK_S, database
@@ -43,18 +43,12 @@ def run(args) -> int:
     progress = Progress(f"{config.scenario.name} (real time)" if config.mode == "realtime"
                         else f"{config.scenario.name} (lockstep)") if config.car_simulated else None
     runner = ResidualBus(config, duration_s=args.duration, notifier=notifier, progress=progress)
-
-    def stop(signum, _frame):
-        runner.stop()
-
-    old = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        if not config.ecu_simulated:
-            notifier.ready(f"car simulated on bus {config.bus_of('DLS').name}")
-        result = runner.run()
+        with busmod.stop_on_signals(runner.stop):
+            if not config.ecu_simulated:
+                notifier.ready(f"car simulated on bus {config.bus_of('DLS').name}")
+            result = runner.run()
     finally:
-        for s, h in old.items():
-            signal.signal(s, h)
         if not config.ecu_simulated:
             notifier.stopping()
     if progress is not None:

@@ -1,7 +1,6 @@
 """``vehest-can sim SCENARIO``: the simulated car alone on a bus (the ECU is elsewhere)."""
 from __future__ import annotations
 
-import signal
 import sys
 
 import can
@@ -44,15 +43,8 @@ def run(args) -> int:
     writer = can.Logger(args.log) if args.log else None
     progress = Progress(f"{sc.name} ({args.mode})")
     master = SimMaster(bus, drive, log_writer=writer, progress=progress)
-    old = {s: signal.signal(s, lambda *_: master.stop_event.set()) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
+    with busmod.serving(bus, writer, master.stop_event.set):
         session = master.run_lockstep() if args.mode == "lockstep" else master.run_realtime()
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
-        if writer is not None:
-            writer.stop()
-        bus.shutdown()
     progress.done(f"{len(session.truth)} ticks, {len(session.frames)} frames")
     print(f"{sc.name}: {len(session.truth)} ticks, {len(session.frames)} frames, "
           f"{session.stats.get('wall_s', 0):.1f} s", file=sys.stderr)
