@@ -19,7 +19,6 @@ import argparse
 import math
 import sys
 import time
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -27,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from .errors import ScenarioError
-from .scenario import _Checker, _Num, _type_name
+from .scenario import _Checker, _native, _Num, _type_name, read_toml
 
 #: Plant and sensor-node step [s]: one ECU tick.
 DT = 0.0005
@@ -274,16 +273,9 @@ class ChassisScenario:
 
 def truth_dtype(ffi) -> np.dtype:
     """numpy dtype laid out like ``vh_v14_truth_t`` (per-wheel arrays as (4,) sub-arrays)."""
-    names, formats, offsets = [], [], []
-    for name, f in ffi.typeof("vh_v14_truth_t").fields:
-        names.append(name)
-        offsets.append(f.offset)
-        if f.type.kind == "array":
-            formats.append(("f8", (f.type.length,)))
-        else:
-            formats.append("f8" if f.type.cname == "double" else "i4")
-    return np.dtype({"names": names, "formats": formats, "offsets": offsets,
-                     "itemsize": ffi.sizeof("vh_v14_truth_t")})
+    from .native import struct_dtype
+
+    return struct_dtype("vh_v14_truth_t")
 
 
 def truth_to_numpy(ffi, truth_array, n: int) -> np.ndarray:
@@ -292,11 +284,6 @@ def truth_to_numpy(ffi, truth_array, n: int) -> np.ndarray:
 
 
 # ---- loading -------------------------------------------------------------------------------
-
-def _native():
-    from .native import ffi, lib
-    return ffi, lib
-
 
 def _vector_profile(c: _Checker, value, key: str, spec: _Num) -> tuple[tuple[float, ...], ...]:
     """[[t, FL, FR, RL, RR], ...] with t strictly increasing."""
@@ -319,14 +306,7 @@ def _vector_profile(c: _Checker, value, key: str, spec: _Num) -> tuple[tuple[flo
 def load_chassis_scenario(path: str | Path) -> ChassisScenario:
     """Load and validate one chassis scenario (a path, or the name of a shipped one)."""
     path = chassis_scenario_path(path)
-    try:
-        with open(path, "rb") as fh:
-            doc = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{path}: (TOML syntax): {exc}") from None
-    except OSError as exc:
-        raise ScenarioError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    return chassis_scenario_from_dict(doc, path)
+    return chassis_scenario_from_dict(read_toml(path), path)
 
 
 def chassis_scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> ChassisScenario:

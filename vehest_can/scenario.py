@@ -309,17 +309,21 @@ def _native():
     return ffi, lib
 
 
-def load_scenario(path: str | Path) -> Scenario:
-    """Load and validate one scenario file (a path, or the name of a shipped scenario)."""
-    path = scenario_path(path)
+def read_toml(path: Path) -> dict:
+    """A scenario file's TOML document; ScenarioError naming the file when it cannot be had."""
     try:
         with open(path, "rb") as fh:
-            doc = tomllib.load(fh)
+            return tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{path}: (TOML syntax): {exc}") from None
     except OSError as exc:
         raise ScenarioError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    return scenario_from_dict(doc, path)
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Load and validate one scenario file (a path, or the name of a shipped scenario)."""
+    path = scenario_path(path)
+    return scenario_from_dict(read_toml(path), path)
 
 
 def scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> Scenario:
