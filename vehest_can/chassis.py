@@ -26,20 +26,15 @@ from typing import Any
 import numpy as np
 
 from .errors import ScenarioError
-from .scenario import _Checker, _native, _Num, _type_name, read_toml
+from .paths import shipped_dir, shipped_file
+from .scenario import DT, _Checker, _native, _Num, _type_name, read_toml
 
-#: Plant and sensor-node step [s]: one ECU tick.
-DT = 0.0005
 #: Wheels in the order of every per-wheel quantity: the paper's 1..4 in a left turn.
 WHEELS = ("FL", "FR", "RL", "RR")
 
-_PKG_DIR = Path(__file__).resolve().parent / "scenarios" / "chassis"
-_SRC_DIR = Path(__file__).resolve().parent.parent / "firmware_sim" / "scenarios" / "chassis"
-
-
 def chassis_scenario_dir() -> Path:
     """The shipped chassis scenarios: inside the installed package, or firmware_sim/scenarios/chassis/."""
-    return _PKG_DIR if any(_PKG_DIR.glob("*.toml")) else _SRC_DIR
+    return shipped_dir("scenarios/chassis", "firmware_sim/scenarios/chassis", "*.toml")
 
 
 def list_chassis_scenarios() -> list[str]:
@@ -48,10 +43,7 @@ def list_chassis_scenarios() -> list[str]:
 
 def chassis_scenario_path(name_or_path: str | Path) -> Path:
     """An existing path as given, else a shipped chassis scenario's name."""
-    p = Path(name_or_path)
-    if p.suffix == ".toml" or p.exists() or len(p.parts) > 1:
-        return p
-    return chassis_scenario_dir() / f"{p.name}.toml"
+    return shipped_file(name_or_path, chassis_scenario_dir())
 
 
 # ---- schema --------------------------------------------------------------------------------

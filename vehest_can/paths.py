@@ -1,14 +1,29 @@
-"""Where the DBC files are: inside the installed package, or dbc/ of a source checkout."""
+"""Where shipped data is: inside the installed package (setup.py copies it there), or in the
+source checkout. One rule for the DBC files and the scenarios."""
 from __future__ import annotations
 
 from pathlib import Path
 
-_PKG_DBC = Path(__file__).resolve().parent / "dbc"
-_SRC_DBC = Path(__file__).resolve().parent.parent / "dbc"
+_PKG = Path(__file__).resolve().parent
+_SRC = _PKG.parent
+
+
+def shipped_dir(package_dir: str, checkout_dir: str, pattern: str) -> Path:
+    """`vehest_can/<package_dir>` when it holds files matching `pattern`, else `<checkout_dir>`."""
+    installed = _PKG / package_dir
+    return installed if any(installed.glob(pattern)) else _SRC / checkout_dir
+
+
+def shipped_file(name_or_path: str | Path, directory: Path, suffix: str = ".toml") -> Path:
+    """An existing path as given, else the name of a file shipped in `directory`."""
+    p = Path(name_or_path)
+    if p.suffix == suffix or p.exists() or len(p.parts) > 1:
+        return p
+    return directory / f"{p.name}{suffix}"
 
 
 def dbc_dir() -> Path:
-    return _PKG_DBC if any(_PKG_DBC.glob("*.dbc")) else _SRC_DBC
+    return shipped_dir("dbc", "dbc", "*.dbc")
 
 
 def dbc_path(bus: str = "pt") -> Path:

@@ -17,17 +17,14 @@ from typing import Any
 import numpy as np
 
 from .errors import ScenarioError
+from .paths import shipped_dir, shipped_file
 
 #: Plant and sensor-node step [s]: one ECU tick (VH_TICK_US).
 DT = 0.0005
 
-_PKG_DIR = Path(__file__).resolve().parent / "scenarios"
-_SRC_DIR = Path(__file__).resolve().parent.parent / "firmware_sim" / "scenarios"
-
-
 def scenario_dir() -> Path:
     """The shipped scenarios: inside the installed package, or firmware_sim/scenarios/ of a checkout."""
-    return _PKG_DIR if any(_PKG_DIR.glob("*.toml")) else _SRC_DIR
+    return shipped_dir("scenarios", "firmware_sim/scenarios", "*.toml")
 
 
 def list_scenarios() -> list[str]:
@@ -37,10 +34,7 @@ def list_scenarios() -> list[str]:
 
 def scenario_path(name_or_path: str | Path) -> Path:
     """A path to a scenario file: an existing path as given, else a shipped scenario's name."""
-    p = Path(name_or_path)
-    if p.suffix == ".toml" or p.exists() or len(p.parts) > 1:
-        return p
-    return scenario_dir() / f"{p.name}.toml"
+    return shipped_file(name_or_path, scenario_dir())
 
 
 # ---- schema --------------------------------------------------------------------------------
