@@ -172,3 +172,22 @@ def test_random_garbage_never_crashes(warm):
     assert c["unknown_id"] == foreign
     # E2E lets about 1 in 256 random payloads of the right length through; everything else is refused
     assert c["crc_error"] + c["dlc_error"] >= 0.97 * to_sensor
+
+
+def test_a_burst_of_queued_frames_is_not_used_until_the_message_is_regular_again(warm):
+    """After a blocked bus a sender's queue drains: good CRC, good counters, old samples. More
+    than two frames of a message in one tick is a burst: counted, estimates invalid, and valid
+    again only after the message has been regular for its 4-cycle timeout."""
+    ecu, tx = warm
+    burst = [tx.message("DLS_Sensors", GOOD) for _ in range(6)]
+    est, status = run(ecu, [burst[:4], burst[4:]])  # the queue drains over two ticks
+    assert ecu.counters()["rx_burst"] == 1
+    assert [e["DkfT_Valid"] for e in est] == [0, 0]
+    est, status = run(ecu, good_ticks(tx, 40))
+    valid = [e["DkfT_Valid"] for e in est]
+    assert valid[:2] == [0, 0] and all(valid[3:])  # 4 regular ticks, the burst's tail included
+    assert ecu.counters()["counter_repeat"] == ecu.counters()["crc_error"] == 0
+    assert status[-1]["CntRxBurst"] == 1
+    # one late frame plus the on-time one is ordinary jitter, not a burst
+    run(ecu, [good_ticks(tx, 2)[0] + good_ticks(tx, 1)[0]])
+    assert ecu.counters()["rx_burst"] == 1

@@ -135,22 +135,28 @@ def test_every_fault_row(case, drive35):
         assert set(row.health["T"]) == {"OK", "DEGRADED"} and row.valid_pct["T"] < 0.5
     if "timeout" in case.expect:
         assert "DEGRADED" in row.health["T"] and "DEGRADED" in row.health["S"]
-    # recovery: valid again at the first tick after the fault, and to the end of the run
-    assert row.recovery in (0, 1)
-    assert run.valid("T")[b:].all() and run.valid("S")[b:].all()
+    # recovery: valid again at the first tick after the fault, and to the end of the run; a fault
+    # that ends with frames bunched up (a draining queue, delayed frames catching up) is a burst:
+    # the ECU waits until the message has been regular for its timeout (4 ticks, 8 at most with the tail)
+    burst = run.counter("rx_burst")[-1] > 0
+    settle = 8 if burst else 0
+    assert row.recovery <= (settle + 1)
+    assert run.valid("T")[b + settle:].all() and run.valid("S")[b + settle:].all()
     assert not any(run.counters[-1, :6] - run.counters[b + 10, :6])  # quiet again after the fault
     assert np.isfinite(run.shaft_torque("T")).all()
 
 
 def test_flood_queue_policy_decides_how_stale_the_first_samples_are(drive35):
-    """After a flood, a FIFO sender flushes its 10 waiting frames: up to 0.5 s old, CRC and counter fine,
-    so the ECU marks estimates from them valid. A sender that keeps only its newest frame does not."""
+    """After a flood, a FIFO sender flushes its 10 waiting frames: up to 0.5 s old, CRC and counter fine.
+    The ECU's burst check refuses them; a sender that keeps only its newest frame never sends them."""
     fifo = run_with_faults(drive35, faults_from_cli(["flood:2-2.5"]))
     latest = run_with_faults(drive35, faults_from_cli(["flood:2-2.5"]), tx_policy="latest")
     for run in (fifo, latest):
         assert run.counter("unknown_id")[-1] == math.floor(0.5 / 270e-6) + 1  # 8-byte classic, 270 µs each
-    stale = fifo.valid("T") & (fifo.sample_age > 0.1)
-    assert 1 <= stale.sum() <= 5 and fifo.sample_age[stale].max() > 0.45
+    # the ECU sees the FIFO's queue drain as a burst of one message and uses none of it
+    assert fifo.counter("rx_burst")[-1] >= 1
+    assert not (fifo.valid("T") & (fifo.sample_age > 0.1)).any()
+    assert (fifo.sample_age > 0.45).any()  # the stale samples were on the bus
     assert np.nanmax(latest.sample_age[5000:][latest.valid("T")[5000:]]) <= 0.0025
 
 

@@ -11,7 +11,7 @@ from .native import check, ffi, lib
 
 COUNTERS = (
     "crc_error", "counter_repeat", "counter_skip", "dlc_error", "timeout", "unknown_id",
-    "signal_invalid", "input_invalid", "filter_reset", "deadline_miss",
+    "signal_invalid", "input_invalid", "filter_reset", "deadline_miss", "rx_burst",
 )
 HEALTH = {0: "INIT", 1: "OK", 2: "DEGRADED", 3: "FAULT"}
 

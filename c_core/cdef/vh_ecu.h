@@ -15,9 +15,9 @@ typedef struct {
 typedef struct {
     uint16_t crc_error; uint16_t counter_repeat; uint16_t counter_skip; uint16_t dlc_error;
     uint16_t timeout; uint16_t unknown_id; uint16_t signal_invalid; uint16_t input_invalid;
-    uint16_t filter_reset; uint16_t deadline_miss;
+    uint16_t filter_reset; uint16_t deadline_miss; uint16_t rx_burst;
 } vh_ecu_counters_t;
-typedef struct { uint16_t age; uint8_t fresh; uint8_t timed_out; ...; } vh_ecu_rxmsg_t;
+typedef struct { uint16_t age; uint16_t resync; uint8_t fresh; uint8_t n_tick; uint8_t timed_out; ...; } vh_ecu_rxmsg_t;
 typedef struct {
     double wo; double wwl; double wwr; double to; double we; double wt;
     uint8_t valid; uint8_t gear; vh_ecu_rxmsg_t rx;

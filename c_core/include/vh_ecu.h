@@ -45,15 +45,23 @@ typedef struct {
     uint16_t input_invalid;
     uint16_t filter_reset;
     uint16_t deadline_miss;
+    uint16_t rx_burst;
 } vh_ecu_counters_t;
 
 /* Reception state of one cyclic message: E2E, freshness, timeout. */
 typedef struct {
     vh_e2e_rx_t e2e;
     uint16_t age;      /* ticks since the last good frame */
+    uint16_t resync;   /* ticks until the data is trusted again after a burst */
     uint8_t fresh;     /* a good frame arrived since the last tick */
+    uint8_t n_tick;    /* good frames since the last tick */
     uint8_t timed_out; /* no good frame for the message's timeout (set at start) */
 } vh_ecu_rxmsg_t;
+
+/* More good frames of one message in a tick than this is a burst: a sender's transmit queue
+ * draining after the bus was blocked, i.e. samples that may be far older than they look (their
+ * CRC and counters are fine). Two allows one late frame plus the on-time one. */
+#define VH_ECU_BURST_FRAMES 2u
 
 /* Last good driveline sensor sample (physical units) with per-signal validity. */
 typedef struct {

@@ -149,12 +149,24 @@ static int rx_accept(vh_ecu_t *ecu, vh_ecu_rxmsg_t *m, const vh_frame_t *f, size
         return 0;
     }
     m->fresh = 1u;
+    if (m->n_tick < UINT8_MAX) {
+        ++m->n_tick;
+    }
     return 1;
 }
 
-/* Once per tick: age, timeout (counted on entry), cleared by a fresh frame. */
-static void rx_tick(vh_ecu_t *ecu, vh_ecu_rxmsg_t *m, unsigned timeout_ticks)
+/* Once per tick: age, timeout (counted on entry), cleared by a fresh frame; a burst makes the
+ * message untrusted (not fresh) until it has been regular for its timeout. Returns 1 when the
+ * frames of this tick may be used. */
+static int rx_tick(vh_ecu_t *ecu, vh_ecu_rxmsg_t *m, unsigned timeout_ticks)
 {
+    if (m->n_tick > VH_ECU_BURST_FRAMES) {
+        m->resync = (uint16_t)timeout_ticks;
+        inc(&ecu->cnt.rx_burst);
+    } else if (m->resync > 0u) {
+        --m->resync;
+    }
+    m->n_tick = 0u;
     if (m->fresh) {
         m->age = 0u;
         m->timed_out = 0u;
@@ -165,6 +177,7 @@ static void rx_tick(vh_ecu_t *ecu, vh_ecu_rxmsg_t *m, unsigned timeout_ticks)
         m->timed_out = 1u;
         inc(&ecu->cnt.timeout);
     }
+    return m->resync == 0u;
 }
 
 static void rx_cis(vh_ecu_t *ecu, const vh_frame_t *f)
@@ -249,8 +262,7 @@ static unsigned update_inputs(vh_ecu_t *ecu)
     const int fresh = d->rx.fresh;
     unsigned mask = 0u;
     int i;
-    rx_tick(ecu, &d->rx, DLS_TIMEOUT_TICKS);
-    if (d->rx.timed_out) {
+    if (!rx_tick(ecu, &d->rx, DLS_TIMEOUT_TICKS) || d->rx.timed_out) { /* burst or silence: no usable sample */
         d->valid = 0u;
     }
     if (d->gear != GEAR_SNA && d->gear != ecu->gear && !d->rx.timed_out) {
@@ -333,8 +345,7 @@ static size_t camber_task(vh_ecu_t *ecu, vh_frame_t *tx, size_t n, size_t cap)
     const int fresh = c->rx.fresh;
     struct vh_pt_vehest_camber_t m;
     int w;
-    rx_tick(ecu, &c->rx, CIS_TIMEOUT_TICKS);
-    if (fresh) {
+    if (rx_tick(ecu, &c->rx, CIS_TIMEOUT_TICKS) && fresh) {
         const double lim = ecu->cfg.camber_still_ww;
         const bool still = !d->rx.timed_out && (d->valid & (1u << SIG_WWL)) && (d->valid & (1u << SIG_WWR)) &&
                            fabs(d->wwl) < lim && fabs(d->wwr) < lim;
@@ -347,8 +358,8 @@ static size_t camber_task(vh_ecu_t *ecu, vh_frame_t *tx, size_t n, size_t cap)
                 }
             }
         }
-        c->rx.fresh = 0u;
     }
+    c->rx.fresh = 0u;
     if (c->rx.timed_out || ecu->tick % CAMBER_PERIOD_TICKS != 0u || n >= cap) {
         return n;
     }
@@ -416,6 +427,7 @@ size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap)
         st.cnt_input_invalid = ecu->cnt.input_invalid;
         st.cnt_filter_reset = ecu->cnt.filter_reset;
         st.cnt_deadline_miss = ecu->cnt.deadline_miss;
+        st.cnt_rx_burst = ecu->cnt.rx_burst;
         st.rx_fault_active = (uint8_t)((d->rx.timed_out ? 1u : 0u) |
                                        (((d->valid & 0x3Fu) != 0x3Fu) ? 2u : 0u) | (ecu->ti_valid ? 0u : 4u));
         memset(tx[n].data, 0, sizeof tx[n].data);
