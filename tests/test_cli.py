@@ -54,6 +54,11 @@ def test_missing_files_are_errors_not_tracebacks(tmp_path, capsys):
     assert "error:" in capsys.readouterr().err
 
 
+def test_bad_daemon_burst_limit_is_an_error(capsys):
+    assert main(["daemon", "--rx-burst-limit", "300"]) == 1
+    assert "rx_burst_frames must be 0..255" in capsys.readouterr().err
+
+
 def test_unknown_verb_and_flags(capsys):
     with pytest.raises(SystemExit) as e:
         main(["fly"])

@@ -1,11 +1,13 @@
 """The ECU tick under good and hostile input: every fault is counted, flagged, survived."""
 import math
+from dataclasses import replace
 
 import can
 import numpy as np
 import pytest
 
-from vehest_can.ecu import Ecu
+from vehest_can.ecu import Ecu, EcuConfig
+from vehest_can.errors import ConfigError
 from vehest_can.frames import E2ESender, database
 
 DB = database("pt")
@@ -191,3 +193,21 @@ def test_a_burst_of_queued_frames_is_not_used_until_the_message_is_regular_again
     # one late frame plus the on-time one is ordinary jitter, not a burst
     run(ecu, [good_ticks(tx, 2)[0] + good_ticks(tx, 1)[0]])
     assert ecu.counters()["rx_burst"] == 1
+
+
+@pytest.mark.parametrize("limit, bursts", [(0, 0), (2, 1), (5, 0), (3, 1)])
+def test_the_burst_limit_is_configurable_and_zero_switches_it_off(limit, bursts):
+    """A transport that batches (UML's 100 Hz timer: 20 frames per wake-up) needs the check off
+    or relaxed; the limit is the ECU's configuration, `daemon --rx-burst-limit N`."""
+    ecu, tx = Ecu(replace(EcuConfig.default(), rx_burst_frames=limit)), E2ESender()
+    run(ecu, good_ticks(tx, 100))
+    frames = [f for tick in good_ticks(tx, 4) for f in tick]
+    est, _ = run(ecu, [frames] + good_ticks(tx, 1))
+    assert ecu.counters()["rx_burst"] == bursts
+    assert est[-1]["DkfT_Valid"] == (1 if bursts == 0 else 0)
+
+
+def test_a_burst_limit_out_of_range_is_refused():
+    for bad in (-1, 256):
+        with pytest.raises(ConfigError, match="rx_burst_frames"):
+            Ecu(replace(EcuConfig.default(), rx_burst_frames=bad))

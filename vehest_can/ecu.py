@@ -6,6 +6,7 @@ from dataclasses import dataclass
 import can
 
 from .driveline import DkfConfig
+from .errors import ConfigError
 from .frames import to_frame, to_message
 from .native import check, ffi, lib
 
@@ -20,6 +21,9 @@ HEALTH = {0: "INIT", 1: "OK", 2: "DEGRADED", 3: "FAULT"}
 class EcuConfig:
     dkf_t: DkfConfig
     dkf_s: DkfConfig
+    #: more good frames of one message in a tick than this is a burst (stale samples of a draining
+    #: queue), not used until the message is regular again; 0 switches the check off
+    rx_burst_frames: int = 2
 
     @classmethod
     def default(cls) -> "EcuConfig":
@@ -30,6 +34,9 @@ class EcuConfig:
         lib.vh_ecu_config_default(c)
         self.dkf_t.to_c(ffi.addressof(c.dkf[lib.VH_ECU_DKF_T]))
         self.dkf_s.to_c(ffi.addressof(c.dkf[lib.VH_ECU_DKF_S]))
+        if not 0 <= self.rx_burst_frames <= 255:
+            raise ConfigError(f"rx_burst_frames must be 0..255 (0 = off), got {self.rx_burst_frames}")
+        c.rx_burst_frames = self.rx_burst_frames
         return c
 
 

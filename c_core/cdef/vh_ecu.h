@@ -11,6 +11,7 @@ typedef struct {
     uint16_t status_period_ticks;
     vh_camber_config_t camber;
     double camber_still_ww;
+    uint8_t rx_burst_frames;
 } vh_ecu_config_t;
 typedef struct {
     uint16_t crc_error; uint16_t counter_repeat; uint16_t counter_skip; uint16_t dlc_error;

@@ -31,6 +31,8 @@ typedef struct {
     uint16_t status_period_ticks;      /* VEHEST_Status every N ticks (20 = 10 ms) */
     vh_camber_config_t camber;         /* inspection window and acceptance (seed 002) */
     double camber_still_ww;            /* |wheel speed| below which the car counts as stationary [rad/s] */
+    uint8_t rx_burst_frames;           /* burst limit per message and tick (VH_ECU_BURST_FRAMES); 0 = off,
+                                          for transports that deliver in batches (UML's 100 Hz timer) */
 } vh_ecu_config_t;
 
 /* Saturating fault counters (uint16, as on the bus). */
@@ -58,9 +60,9 @@ typedef struct {
     uint8_t timed_out; /* no good frame for the message's timeout (set at start) */
 } vh_ecu_rxmsg_t;
 
-/* More good frames of one message in a tick than this is a burst: a sender's transmit queue
- * draining after the bus was blocked, i.e. samples that may be far older than they look (their
- * CRC and counters are fine). Two allows one late frame plus the on-time one. */
+/* Default burst limit: more good frames of one message in a tick than this is a burst (a sender's
+ * transmit queue draining after the bus was blocked, i.e. samples that may be far older than they
+ * look: their CRC and counters are fine). Two allows one late frame plus the on-time one. */
 #define VH_ECU_BURST_FRAMES 2u
 
 /* Last good driveline sensor sample (physical units) with per-signal validity. */

@@ -37,6 +37,7 @@ void vh_ecu_config_default(vh_ecu_config_t *cfg)
     cfg->status_period_ticks = (uint16_t)(VH_PT_VEHEST_STATUS_CYCLE_TIME_US / VH_TICK_US);
     vh_camber_config_default(&cfg->camber);
     cfg->camber_still_ww = 0.5; /* 0.15 m/s at the wheel: parked, not rolling */
+    cfg->rx_burst_frames = VH_ECU_BURST_FRAMES;
 }
 
 int vh_ecu_init(vh_ecu_t *ecu, const vh_ecu_config_t *cfg)
@@ -160,7 +161,7 @@ static int rx_accept(vh_ecu_t *ecu, vh_ecu_rxmsg_t *m, const vh_frame_t *f, size
  * frames of this tick may be used. */
 static int rx_tick(vh_ecu_t *ecu, vh_ecu_rxmsg_t *m, unsigned timeout_ticks)
 {
-    if (m->n_tick > VH_ECU_BURST_FRAMES) {
+    if (ecu->cfg.rx_burst_frames != 0u && m->n_tick > ecu->cfg.rx_burst_frames) {
         m->resync = (uint16_t)timeout_ticks;
         inc(&ecu->cnt.rx_burst);
     } else if (m->resync > 0u) {

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import json
 import sys
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import can
@@ -12,7 +12,7 @@ from .. import bus as busmod
 from .. import sdnotify
 from ..camber import load_calibrations
 from ..daemon import EcuDaemon
-from ..ecu import Ecu
+from ..ecu import Ecu, EcuConfig
 from ..errors import ConfigError
 
 
@@ -26,6 +26,10 @@ def add_subparser(subparsers) -> None:
     p.add_argument("--exit-on-end", action="store_true", help="lockstep: stop when the simulator sends END")
     p.add_argument("--camber-cal", metavar="FILE",
                    help="camber inspection calibration file (written by `vehest-can camber calibrate`)")
+    p.add_argument("--rx-burst-limit", type=int, default=2, metavar="N",
+                   help="more frames of one message in a 500 us tick than N are a burst of stale samples, "
+                        "not used until the message is regular again (default 2; 0 = off, for transports "
+                        "that deliver in batches)")
     p.add_argument("--stats", metavar="FILE", help="write the run's statistics as JSON on exit")
     p.add_argument("--idle-timeout", type=float, metavar="S", help="lockstep: stop after S seconds without a frame")
     sdnotify.add_log_level(p)
@@ -37,7 +41,7 @@ def run(args) -> int:
     if args.duration is not None and args.duration <= 0:
         raise ConfigError("--duration must be positive")
     sdnotify.apply_log_level(args.log_level)
-    ecu = Ecu()
+    ecu = Ecu(replace(EcuConfig.default(), rx_burst_frames=args.rx_burst_limit))
     if args.camber_cal:
         ecu.set_camber_calibrations(load_calibrations(args.camber_cal))
     config = busmod.bus_config(args)
