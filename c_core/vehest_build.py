@@ -30,7 +30,7 @@ SOURCE_DIRS = [ROOT / "c_core" / "src", ROOT / "firmware_sim" / "src"]
 INCLUDE_DIRS = [ROOT / "c_core" / "include", ROOT / "firmware_sim" / "include", GEN_DIR]
 CDEF_DIRS = [ROOT / "c_core" / "cdef", ROOT / "firmware_sim" / "cdef"]
 # Declarations other cdef files use by value go first (cffi needs a type before a struct embeds it).
-CDEF_FIRST = ("vh_e2e.h", "vh_rng.h")
+CDEF_FIRST = ("vh_e2e.h", "vh_rng.h", "vh_dkf.h", "vh_skf.h")
 
 
 def firmware_sources(gen_dir: Path = GEN_DIR) -> list[Path]:

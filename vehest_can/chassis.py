@@ -263,6 +263,39 @@ class ChassisScenario:
         return str(self.path) if self.path is not None else f"scenario {self.name!r}"
 
 
+class ChassisCar:
+    """The 14-DOF plant and its chassis sensor node as a car on the bus: one tick per call, the
+    interface of :class:`vehest_can.sim.Car` (``name``, ``n``, ``truth_dtype``, ``reset``, ``tick``,
+    ``truth``), so the simulator drives it in every mode."""
+
+    def __init__(self, sc: ChassisScenario, duration_s: float | None = None):
+        from .native import ffi, lib
+
+        self._ffi, self._lib = ffi, lib
+        self.scenario = sc
+        self.name = sc.name
+        self.n = sc.n_steps if duration_s is None else int(round(duration_s / DT))
+        if not 0 < self.n <= sc.n_steps:
+            raise ScenarioError(f"{sc._where()}: duration must be in (0, {sc.duration_s}] s")
+        self.truth_dtype = truth_dtype(ffi)
+        self._inputs = sc.inputs(ffi)
+        self._out = ffi.new("vh_frame_t[1]")
+        self.reset()
+
+    def reset(self) -> None:
+        self._plant = self.scenario.make_plant(self._ffi, self._lib)
+        self._node = self.scenario.make_node(self._ffi, self._lib)
+
+    def tick(self, k: int) -> list:
+        self._lib.vh_v14_step(self._plant, self._inputs + k)
+        n = self._lib.vh_chs_step(self._node, self._ffi.addressof(self._plant, "truth"), self._out, 1)
+        return [self._out[i] for i in range(n)]
+
+    def truth(self) -> np.void:
+        return np.frombuffer(self._ffi.buffer(self._ffi.addressof(self._plant, "truth")),
+                             dtype=self.truth_dtype)[0].copy()
+
+
 def truth_dtype(ffi) -> np.dtype:
     """numpy dtype laid out like ``vh_v14_truth_t`` (per-wheel arrays as (4,) sub-arrays)."""
     from .native import struct_dtype

@@ -42,6 +42,7 @@ class DaemonStats:
     latency_us: dict = field(default_factory=dict)
     deadline_misses: int = 0
     counters: dict = field(default_factory=dict)
+    chassis_counters: dict = field(default_factory=dict)
     health: dict = field(default_factory=dict)
     bus_outages: int = 0      # runs of bus errors, each ended by a frame sent or received
     send_failures: int = 0    # frames the bus refused (not sent, not logged)
@@ -56,6 +57,9 @@ class DaemonStats:
             out.append(f"frame-to-estimate latency µs {_fmt(self.latency_us)}")
         faults = {k: v for k, v in self.counters.items() if v}
         out.append("faults: " + (", ".join(f"{k}={v}" for k, v in faults.items()) or "none"))
+        chassis = {k: v for k, v in self.chassis_counters.items() if v}
+        if chassis:
+            out.append("chassis faults: " + ", ".join(f"{k}={v}" for k, v in chassis.items()))
         if self.bus_outages:
             out.append(f"bus errors: {self.bus_outages} outage(s), {self.send_failures} failed sends, "
                        f"{self.recv_errors} receive errors, down {self.bus_down_s:.1f} s")
@@ -127,6 +131,7 @@ class EcuDaemon:
             self._down_since = None
         stats.wall_s = time.perf_counter() - t0
         stats.counters = self.ecu.counters()
+        stats.chassis_counters = self.ecu.chassis_counters()
         stats.health = self.ecu.health()
         self.notifier.stopping(sdnotify.status_line(f"{stats.mode} stopping", stats.ticks, stats.counters))
         log.info("ECU daemon stopped: %s", stats.lines()[0])

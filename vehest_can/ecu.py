@@ -9,10 +9,16 @@ from .driveline import DkfConfig
 from .errors import ConfigError
 from .frames import to_frame, to_message
 from .native import check, ffi, lib
+from .tireforce import SkfConfig
 
 COUNTERS = (
     "crc_error", "counter_repeat", "counter_skip", "dlc_error", "timeout", "unknown_id",
     "signal_invalid", "input_invalid", "filter_reset", "deadline_miss", "rx_burst",
+)
+#: the chassis side's own counters (VEHEST_ChassisStatus)
+CHASSIS_COUNTERS = (
+    "crc_error", "counter_repeat", "counter_skip", "dlc_error", "timeout", "signal_invalid",
+    "filter_reset", "rx_burst", "saturation",
 )
 HEALTH = {0: "INIT", 1: "OK", 2: "DEGRADED", 3: "FAULT"}
 
@@ -24,6 +30,8 @@ class EcuConfig:
     #: more good frames of one message in a tick than this is a burst (stale samples of a draining
     #: queue), not used until the message is regular again; 0 switches the check off
     rx_burst_frames: int = 2
+    #: the tyre-force SKFMEC (seed 000) the ECU runs in fixed point; None: the C core's default
+    skf: SkfConfig | None = None
 
     @classmethod
     def default(cls) -> "EcuConfig":
@@ -37,6 +45,8 @@ class EcuConfig:
         if not 0 <= self.rx_burst_frames <= 255:
             raise ConfigError(f"rx_burst_frames must be 0..255 (0 = off), got {self.rx_burst_frames}")
         c.rx_burst_frames = self.rx_burst_frames
+        if self.skf is not None:
+            self.skf.to_c(ffi.addressof(c, "skf"))
         return c
 
 
@@ -59,9 +69,17 @@ class Ecu:
             return
         lib.vh_ecu_rx(self.c, to_frame(msg, self._rx))
 
-    def step(self, timestamp: float = 0.0) -> list[can.Message]:
+    def rx_frame(self, frame) -> None:
+        """A ``vh_frame_t *`` straight from a C node (in-process runs)."""
+        lib.vh_ecu_rx(self.c, frame)
+
+    def step_frames(self) -> list:
+        """One tick; the frames to transmit as ``vh_frame_t`` cdata (valid until the next step)."""
         n = lib.vh_ecu_step(self.c, self._tx, lib.VH_ECU_MAX_TX)
-        return [to_message(self._tx[i], timestamp) for i in range(n)]
+        return [self._tx[i] for i in range(n)]
+
+    def step(self, timestamp: float = 0.0) -> list[can.Message]:
+        return [to_message(f, timestamp) for f in self.step_frames()]
 
     def set_camber_calibrations(self, calibrations: dict) -> None:
         """Load inspection-device calibrations ({wheel: camber.Calibration}, e.g. from
@@ -86,4 +104,8 @@ class Ecu:
         return {
             "dkf_t": HEALTH[self.c.dkf[lib.VH_ECU_DKF_T].health],
             "dkf_s": HEALTH[self.c.dkf[lib.VH_ECU_DKF_S].health],
+            "skfmec_q": HEALTH[self.c.chs.skf.health],
         }
+
+    def chassis_counters(self) -> dict[str, int]:
+        return {name: int(getattr(self.c.chs.cnt, name)) for name in CHASSIS_COUNTERS}

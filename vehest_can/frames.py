@@ -21,10 +21,15 @@ def database(bus: str = "pt") -> cantools.database.can.Database:
     return cantools.database.load_file(str(dbc_path(bus)), strict=True)
 
 
-def sent_by(nodes: set[str], bus: str = "pt") -> frozenset[int]:
-    """Standard IDs the given DBC nodes transmit. A node ignores its own IDs on receive: some
-    buses (python-can's udp_multicast) echo a sender's frames back to it."""
-    return frozenset(m.frame_id for m in database(bus).messages if set(m.senders) & nodes and not m.is_extended_frame)
+#: the ECU's buses: powertrain (driveline, camber) and chassis (tyre force); IDs are unique across both
+BUSES = ("pt", "ch")
+
+
+def sent_by(nodes: set[str], bus: str | None = None) -> frozenset[int]:
+    """Standard IDs the given DBC nodes transmit (on one bus, or on every bus). A node ignores its
+    own IDs on receive: some buses (python-can's udp_multicast) echo a sender's frames back to it."""
+    return frozenset(m.frame_id for b in ((bus,) if bus else BUSES) for m in database(b).messages
+                     if set(m.senders) & nodes and not m.is_extended_frame)
 
 
 def is_own(msg: can.Message, own: frozenset[int]) -> bool:

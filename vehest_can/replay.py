@@ -14,10 +14,10 @@ import can
 from . import lockstep
 from .ecu import Ecu
 from .errors import ConfigError
-from .frames import TICK_S, database, same_frame
+from .frames import TICK_S, same_frame, sent_by
 
 # What the ECU core transmits (the lockstep acknowledge is the daemon's, not the core's)
-ECU_TX = {m.frame_id for m in database("pt").messages if "VEHEST" in m.senders and m.name != "VEHEST_SyncAck"}
+ECU_TX = sent_by({"VEHEST"}) - {lockstep.ACK.frame_id}
 
 
 @dataclass

@@ -31,7 +31,7 @@ log = logging.getLogger(__name__)
 
 TRUTH_DTYPE = struct_dtype("vh_dlp_truth_t")
 #: DBC nodes the simulated car plays (everything but the ECU)
-CAR_NODES = frozenset({"DLS", "CIS", "SIM"})
+CAR_NODES = frozenset({"DLS", "CIS", "SIM", "CHS"})
 
 
 @dataclass
@@ -85,10 +85,15 @@ def drive_from_scenario(scenario, duration_s: float | None = None) -> Drive:
 
 
 class Car:
-    """``vh_dlsim_t``: one tick of plant and sensor node per call."""
+    """``vh_dlsim_t``: one tick of plant and sensor node per call. The simulator needs only
+    ``name``, ``n``, ``truth_dtype``, ``reset``, ``tick`` and ``truth``: the chassis car
+    (:class:`vehest_can.chassis.ChassisCar`) has the same interface."""
+
+    truth_dtype = TRUTH_DTYPE
 
     def __init__(self, drive: Drive):
         self.drive = drive
+        self.name, self.n = drive.name, drive.n
         self.c = ffi.new("vh_dlsim_t *")
         check(lib.vh_dlsim_init(self.c, drive.plant_params, drive.plant_seed, drive.node_config), "car set-up")
         if drive.camber is not None:
@@ -111,9 +116,13 @@ class Car:
         return np.frombuffer(ffi.buffer(ffi.addressof(self.c.plant.truth)), dtype=TRUTH_DTYPE)[0].copy()
 
 
-def run_inprocess(drive: Drive, ecu: Ecu | None = None) -> Session:
-    """Mode 1: one C call runs the whole drive (plant + node + ECU per tick)."""
+def run_inprocess(drive, ecu: Ecu | None = None) -> Session:
+    """Mode 1: the car's frames of each tick into the ECU, then its step. A driveline Drive runs
+    as one C call (plant + node + ECU per tick); any other car (e.g. the chassis car) tick by tick
+    through the same C calls from Python."""
     ecu = ecu or Ecu()
+    if not isinstance(drive, Drive):
+        return _run_car_inprocess(drive, ecu)
     car = Car(drive)
     n = drive.n
     throttle = np.ascontiguousarray(drive.throttle, dtype=np.float64)
@@ -134,14 +143,37 @@ def run_inprocess(drive: Drive, ecu: Ecu | None = None) -> Session:
                           "counters": ecu.counters(), "health": ecu.health()})
 
 
+def _run_car_inprocess(car, ecu: Ecu) -> Session:
+    car.reset()
+    truth = np.zeros(car.n, dtype=car.truth_dtype)
+    frames, ticks = [], []
+    t0 = time.perf_counter()
+    for k in range(car.n):
+        for f in car.tick(k):
+            p = ffi.addressof(f)
+            frames.append(bytes(ffi.buffer(p)))
+            ticks.append(k)
+            ecu.rx_frame(p)
+        for f in ecu.step_frames():
+            frames.append(bytes(ffi.buffer(ffi.addressof(f))))
+            ticks.append(k)
+        truth[k] = car.truth()
+    wall = time.perf_counter() - t0
+    out = np.frombuffer(b"".join(frames), dtype=FRAME_DTYPE).copy() if frames else np.zeros(0, FRAME_DTYPE)
+    return Session(car.name, "inprocess", truth, out, np.asarray(ticks, dtype=np.uint32),
+                   stats={"wall_s": wall, "realtime_factor": car.n * TICK_S / wall if wall else float("inf"),
+                          "counters": ecu.counters(), "chassis_counters": ecu.chassis_counters(),
+                          "health": ecu.health()})
+
+
 class SimMaster:
     """The car on a bus: lockstep master or real-time node. Records every frame it sees or sends."""
 
-    def __init__(self, bus: can.BusABC, drive: Drive, *, log_writer: can.Listener | None = None,
+    def __init__(self, bus: can.BusABC, drive, *, log_writer: can.Listener | None = None,
                  log_channel: str = "vcan0", ack_timeout: float = 2.0, progress=None):
+        """`drive`: a driveline Drive, or any car with Car's interface (e.g. a ChassisCar)."""
         self.bus = bus
-        self.drive = drive
-        self.car = Car(drive)
+        self.car = Car(drive) if isinstance(drive, Drive) else drive
         self.log_writer = log_writer
         self.log_channel = log_channel
         self.ack_timeout = ack_timeout
@@ -171,7 +203,7 @@ class SimMaster:
         for i, m in enumerate(self._frames):
             to_frame(m, cf)
             frames[i] = np.frombuffer(ffi.buffer(cf), dtype=FRAME_DTYPE)[0]
-        return Session(self.drive.name, mode, truth, frames, np.asarray(self._ticks, dtype=np.uint32), stats)
+        return Session(self.car.name, mode, truth, frames, np.asarray(self._ticks, dtype=np.uint32), stats)
 
     def _await_ack(self, tick: int, deadline_s: float) -> list[can.Message]:
         """ECU frames of this tick, up to and excluding its ack."""
@@ -221,8 +253,8 @@ class SimMaster:
         round trips (and bounds what a lossy bus like udp_multicast has to buffer)."""
         self.car.reset()
         self.connect()
-        n = self.drive.n
-        truth = np.zeros(n, dtype=TRUTH_DTYPE)
+        n = self.car.n
+        truth = np.zeros(n, dtype=self.car.truth_dtype)
         sent: dict[int, list] = {}
         t0 = time.perf_counter()
         k_sent = k_done = 0
@@ -254,8 +286,8 @@ class SimMaster:
     def run_realtime(self, *, settle_s: float = 0.2) -> Session:
         """Mode 3: send the car's frames on a 2 kHz wall clock; record what the ECU publishes."""
         self.car.reset()
-        n = self.drive.n
-        truth = np.zeros(n, dtype=TRUTH_DTYPE)
+        n = self.car.n
+        truth = np.zeros(n, dtype=self.car.truth_dtype)
         inbox: queue.SimpleQueue = queue.SimpleQueue()
 
         class Inbox(can.Listener):

@@ -1,6 +1,6 @@
 /* cffi declarations: vh_ecu.h */
 enum { VH_ECU_DKF_T = 0, VH_ECU_DKF_S = 1, VH_ECU_N_DKF = 2 };
-#define VH_ECU_MAX_TX 4
+#define VH_ECU_MAX_TX 6
 #define VH_ECU_N_GEARS 6
 #define VH_ECU_N_WHEELS 4
 #define VH_ECU_CAMBER_NO_RESULT 7
@@ -12,11 +12,12 @@ typedef struct {
     vh_camber_config_t camber;
     double camber_still_ww;
     uint8_t rx_burst_frames;
+    vh_skf_config_t skf;
 } vh_ecu_config_t;
 typedef struct {
     uint16_t crc_error; uint16_t counter_repeat; uint16_t counter_skip; uint16_t dlc_error;
     uint16_t timeout; uint16_t unknown_id; uint16_t signal_invalid; uint16_t input_invalid;
-    uint16_t filter_reset; uint16_t deadline_miss; uint16_t rx_burst;
+    uint16_t filter_reset; uint16_t deadline_miss; uint16_t rx_burst; uint16_t saturation;
 } vh_ecu_counters_t;
 typedef struct { uint16_t age; uint16_t resync; uint8_t fresh; uint8_t n_tick; uint8_t timed_out; ...; } vh_ecu_rxmsg_t;
 typedef struct {
@@ -28,10 +29,15 @@ typedef struct {
     vh_camber_t cmb[4]; vh_camber_result_t last[4]; uint8_t have[4];
 } vh_ecu_cis_t;
 typedef struct {
+    double u[13]; uint16_t valid; uint8_t heard; vh_ecu_rxmsg_t rx;
+    vh_skfq_params_t prm; vh_skfq_t skf; vh_ecu_counters_t cnt;
+} vh_ecu_chs_t;
+typedef struct {
     vh_ecu_config_t cfg;
     vh_dkf_t dkf[2];
     vh_ecu_dls_t dls;
     vh_ecu_cis_t cis;
+    vh_ecu_chs_t chs;
     vh_ecu_counters_t cnt;
     double ti; uint8_t ti_valid; uint8_t gear; uint32_t tick;
     ...;

@@ -8,6 +8,12 @@
  * SNA values per signal, timeout after RxTimeoutCycles cycles without a good frame. Inputs keep their
  * last good value (zero-order hold) for the turbine torque input; the filters' measurement update
  * uses only samples that arrived fresh since the previous tick.
+ *
+ * Two buses, one tick: the powertrain bus (vehest_pt.dbc: driveline filters, camber inspection)
+ * and the chassis bus (vehest_ch.dbc: the fixed-point SKFMEC of seed 000, a step per tick on each
+ * fresh CHS_Sensors sample). Frame IDs are unique across both DBCs, so frames are told apart by
+ * ID; the chassis side transmits only once CHS_Sensors has been heard (a powertrain-only car sees
+ * no chassis frames), and has its own counters in VEHEST_ChassisStatus.
  */
 #ifndef VH_ECU_H
 #define VH_ECU_H
@@ -15,11 +21,13 @@
 #include "vh_camber.h"
 #include "vh_dkf.h"
 #include "vh_e2e.h"
+#include "vh_skf.h"
+#include "vh_skfq.h"
 #include "vh_types.h"
 
 /* The two driveline filters: T = speeds + torque transducer, S = speeds only. */
 enum { VH_ECU_DKF_T = 0, VH_ECU_DKF_S = 1, VH_ECU_N_DKF = 2 };
-#define VH_ECU_MAX_TX 4
+#define VH_ECU_MAX_TX 6
 #define VH_ECU_N_GEARS 6 /* index = GearEngaged 1..5; 0 = neutral */
 #define VH_ECU_N_WHEELS 4 /* camber inspection devices: FL, FR, RL, RR */
 #define VH_ECU_CAMBER_NO_RESULT 7u /* CamberReason SNA: no window completed yet */
@@ -33,6 +41,8 @@ typedef struct {
     double camber_still_ww;            /* |wheel speed| below which the car counts as stationary [rad/s] */
     uint8_t rx_burst_frames;           /* burst limit per message and tick (VH_ECU_BURST_FRAMES); 0 = off,
                                           for transports that deliver in batches (UML's 100 Hz timer) */
+    vh_skf_config_t skf;               /* tyre-force SKFMEC (seed 000), scaled = mec = 1; the ECU runs its
+                                          fixed-point translation (vh_skfq_params_from_config) */
 } vh_ecu_config_t;
 
 /* Saturating fault counters (uint16, as on the bus). */
@@ -48,6 +58,7 @@ typedef struct {
     uint16_t filter_reset;
     uint16_t deadline_miss;
     uint16_t rx_burst;
+    uint16_t saturation; /* fixed-point SKFMEC steps that saturated (chassis only) */
 } vh_ecu_counters_t;
 
 /* Reception state of one cyclic message: E2E, freshness, timeout. */
@@ -83,17 +94,29 @@ typedef struct {
     uint8_t have[VH_ECU_N_WHEELS]; /* a window completed since reset */
 } vh_ecu_cis_t;
 
+/* Chassis side (seed 000): last good CHS_Sensors sample, the fixed-point SKFMEC, its counters. */
+typedef struct {
+    double u[VH_SKF_NU];  /* last good sample in vh_skf_input_t order (physical units) */
+    uint16_t valid;       /* bit i: channel i of u valid */
+    uint8_t heard;        /* a good CHS_Sensors frame has arrived since reset: the chassis bus is alive */
+    vh_ecu_rxmsg_t rx;
+    vh_skfq_params_t prm; /* integer constants from cfg.skf (vh_ecu_init) */
+    vh_skfq_t skf;
+    vh_ecu_counters_t cnt;
+} vh_ecu_chs_t;
+
 typedef struct {
     vh_ecu_config_t cfg;
     vh_dkf_t dkf[VH_ECU_N_DKF];
     vh_ecu_dls_t dls;
     vh_ecu_cis_t cis;
+    vh_ecu_chs_t chs;
     vh_ecu_counters_t cnt;
     double ti;        /* last turbine torque input (eq. 9) */
     uint8_t ti_valid;
     uint8_t gear;     /* gear the filters are discretised for */
     uint32_t tick;
-    uint8_t tx_counter[3]; /* E2E counters: DrivelineEst, Status, Camber */
+    uint8_t tx_counter[5]; /* E2E counters: DrivelineEst, Status, Camber, TireForceEst, ChassisStatus */
 } vh_ecu_t;
 
 void vh_ecu_config_default(vh_ecu_config_t *cfg);

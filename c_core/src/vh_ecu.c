@@ -3,6 +3,8 @@
 #include <stdbool.h>
 #include <string.h>
 
+#include "vh_ch.h"
+#include "vh_ch_meta.h"
 #include "vh_ecu.h"
 #include "vh_pt.h"
 #include "vh_pt_meta.h"
@@ -14,6 +16,10 @@ enum { SIG_WO = 0, SIG_WWL, SIG_WWR, SIG_TO, SIG_WE, SIG_WT, N_SIG };
 #define DLS_TIMEOUT_TICKS (VH_PT_DLS_SENSORS_RX_TIMEOUT_CYCLES * (VH_PT_DLS_SENSORS_CYCLE_TIME_US / VH_TICK_US))
 #define CIS_TIMEOUT_TICKS (VH_PT_CIS_ACCEL_RX_TIMEOUT_CYCLES * (VH_PT_CIS_ACCEL_CYCLE_TIME_US / VH_TICK_US))
 #define CAMBER_PERIOD_TICKS (VH_PT_VEHEST_CAMBER_CYCLE_TIME_US / VH_TICK_US)
+#define CHS_TIMEOUT_TICKS (VH_CH_CHS_SENSORS_RX_TIMEOUT_CYCLES * (VH_CH_CHS_SENSORS_CYCLE_TIME_US / VH_TICK_US))
+#define TFE_PERIOD_TICKS (VH_CH_VEHEST_TIRE_FORCE_EST_CYCLE_TIME_US / VH_TICK_US)
+#define CST_PERIOD_TICKS (VH_CH_VEHEST_CHASSIS_STATUS_CYCLE_TIME_US / VH_TICK_US)
+#define CHS_ALL_INPUTS 0x1FF0u /* channels 4..12 of vh_skf_input_t: steer, wheel speeds, torques */
 
 static void inc(uint16_t *c)
 {
@@ -38,6 +44,7 @@ void vh_ecu_config_default(vh_ecu_config_t *cfg)
     vh_camber_config_default(&cfg->camber);
     cfg->camber_still_ww = 0.5; /* 0.15 m/s at the wheel: parked, not rolling */
     cfg->rx_burst_frames = VH_ECU_BURST_FRAMES;
+    vh_skf_config_default(&cfg->skf, VH_SKF_SKFMEC);
 }
 
 int vh_ecu_init(vh_ecu_t *ecu, const vh_ecu_config_t *cfg)
@@ -45,6 +52,8 @@ int vh_ecu_init(vh_ecu_t *ecu, const vh_ecu_config_t *cfg)
     int i;
     vh_dkf_t probe;
     vh_camber_t cprobe;
+    vh_skfq_params_t prm;
+    vh_skfq_t qprobe;
     if (cfg->status_period_ticks == 0u || !(cfg->we_min > 0.0) || !isfinite(cfg->we_min) ||
         !(cfg->camber_still_ww >= 0.0) || !isfinite(cfg->camber_still_ww) ||
         vh_camber_init(&cprobe, &cfg->camber, NULL) != VH_OK) {
@@ -60,8 +69,14 @@ int vh_ecu_init(vh_ecu_t *ecu, const vh_ecu_config_t *cfg)
             return VH_EINVAL;
         }
     }
+    /* the SKFMEC steps once per tick on the 500 us CHS_Sensors samples */
+    if (fabs(cfg->skf.ts - VH_TICK_US * 1e-6) > 1e-12 || vh_skfq_params_from_config(&cfg->skf, &prm) != VH_OK ||
+        vh_skfq_init(&qprobe, &prm) != VH_OK) {
+        return VH_EINVAL;
+    }
     memset(ecu, 0, sizeof *ecu);
     ecu->cfg = *cfg;
+    ecu->chs.prm = prm;
     vh_ecu_reset(ecu);
     return VH_OK;
 }
@@ -78,6 +93,7 @@ void vh_ecu_reset(vh_ecu_t *ecu)
 {
     int i;
     const vh_ecu_config_t cfg = ecu->cfg;
+    const vh_skfq_params_t prm = ecu->chs.prm;
     vh_camber_cal_t cal[VH_ECU_N_WHEELS]; /* calibrations are data, not state: they survive */
     for (i = 0; i < VH_ECU_N_WHEELS; ++i) {
         cal[i] = ecu->cis.cmb[i].cal;
@@ -94,6 +110,9 @@ void vh_ecu_reset(vh_ecu_t *ecu)
     ecu->dls.gear = GEAR_SNA;
     rxmsg_init(&ecu->dls.rx);
     rxmsg_init(&ecu->cis.rx);
+    rxmsg_init(&ecu->chs.rx);
+    ecu->chs.prm = prm;
+    (void)vh_skfq_init(&ecu->chs.skf, &prm); /* validated in vh_ecu_init */
 }
 
 int vh_ecu_set_camber_calibration(vh_ecu_t *ecu, unsigned wheel, const vh_camber_cal_t *cal)
@@ -110,7 +129,8 @@ static int known_id(uint32_t id)
     return id == VH_PT_DLS_SENSORS_FRAME_ID || id == VH_PT_VEHEST_DRIVELINE_EST_FRAME_ID ||
            id == VH_PT_VEHEST_STATUS_FRAME_ID || id == VH_PT_SIM_SYNC_FRAME_ID ||
            id == VH_PT_VEHEST_SYNC_ACK_FRAME_ID || id == VH_PT_CIS_ACCEL_FRAME_ID ||
-           id == VH_PT_VEHEST_CAMBER_FRAME_ID;
+           id == VH_PT_VEHEST_CAMBER_FRAME_ID || id == VH_CH_CHS_SENSORS_FRAME_ID ||
+           id == VH_CH_VEHEST_TIRE_FORCE_EST_FRAME_ID || id == VH_CH_VEHEST_CHASSIS_STATUS_FRAME_ID;
 }
 
 /* One speed/torque signal: raw SNA value or a cleared qualifier makes it invalid. */
@@ -127,10 +147,10 @@ static int take(vh_ecu_t *ecu, int ok, double value, double *dst, int sig)
 }
 
 /* Length and E2E checks of one received frame, counted; 1 if its data may be used. */
-static int rx_accept(vh_ecu_t *ecu, vh_ecu_rxmsg_t *m, const vh_frame_t *f, size_t len, uint16_t data_id)
+static int rx_accept(vh_ecu_counters_t *cnt, vh_ecu_rxmsg_t *m, const vh_frame_t *f, size_t len, uint16_t data_id)
 {
     if (f->len != len) {
-        inc(&ecu->cnt.dlc_error);
+        inc(&cnt->dlc_error);
         return 0;
     }
     switch (vh_e2e_p01_check(&m->e2e, f->data, f->len, data_id)) {
@@ -138,15 +158,15 @@ static int rx_accept(vh_ecu_t *ecu, vh_ecu_rxmsg_t *m, const vh_frame_t *f, size
     case VH_E2E_INITIAL:
         break;
     case VH_E2E_SKIPPED: /* frames were lost, but this one is good */
-        inc(&ecu->cnt.counter_skip);
+        inc(&cnt->counter_skip);
         break;
     case VH_E2E_REPEATED:
-        inc(&ecu->cnt.counter_repeat);
+        inc(&cnt->counter_repeat);
         return 0;
     case VH_E2E_WRONG_CRC:
     case VH_E2E_BAD_LEN:
     default:
-        inc(&ecu->cnt.crc_error);
+        inc(&cnt->crc_error);
         return 0;
     }
     m->fresh = 1u;
@@ -159,11 +179,11 @@ static int rx_accept(vh_ecu_t *ecu, vh_ecu_rxmsg_t *m, const vh_frame_t *f, size
 /* Once per tick: age, timeout (counted on entry), cleared by a fresh frame; a burst makes the
  * message untrusted (not fresh) until it has been regular for its timeout. Returns 1 when the
  * frames of this tick may be used. */
-static int rx_tick(vh_ecu_t *ecu, vh_ecu_rxmsg_t *m, unsigned timeout_ticks)
+static int rx_tick(const vh_ecu_t *ecu, vh_ecu_counters_t *cnt, vh_ecu_rxmsg_t *m, unsigned timeout_ticks)
 {
     if (ecu->cfg.rx_burst_frames != 0u && m->n_tick > ecu->cfg.rx_burst_frames) {
         m->resync = (uint16_t)timeout_ticks;
-        inc(&ecu->cnt.rx_burst);
+        inc(&cnt->rx_burst);
     } else if (m->resync > 0u) {
         --m->resync;
     }
@@ -176,7 +196,7 @@ static int rx_tick(vh_ecu_t *ecu, vh_ecu_rxmsg_t *m, unsigned timeout_ticks)
     }
     if (!m->timed_out && m->age >= timeout_ticks) {
         m->timed_out = 1u;
-        inc(&ecu->cnt.timeout);
+        inc(&cnt->timeout);
     }
     return m->resync == 0u;
 }
@@ -185,7 +205,7 @@ static void rx_cis(vh_ecu_t *ecu, const vh_frame_t *f)
 {
     struct vh_pt_cis_accel_t m;
     vh_ecu_cis_t *c = &ecu->cis;
-    if (!rx_accept(ecu, &c->rx, f, VH_PT_CIS_ACCEL_LENGTH, VH_PT_CIS_ACCEL_E2E_DATA_ID)) {
+    if (!rx_accept(&ecu->cnt, &c->rx, f, VH_PT_CIS_ACCEL_LENGTH, VH_PT_CIS_ACCEL_E2E_DATA_ID)) {
         return;
     }
     (void)vh_pt_cis_accel_unpack(&m, f->data, f->len);
@@ -204,7 +224,7 @@ static void rx_dls(vh_ecu_t *ecu, const vh_frame_t *f)
         inc(&ecu->cnt.dlc_error);
         return;
     }
-    if (!rx_accept(ecu, &d->rx, f, VH_PT_DLS_SENSORS_LENGTH, VH_PT_DLS_SENSORS_E2E_DATA_ID)) {
+    if (!rx_accept(&ecu->cnt, &d->rx, f, VH_PT_DLS_SENSORS_LENGTH, VH_PT_DLS_SENSORS_E2E_DATA_ID)) {
         return;
     }
     (void)vh_pt_dls_sensors_unpack(&m, f->data, f->len);
@@ -231,10 +251,65 @@ static void rx_dls(vh_ecu_t *ecu, const vh_frame_t *f)
     }
 }
 
+/* One chassis channel: a raw SNA value or a cleared qualifier makes it invalid (counted). */
+static void take_ch(vh_ecu_chs_t *c, int ok, double value, int ch)
+{
+    if (!ok) {
+        inc(&c->cnt.signal_invalid);
+        c->valid &= (uint16_t)~(1u << ch);
+        return;
+    }
+    c->u[ch] = value;
+    c->valid |= (uint16_t)(1u << ch);
+}
+
+static void rx_chs(vh_ecu_t *ecu, const vh_frame_t *f)
+{
+    struct vh_ch_chs_sensors_t m;
+    vh_ecu_chs_t *c = &ecu->chs;
+    if ((f->flags & VH_FRAME_EXT) != 0u) {
+        inc(&c->cnt.dlc_error);
+        return;
+    }
+    if (!rx_accept(&c->cnt, &c->rx, f, VH_CH_CHS_SENSORS_LENGTH, VH_CH_CHS_SENSORS_E2E_DATA_ID)) {
+        return;
+    }
+    (void)vh_ch_chs_sensors_unpack(&m, f->data, f->len);
+    c->heard = 1u;
+    take_ch(c, m.qf_long_accel && m.long_accel != VH_CH_CHS_SENSORS_LONG_ACCEL_SNA_CHOICE,
+            vh_ch_chs_sensors_long_accel_decode(m.long_accel), 0);
+    take_ch(c, m.qf_lat_accel && m.lat_accel != VH_CH_CHS_SENSORS_LAT_ACCEL_SNA_CHOICE,
+            vh_ch_chs_sensors_lat_accel_decode(m.lat_accel), 1);
+    take_ch(c, m.qf_yaw_rate && m.yaw_rate != VH_CH_CHS_SENSORS_YAW_RATE_SNA_CHOICE,
+            vh_ch_chs_sensors_yaw_rate_decode(m.yaw_rate), 2);
+    take_ch(c, m.qf_roll_rate && m.roll_rate != VH_CH_CHS_SENSORS_ROLL_RATE_SNA_CHOICE,
+            vh_ch_chs_sensors_roll_rate_decode(m.roll_rate), 3);
+    take_ch(c, m.qf_steer_angle && m.steer_angle != VH_CH_CHS_SENSORS_STEER_ANGLE_SNA_CHOICE,
+            vh_ch_chs_sensors_steer_angle_decode(m.steer_angle), 4);
+    take_ch(c, m.qf_wheel_speed_fl && m.wheel_speed_fl != VH_CH_CHS_SENSORS_WHEEL_SPEED_FL_SNA_CHOICE,
+            vh_ch_chs_sensors_wheel_speed_fl_decode(m.wheel_speed_fl), 5);
+    take_ch(c, m.qf_wheel_speed_fr && m.wheel_speed_fr != VH_CH_CHS_SENSORS_WHEEL_SPEED_FR_SNA_CHOICE,
+            vh_ch_chs_sensors_wheel_speed_fr_decode(m.wheel_speed_fr), 6);
+    take_ch(c, m.qf_wheel_speed_rl && m.wheel_speed_rl != VH_CH_CHS_SENSORS_WHEEL_SPEED_RL_SNA_CHOICE,
+            vh_ch_chs_sensors_wheel_speed_rl_decode(m.wheel_speed_rl), 7);
+    take_ch(c, m.qf_wheel_speed_rr && m.wheel_speed_rr != VH_CH_CHS_SENSORS_WHEEL_SPEED_RR_SNA_CHOICE,
+            vh_ch_chs_sensors_wheel_speed_rr_decode(m.wheel_speed_rr), 8);
+    take_ch(c, m.qf_wheel_torque_fl && m.wheel_torque_fl != VH_CH_CHS_SENSORS_WHEEL_TORQUE_FL_SNA_CHOICE,
+            vh_ch_chs_sensors_wheel_torque_fl_decode(m.wheel_torque_fl), 9);
+    take_ch(c, m.qf_wheel_torque_fr && m.wheel_torque_fr != VH_CH_CHS_SENSORS_WHEEL_TORQUE_FR_SNA_CHOICE,
+            vh_ch_chs_sensors_wheel_torque_fr_decode(m.wheel_torque_fr), 10);
+    take_ch(c, m.qf_wheel_torque_rl && m.wheel_torque_rl != VH_CH_CHS_SENSORS_WHEEL_TORQUE_RL_SNA_CHOICE,
+            vh_ch_chs_sensors_wheel_torque_rl_decode(m.wheel_torque_rl), 11);
+    take_ch(c, m.qf_wheel_torque_rr && m.wheel_torque_rr != VH_CH_CHS_SENSORS_WHEEL_TORQUE_RR_SNA_CHOICE,
+            vh_ch_chs_sensors_wheel_torque_rr_decode(m.wheel_torque_rr), 12);
+}
+
 void vh_ecu_rx(vh_ecu_t *ecu, const vh_frame_t *frame)
 {
     if (frame->id == VH_PT_DLS_SENSORS_FRAME_ID) {
         rx_dls(ecu, frame);
+    } else if (frame->id == VH_CH_CHS_SENSORS_FRAME_ID) {
+        rx_chs(ecu, frame);
     } else if (frame->id == VH_PT_CIS_ACCEL_FRAME_ID && (frame->flags & VH_FRAME_EXT) == 0u) {
         rx_cis(ecu, frame);
     } else if (!known_id(frame->id)) {
@@ -263,7 +338,7 @@ static unsigned update_inputs(vh_ecu_t *ecu)
     const int fresh = d->rx.fresh;
     unsigned mask = 0u;
     int i;
-    if (!rx_tick(ecu, &d->rx, DLS_TIMEOUT_TICKS) || d->rx.timed_out) { /* burst or silence: no usable sample */
+    if (!rx_tick(ecu, &ecu->cnt, &d->rx, DLS_TIMEOUT_TICKS) || d->rx.timed_out) { /* burst or silence: no usable sample */
         d->valid = 0u;
     }
     if (d->gear != GEAR_SNA && d->gear != ecu->gear && !d->rx.timed_out) {
@@ -346,7 +421,7 @@ static size_t camber_task(vh_ecu_t *ecu, vh_frame_t *tx, size_t n, size_t cap)
     const int fresh = c->rx.fresh;
     struct vh_pt_vehest_camber_t m;
     int w;
-    if (rx_tick(ecu, &c->rx, CIS_TIMEOUT_TICKS) && fresh) {
+    if (rx_tick(ecu, &ecu->cnt, &c->rx, CIS_TIMEOUT_TICKS) && fresh) {
         const double lim = ecu->cfg.camber_still_ww;
         const bool still = !d->rx.timed_out && (d->valid & (1u << SIG_WWL)) && (d->valid & (1u << SIG_WWR)) &&
                            fabs(d->wwl) < lim && fabs(d->wwr) < lim;
@@ -373,6 +448,95 @@ static size_t camber_task(vh_ecu_t *ecu, vh_frame_t *tx, size_t n, size_t cap)
     (void)vh_pt_vehest_camber_pack(tx[n].data, &m, VH_PT_VEHEST_CAMBER_LENGTH);
     vh_e2e_p01_protect(tx[n].data, VH_PT_VEHEST_CAMBER_LENGTH, VH_PT_VEHEST_CAMBER_E2E_DATA_ID, &ecu->tx_counter[2]);
     return emit(tx, n, cap, VH_PT_VEHEST_CAMBER_FRAME_ID, VH_PT_VEHEST_CAMBER_LENGTH, VH_PT_VEHEST_CAMBER_IS_FD);
+}
+
+static int16_t enc_s16_sna(double v, double scale, int ok)
+{
+    return ok ? enc_s16(v, scale) : (int16_t)INT16_MIN;
+}
+
+/* Tyre lateral force (seed 000): one fixed-point SKFMEC step per tick on the fresh CHS_Sensors
+ * sample (prediction only, DEGRADED, without one), restarted after a timeout so that it re-seeds
+ * from live data; VEHEST_TireForceEst every 1 ms and VEHEST_ChassisStatus every 10 ms once the
+ * chassis bus has been heard. */
+static size_t chassis_task(vh_ecu_t *ecu, vh_frame_t *tx, size_t n, size_t cap)
+{
+    vh_ecu_chs_t *c = &ecu->chs;
+    vh_skfq_t *f = &c->skf;
+    const int fresh = c->rx.fresh;
+    const int was_out = c->rx.timed_out;
+    const int usable = rx_tick(ecu, &c->cnt, &c->rx, CHS_TIMEOUT_TICKS) && fresh;
+    c->rx.fresh = 0u;
+    if (!c->heard) {
+        return n;
+    }
+    if (c->rx.timed_out) {
+        if (!was_out) {
+            vh_skfq_reset(f);
+        }
+    } else {
+        unsigned mask = 0u;
+        int32_t q[VH_SKF_NU];
+        if (usable) {
+            mask = (c->valid & 0xFu) | ((c->valid & CHS_ALL_INPUTS) == CHS_ALL_INPUTS ? VH_SKF_U_VALID : 0u);
+        }
+        vh_skfq_quantise_inputs(1u, c->u, q);
+        {
+            const uint32_t sat0 = f->sat;
+            if (vh_skfq_step(f, (const vh_skfq_input_t *)(const void *)q, mask)) {
+                inc(&c->cnt.filter_reset);
+            }
+            if (f->sat != sat0) {
+                inc(&c->cnt.saturation);
+            }
+        }
+    }
+    if (ecu->tick % TFE_PERIOD_TICKS == 0u && n < cap) {
+        struct vh_ch_vehest_tire_force_est_t m;
+        const double *s = ecu->cfg.skf.s;
+        const double fx = 1.0 / (double)(1L << VH_SKFQ_FX), fn = 1.0 / (double)(1L << VH_SKFQ_FN);
+        const int ok = !c->rx.timed_out && (f->health == VH_HEALTH_OK || f->health == VH_HEALTH_DEGRADED);
+        memset(&m, 0, sizeof m);
+        m.skfmec_q_health = f->health;
+        m.skfmec_q_valid = !c->rx.timed_out && f->health == VH_HEALTH_OK;
+        m.fy1 = enc_s16_sna(f->fy[0] * fn, 0.5, ok);
+        m.fy2 = enc_s16_sna(f->fy[1] * fn, 0.5, ok);
+        m.fy3 = enc_s16_sna(f->fy[2] * fn, 0.5, ok);
+        m.fy4 = enc_s16_sna(f->fy[3] * fn, 0.5, ok);
+        m.fyf = enc_s16_sna(f->x[VH_SKF_FYF] * fx / s[VH_SKF_FYF], 0.5, ok);
+        m.fyr = enc_s16_sna(f->x[VH_SKF_FYR] * fx / s[VH_SKF_FYR], 0.5, ok);
+        m.est_vx = ok ? enc_u16(f->x[VH_SKF_VX] * fx / s[VH_SKF_VX], 0.005) : (uint16_t)UINT16_MAX;
+        m.est_vy = enc_s16_sna(f->x[VH_SKF_VY] * fx / s[VH_SKF_VY], 0.001, ok);
+        m.est_yaw_rate = enc_s16_sna(f->x[VH_SKF_R] * fx / s[VH_SKF_R], 0.0001, ok);
+        m.est_roll_angle = enc_s16_sna(f->x[VH_SKF_PHI] * fx / s[VH_SKF_PHI], 0.00001, ok);
+        memset(tx[n].data, 0, sizeof tx[n].data);
+        (void)vh_ch_vehest_tire_force_est_pack(tx[n].data, &m, VH_CH_VEHEST_TIRE_FORCE_EST_LENGTH);
+        vh_e2e_p01_protect(tx[n].data, VH_CH_VEHEST_TIRE_FORCE_EST_LENGTH, VH_CH_VEHEST_TIRE_FORCE_EST_E2E_DATA_ID,
+                           &ecu->tx_counter[3]);
+        n = emit(tx, n, cap, VH_CH_VEHEST_TIRE_FORCE_EST_FRAME_ID, VH_CH_VEHEST_TIRE_FORCE_EST_LENGTH,
+                 VH_CH_VEHEST_TIRE_FORCE_EST_IS_FD);
+    }
+    if (ecu->tick % CST_PERIOD_TICKS == 0u && n < cap) {
+        struct vh_ch_vehest_chassis_status_t st;
+        const uint32_t cnt_err = (uint32_t)c->cnt.counter_repeat + c->cnt.counter_skip;
+        memset(&st, 0, sizeof st);
+        st.skfmec_q_health_sts = f->health;
+        st.cnt_rx_crc_error = c->cnt.crc_error;
+        st.cnt_rx_counter_error = (uint16_t)(cnt_err > UINT16_MAX ? UINT16_MAX : cnt_err);
+        st.cnt_rx_timeout = c->cnt.timeout;
+        st.cnt_signal_invalid = c->cnt.signal_invalid;
+        st.cnt_saturation = c->cnt.saturation;
+        st.cnt_filter_reset = c->cnt.filter_reset;
+        st.rx_fault_active = (uint8_t)((c->rx.timed_out || c->rx.resync ? 1u : 0u) |
+                                       ((c->valid & 0x1FFFu) != 0x1FFFu ? 2u : 0u));
+        memset(tx[n].data, 0, sizeof tx[n].data);
+        (void)vh_ch_vehest_chassis_status_pack(tx[n].data, &st, VH_CH_VEHEST_CHASSIS_STATUS_LENGTH);
+        vh_e2e_p01_protect(tx[n].data, VH_CH_VEHEST_CHASSIS_STATUS_LENGTH, VH_CH_VEHEST_CHASSIS_STATUS_E2E_DATA_ID,
+                           &ecu->tx_counter[4]);
+        n = emit(tx, n, cap, VH_CH_VEHEST_CHASSIS_STATUS_FRAME_ID, VH_CH_VEHEST_CHASSIS_STATUS_LENGTH,
+                 VH_CH_VEHEST_CHASSIS_STATUS_IS_FD);
+    }
+    return n;
 }
 
 size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap)
@@ -438,6 +602,7 @@ size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap)
         n = emit(tx, n, cap, VH_PT_VEHEST_STATUS_FRAME_ID, VH_PT_VEHEST_STATUS_LENGTH, VH_PT_VEHEST_STATUS_IS_FD);
     }
     n = camber_task(ecu, tx, n, cap);
+    n = chassis_task(ecu, tx, n, cap);
     ++ecu->tick;
     return n;
 }
