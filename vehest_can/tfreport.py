@@ -283,30 +283,37 @@ def _pct_errors(est: np.ndarray, ref: np.ndarray, peak: np.ndarray, names) -> di
     return _per(names, 100.0 * _rms(est - ref) / peak)
 
 
-def evaluate(truth, runs: dict[str, tf.TireForceRun], settle_s: float = SETTLE_S) -> dict:
+def evaluate(truth, runs: dict[str, tf.TireForceRun], settle_s: float = SETTLE_S,
+             max_ay_g: float | None = None) -> dict:
     """Per-tire and per-axle RMS errors of each run against the truth, the fixed-vs-double
     difference, the oracle decomposition and a verdict per acceptance line.
 
     ``truth`` needs ``t`` (n,), ``fy`` and ``fz`` (n, 4) (the plant's record array, or a dict);
     each run's rows are the truth's ticks. RMS is over t >= t[0] + settle_s; percentages are of the
-    tire's (axle's) peak |F_y| over the whole run. Axle estimates are the means of the two per-tire
+    tire's (axle's) peak |F_y| over the whole run. ``max_ay_g`` keeps only the samples with the
+    truth's |a_y| at or below it (needs ``ay``; the paper's relations hold below ~0.5 g), peaks
+    then taken over those samples too. Axle estimates are the means of the two per-tire
     estimates, compared with the true axle means (F_yf, F_yr of the paper: average tire force).
     """
     t = np.asarray(truth["t"], dtype=np.float64)
     fy = np.asarray(truth["fy"], dtype=np.float64)
     fz = np.asarray(truth["fz"], dtype=np.float64)
     n = len(t)
-    k0 = int(np.searchsorted(t - t[0], settle_s - 1e-9))
-    if k0 >= n:
-        raise ConfigError(f"settle_s {settle_s} leaves no samples of a {t[-1] - t[0]:.3f} s run")
+    band = np.ones(n, dtype=bool)
+    if max_ay_g is not None:
+        band = np.abs(np.asarray(truth["ay"], dtype=np.float64)) <= max_ay_g * G
+    s = band & (t - t[0] >= settle_s - 1e-9)
+    if not s.any():
+        raise ConfigError(f"settle_s {settle_s} (max_ay_g {max_ay_g}) leaves no samples of a "
+                          f"{t[-1] - t[0]:.3f} s run")
     axle = _axles(fy)
-    peak = np.abs(fy).max(axis=0)
-    peak_axle = np.abs(axle).max(axis=0)
+    peak = np.abs(fy[band]).max(axis=0)
+    peak_axle = np.abs(axle[band]).max(axis=0)
     if np.any(peak <= 0) or np.any(peak_axle <= 0):
         raise ConfigError("a tire without lateral force: percentages of peak |Fy| are undefined")
-    s = slice(k0, None)
     dt = t[1] - t[0] if n > 1 else 0.0
-    out: dict = {"settle_s": settle_s, "samples": n - k0, "duration_s": float(t[-1] - t[0] + dt),
+    out: dict = {"settle_s": settle_s, "max_ay_g": max_ay_g, "samples": int(s.sum()),
+                 "duration_s": float(t[-1] - t[0] + dt),
                  "peak_fy_N": _per(WHEELS + AXLES, np.r_[peak, peak_axle]), "variants": {}}
     for name, run in runs.items():
         est = np.asarray(run.fy, dtype=np.float64)
@@ -423,7 +430,8 @@ def table(metrics: dict, name: str | None = None) -> str:
     name = name or metrics.get("scenario", "")
     cols = WHEELS + AXLES
     head = f"{'':<22}" + "".join(f"{c:>9}" for c in cols) + f"{'sat':>6}{'resets':>8}"
-    lines = [f"== {name}: RMS error after {metrics['settle_s']:g} s, % of peak |Fy| "
+    band = f", |a_y| <= {metrics['max_ay_g']:g} g" if metrics.get("max_ay_g") is not None else ""
+    lines = [f"== {name}: RMS error after {metrics['settle_s']:g} s{band}, % of peak |Fy| "
              f"({metrics['samples']} samples)", head, "-" * len(head)]
     lines.append(f"{'peak |Fy| [N]':<22}" + "".join(f"{metrics['peak_fy_N'][c]:>9.0f}" for c in cols))
     for v, vm in metrics["variants"].items():
@@ -582,10 +590,10 @@ def write_metrics(metrics, path: Path) -> None:
 
 # ---- command line ----------------------------------------------------------------------------
 
-def report(sc, out_dir: Path | None = None, progress=None) -> dict:
+def report(sc, out_dir: Path | None = None, progress=None, max_ay_g: float | None = None) -> dict:
     """One scenario: simulate, evaluate, relations, plots (when out_dir). Returns the metrics."""
     truth, dec, runs = simulate(sc, progress=progress)
-    m = evaluate(truth, runs)
+    m = evaluate(truth, runs, max_ay_g=max_ay_g)
     m = {"scenario": sc.name, "description": sc.description, "mass_delta_kg": sc.mass_delta_kg,
          "e2e_rejected": dec.e2e_rejected, "invalid_samples": dec.invalid, **m,
          "relations": relations(truth)}
@@ -605,13 +613,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("-o", "--out", type=Path, default=Path("out/tfreport"), help="output directory")
     ap.add_argument("--mass-delta", type=float, default=None, metavar="KG",
                     help="override [vehicle] mass_delta_kg (0: the nominal car, the estimator's mass)")
+    ap.add_argument("--max-ay-g", type=float, default=None, metavar="G",
+                    help="evaluate only the samples with the truth's |a_y| at or below G "
+                         "(the paper: the relations hold below 0.5 g)")
     args = ap.parse_args(argv)
     all_metrics = []
     try:
         for name in args.scenarios or list_chassis_scenarios():
             sc = scenario(name, mass_delta_kg=args.mass_delta)
             prog = Progress(sc.name)
-            m = report(sc, args.out, progress=prog)
+            m = report(sc, args.out, progress=prog, max_ay_g=args.max_ay_g)
             prog.done(f"{len(m.get('plots', []))} plots")
             all_metrics.append(m)
             print(table(m))
