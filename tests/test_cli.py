@@ -1,6 +1,7 @@
 """The console script: demo end to end on a short scenario, and clear errors for bad input."""
 import json
 import random
+from pathlib import Path
 
 import pytest
 
@@ -36,6 +37,28 @@ def test_demo_end_to_end(tmp_path, capsys):
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics[0]["bus_equals_inprocess"] is True
     assert {s["measurement_set"] for s in metrics[0]["sets"]} == {"speeds+torque", "speeds"}
+
+
+@pytest.mark.multicast
+def test_demo_chassis_scenario_end_to_end(tmp_path, capsys):
+    """A chassis scenario (seed 000) through the daemon: fixed-point estimates from the bus equal
+    the array API's, the report tabulates all three estimators and draws Fig. 3-6."""
+    src = Path(__file__).parents[1] / "firmware_sim" / "scenarios" / "chassis" / "chassis_paper_mu_drop.toml"
+    sc = tmp_path / "chassis_short.toml"
+    sc.write_text(src.read_text().replace("duration_s = 10.0", "duration_s = 1.0")
+                  .replace('name = "chassis_paper_mu_drop"', 'name = "chassis_short"'))
+    out = tmp_path / "out"
+    port = random.randint(49152, 64999)
+    assert main(["demo", str(sc), "-o", str(out), "-i", "udp_multicast", "-c", "239.74.163.3",
+                 "--bus-kwargs", f"port={port}"]) == 0
+    text = capsys.readouterr().out
+    assert "bus lockstep == in-process lockstep: identical" in text
+    assert "array API on the decoded samples: identical" in text
+    assert "skfmec-fixed" in text and "ekf" in text and "acceptance:" in text
+    for name in ("fig3_zeta.png", "fig4_share.png", "fig5_inner_front.png", "fig6_outer_front.png", "session.log"):
+        assert (out / "chassis_short" / name).stat().st_size > 1000
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics[0]["bus_equals_inprocess"] is True and metrics[0]["ecu_equals_array_api"] is True
 
 
 def test_bad_scenario_file_names_the_key(tmp_path, capsys):

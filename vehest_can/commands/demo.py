@@ -16,22 +16,26 @@ import numpy as np
 from dataclasses import replace
 
 from .. import bus as busmod
-from .. import inspection, report
+from .. import inspection, report, tfreport
+from .. import tireforce as tf
+from ..chassis import ChassisCar, ChassisScenario, chassis_scenario_dir, load_chassis_scenario
 from ..camber import WHEELS, Calibration, load_calibrations, save_calibrations
 from ..ecu import Ecu
+from ..frames import database
 from ..replay import read_log
 from ..errors import VehestError
 from ..progress import Progress
-from ..scenario import load_scenario, scenario_dir
+from ..scenario import load_scenario, read_toml, scenario_dir
 from ..sim import SimMaster, drive_from_scenario, run_inprocess
 
 
 def add_subparser(subparsers) -> None:
     p = subparsers.add_parser("demo", help="the full loop: plant -> bus -> ECU -> estimates, with table and plots",
-                              description="Start the ECU daemon as its own process, run the driveline scenarios "
-                                          "in lockstep over the bus, and report against the paper.")
+                              description="Start the ECU daemon as its own process, run the driveline, camber and "
+                                          "tyre-force scenarios in lockstep over the bus, and report against the papers.")
     p.add_argument("scenarios", nargs="*", metavar="SCENARIO",
-                   help="scenario files (default: every scenario shipped in firmware_sim/scenarios)")
+                   help="scenario files, driveline or chassis (default: every scenario shipped in "
+                        "firmware_sim/scenarios and firmware_sim/scenarios/chassis)")
     p.add_argument("-o", "--out", default="out/demo", metavar="DIR", help="output folder (default: out/demo)")
     p.add_argument("--realtime", type=float, default=0.0, metavar="S",
                    help="also run S seconds in real time (2 kHz wall clock on both sides)")
@@ -54,9 +58,21 @@ def _stop(proc: subprocess.Popen) -> str:
     return err
 
 
+def _load(path: Path):
+    """A driveline scenario, or a chassis one (``kind = "chassis"``)."""
+    if path.suffix == ".toml" and path.is_file() and read_toml(path).get("kind") == "chassis":
+        return load_chassis_scenario(path)
+    return load_scenario(path)
+
+
+def _is_chassis(sc) -> bool:
+    return isinstance(sc, ChassisScenario)
+
+
 def run(args) -> int:
-    paths = [Path(p) for p in args.scenarios] or sorted(scenario_dir().glob("*.toml"))
-    scenarios = [load_scenario(p) for p in paths]
+    paths = [Path(p) for p in args.scenarios] or (sorted(scenario_dir().glob("*.toml"))
+                                                  + sorted(chassis_scenario_dir().glob("*.toml")))
+    scenarios = [_load(p) for p in paths]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     config = busmod.bus_config(args)
@@ -67,7 +83,7 @@ def run(args) -> int:
     print(f"bus: {config['interface']} {config.get('channel')}{port}; ECU daemon in its own process; output in {out}/")
 
     camber_args, cals = [], {}
-    camber_sc = next((sc for sc in scenarios if sc.camber is not None), None)
+    camber_sc = next((sc for sc in scenarios if not _is_chassis(sc) and sc.camber is not None), None)
     if camber_sc is not None:
         cal_file = _calibrate_devices(camber_sc, out)
         cals = load_calibrations(cal_file)
@@ -79,7 +95,7 @@ def run(args) -> int:
         bus = busmod.open_bus(config)
         try:
             for sc in scenarios:
-                drive = drive_from_scenario(sc)
+                drive = ChassisCar(sc) if _is_chassis(sc) else drive_from_scenario(sc)
                 sdir = out / sc.name
                 sdir.mkdir(parents=True, exist_ok=True)
                 progress = Progress(f"{sc.name} (lockstep)")
@@ -89,12 +105,14 @@ def run(args) -> int:
                 progress.done(f"{session.stats['realtime_factor']:.1f}x real time over the bus")
                 local_ecu = Ecu()  # configured like the daemon
                 local_ecu.set_camber_calibrations(cals)
-                local = run_inprocess(drive_from_scenario(sc), local_ecu)
+                local = run_inprocess(ChassisCar(sc) if _is_chassis(sc) else drive_from_scenario(sc), local_ecu)
                 same = (len(local.frames) == len(session.frames)
                         and np.array_equal(local.frames, session.frames))
                 print(f"  bus lockstep == in-process lockstep: {'identical' if same else 'DIFFERENT'} "
                       f"({len(session.frames)} frames)")
-                if sc.camber is not None:
+                if _is_chassis(sc):
+                    metrics = _tireforce_report(sc, session, sdir)
+                elif sc.camber is not None:
                     metrics = _camber_report(sc, session, sdir)
                 else:
                     metrics = report.driveline_metrics(session)
@@ -109,12 +127,17 @@ def run(args) -> int:
     print("ECU daemon: " + " | ".join(line for line in err.strip().splitlines()[-4:]))
 
     if args.realtime > 0:
-        driveline = [sc for sc in scenarios if sc.camber is None]
+        driveline = [sc for sc in scenarios if not _is_chassis(sc) and sc.camber is None]
         all_metrics.append(_realtime(args, config, (driveline or scenarios)[0], out))
 
     report.write_metrics(all_metrics, out / "metrics.json")
     print()
-    print(report.table([m for m in all_metrics if "sets" in m]))
+    if any("sets" in m for m in all_metrics):
+        print(report.table([m for m in all_metrics if "sets" in m]))
+    for m in all_metrics:
+        if "tires" in m or "acceptance" in m:
+            print()
+            print(tfreport.table(m, m["scenario"]))
     print(f"\nplots: {', '.join(str(p) for p in sorted(out.glob('*/*.png')))}")
     print(f"metrics: {out / 'metrics.json'}; candump logs: {', '.join(str(p) for p in sorted(out.glob('*/session.log')))}")
     return 0
@@ -161,6 +184,31 @@ def _camber_report(sc, session, sdir: Path) -> dict:
           f"(paper: 0.2292° at 4 mg)")
     return {"scenario": sc.name, "mode": session.mode, "camber": results, "uncalibrated": uncal,
             "truth_deg": {w: {"camber": t[0], "misalign": t[1]} for w, t in truth.items()}}
+
+
+def _tireforce_report(sc, session, sdir: Path) -> dict:
+    """Seed 000 against the plant: the ECU's fixed-point estimates from the bus, and the double
+    SKFMEC and the paper's plain EKF re-run off-line on the same decoded CHS_Sensors samples."""
+    chs = database("ch").get_message_by_name("CHS_Sensors")
+    tfe = database("ch").get_message_by_name("VEHEST_TireForceEst")
+    dec = tfreport.decode_inputs(m for m in session.messages() if m.arbitration_id == chs.frame_id)
+    runs = tfreport.run_estimators(dec)
+    sel = session.frames["id"] == tfe.frame_id
+    ticks = session.frame_tick[sel]
+    est = [tfe.decode(bytes(f["data"][: f["len"]]), decode_choices=False) for f in session.frames[sel]]
+    on = np.array([e["SkfmecQ_Health"] != 0 for e in est])
+    bus_fy = np.array([[e[f"Fy{i}"] for i in range(1, 5)] for e in est])
+    api_fy = np.floor(runs[tf.FIXED].fy[ticks] / 0.5 + 0.5) * 0.5
+    same = bool(np.array_equal(bus_fy[on], api_fy[on]))
+    print(f"  ECU's fixed-point Fy on the bus == array API on the decoded samples: "
+          f"{'identical' if same else 'DIFFERENT'} ({int(on.sum())} frames)")
+    metrics = {"scenario": sc.name, "description": sc.description, "mass_delta_kg": sc.mass_delta_kg,
+               "mode": session.mode, "ecu_equals_array_api": same,
+               **tfreport.evaluate(session.truth, runs), "relations": tfreport.relations(session.truth)}
+    files = tfreport.plots("relations", session.truth, None, sdir, title=sc.name)
+    files += tfreport.plots("forces", session.truth, runs, sdir, title=sc.name)
+    metrics["plots"] = [str(p) for p in files]
+    return metrics
 
 
 def _realtime(args, config, sc, out: Path) -> dict:
