@@ -44,7 +44,7 @@ def test_ecu_tick_with_chassis_runs_the_estimator():
     steps, resets = c["ecu_chassis_skf"]  # c_loop keeps the last two columns: SKFMEC steps, resets
     assert steps == 40000 and resets == 0  # a fixed SKFMEC step in every one of the 40 000 ticks, no restart
     text = bench.table({"array_api_ns": 1.0, "single_cffi_ns": 1.0, "numpy_ref_ns": 1.0, "c_loop": c})
-    assert "ECU tick + chassis" in text and "target <= 10 µs" in text
+    assert "ECU tick + CHS frame" in text and "target <= 10 µs" in text
 
 
 def test_chassis_plant_row_tiny():

@@ -181,7 +181,7 @@ def table(res: dict, lockstep: dict[str, float] | None = None) -> str:
         lines.append(f"{'ECU tick (rx+unpack+checks+2 KF+pack), C loop':<44}{c['ecu_tick'][0] / 1000:>9.2f} µs/tick"
                      f"   p99 {c['ecu_tick'][1] / 1000:.2f} µs (target <= 5 µs)")
     if "ecu_tick_chassis" in c:
-        lines.append(f"{'ECU tick + chassis (2 frames, +fixed SKFMEC)':<44}{c['ecu_tick_chassis'][0] / 1000:>9.2f} µs/tick"
+        lines.append(f"{'ECU tick + CHS frame + fixed SKFMEC, C loop':<44}{c['ecu_tick_chassis'][0] / 1000:>9.2f} µs/tick"
                      f"   p99 {c['ecu_tick_chassis'][1] / 1000:.2f} µs (target <= 10 µs)")
     tf = res.get("tireforce") or {}
     tc, ref = tf.get("c_loop") or {}, tf.get("numpy_ref_ns")
