@@ -2,8 +2,11 @@
 
 Targets (issue 2): filter >= 100x faster than filterpy per step through the array API; one full
 ECU tick (unpack, checks, two filters, pack) <= 5 µs median in a C loop; in-process lockstep of
-plant + sensor node + ECU >= 100x faster than real time. Medians of repeated runs; ratios are
-against baselines timed in the same run.
+plant + sensor node + ECU >= 100x faster than real time. Tyre-force estimators (seed 000): the
+SKFMEC step in fixed point and in double and the plain EKF step in a C loop, against the numpy
+reference step (skf_ref) on the same inputs; the ECU tick with the chassis estimator active
+(DLS_Sensors + CHS_Sensors in every tick) <= 10 µs median; the 14-DOF chassis plant alone
+>= 200x real time. Medians of repeated runs; ratios are against baselines timed in the same run.
 """
 from __future__ import annotations
 
@@ -107,7 +110,47 @@ def run(quick: bool = False) -> dict:
 
         res["filterpy_ns"] = _median_time(filterpy_run, max(1, repeats // 2)) / m * 1e9
     res["c_loop"] = c_loop()
+    res["tireforce"] = tireforce(c_samples=4000 if quick else 40000, ref_steps=100 if quick else 400,
+                                 repeats=1 if quick else 3)
+    res["chassis_plant"] = chassis_plant(seconds=1.0 if quick else 10.0, repeats=3 if quick else 9)
     return res
+
+
+def skf_inputs(n: int):
+    """The inputs of c_core/bench/vh_bench_skf.c (0.5 Hz sine steer at 70 km/h, its LCG noise), as tireforce.Inputs."""
+    from .tireforce import Inputs
+
+    t = np.arange(n) * 5e-4
+    vx = 19.44
+    lcg, noise = 12345, np.empty(n)
+    for i in range(n):
+        lcg = (lcg * 1103515245 + 12345) & 0xFFFFFFFF
+        noise[i] = ((lcg >> 16) / 65536.0 - 0.5) * 0.02
+    delta = 0.035 * np.sin(2.0 * 3.14159265358979 * 0.5 * t)
+    r = vx * delta / 2.693 + noise
+    return Inputs(ax=noise.copy(), ay=vx * r + noise, r=r, p=0.01 * np.cos(2.0 * 3.14159265358979 * 0.5 * t) + noise,
+                  delta=delta, omega=np.repeat((vx / 0.305 + noise)[:, None], 4, axis=1), torque=np.full((n, 4), 10.0))
+
+
+def tireforce(c_samples: int = 40000, ref_steps: int = 400, repeats: int = 3) -> dict:
+    """Seed-000 estimators: C-loop steps (tireforce.bench_c_loop: skfmec_fixed_step, skfmec_double_step,
+    ekf_double_step; {name: (median_ns, p99_ns)}, None without a compiler) and the numpy reference
+    SKFMEC step (skf_ref.run, median ns/step over `ref_steps` steps of the same inputs)."""
+    from . import skf_ref
+    from .tireforce import SKFMEC, SkfConfig, bench_c_loop
+
+    cfg = SkfConfig.default(SKFMEC)
+    inp = skf_inputs(ref_steps)
+    ref_ns = _median_time(lambda: skf_ref.run(cfg, inp.ax, inp.ay, inp.r, inp.p, inp.delta, inp.omega, inp.torque),
+                          repeats) / ref_steps * 1e9
+    return {"c_loop": bench_c_loop(samples=c_samples), "numpy_ref_ns": ref_ns, "ref_steps": ref_steps}
+
+
+def chassis_plant(seconds: float = 10.0, repeats: int = 9) -> dict[str, float]:
+    """The 14-DOF chassis plant alone (vehest_can.chassis.bench, what `python -m vehest_can.chassis --bench` prints)."""
+    from . import chassis
+
+    return chassis.bench(seconds=seconds, repeats=repeats)
 
 
 def lockstep_factor(drive_factory, repeats: int = 3) -> float:
@@ -137,6 +180,23 @@ def table(res: dict, lockstep: dict[str, float] | None = None) -> str:
     if "ecu_tick" in c:
         lines.append(f"{'ECU tick (rx+unpack+checks+2 KF+pack), C loop':<44}{c['ecu_tick'][0] / 1000:>9.2f} µs/tick"
                      f"   p99 {c['ecu_tick'][1] / 1000:.2f} µs (target <= 5 µs)")
+    if "ecu_tick_chassis" in c:
+        lines.append(f"{'ECU tick + CHS frame + fixed SKFMEC, C loop':<44}{c['ecu_tick_chassis'][0] / 1000:>9.2f} µs/tick"
+                     f"   p99 {c['ecu_tick_chassis'][1] / 1000:.2f} µs (target <= 10 µs)")
+    tf = res.get("tireforce") or {}
+    tc, ref = tf.get("c_loop") or {}, tf.get("numpy_ref_ns")
+    for key, name in (("skfmec_fixed_step", "SKFMEC fixed-point step, C loop"),
+                      ("skfmec_double_step", "SKFMEC double step, C loop"), ("ekf_double_step", "EKF double step, C loop")):
+        if key in tc:
+            vs = f"   p99 {tc[key][1]:.0f} ns, {ref / tc[key][0]:.0f}x numpy ref" if ref else ""
+            lines.append(f"{name:<44}{tc[key][0]:>9.0f} ns/step{vs}")
+    if ref:
+        lines.append(f"{'SKFMEC step, numpy reference (skf_ref)':<44}{ref / 1000:>9.0f} µs/step")
+    cp = res.get("chassis_plant")
+    if cp:
+        lines.append(f"{'14-DOF chassis plant alone, C (vh_v14_run)':<44}{cp['us_per_step_cpu_best']:>9.2f} µs/step"
+                     f"   = {cp['x_real_time_cpu_best']:.0f}x real time, best (median {cp['x_real_time_cpu_median']:.0f}x;"
+                     f" target >= 200x)")
     if "car_tick" in c:
         lines.append(f"{'car tick (plant + sensor node), C loop':<44}{c['car_tick'][0] / 1000:>9.2f} µs/tick"
                      f"   = {500 / (c['car_tick'][0] / 1000):.0f}x real time")
@@ -144,4 +204,9 @@ def table(res: dict, lockstep: dict[str, float] | None = None) -> str:
         lines.append(f"{'in-process lockstep ' + name:<44}{factor:>9.0f}x real time (target >= 100x)")
     if fp:
         lines.append(f"array API vs filterpy: {fp / res['array_api_ns']:.0f}x faster (target >= 100x)")
+    if ref and "skfmec_fixed_step" in tc and "skfmec_double_step" in tc:
+        lines.append(f"fixed-point C step is {ref / tc['skfmec_fixed_step'][0]:.0f}x, double C step "
+                     f"{ref / tc['skfmec_double_step'][0]:.0f}x faster than the numpy reference step")
+    if "ecu_tick" in c and "ecu_tick_chassis" in c:
+        lines.append(f"chassis side of the ECU tick: +{(c['ecu_tick_chassis'][0] - c['ecu_tick'][0]) / 1000:.2f} µs median")
     return "\n".join(lines)

@@ -2,40 +2,23 @@
  *
  * Prints "name n median_ns p99_ns" per estimator (the format of vh_bench.c): one step of SKFMEC
  * in double, of the plain EKF, and of SKFMEC in fixed point, timed call by call with
- * CLOCK_MONOTONIC (the clock's own cost is measured and subtracted). Inputs: a 0.5 Hz sine steer
- * at 70 km/h with a consistent yaw rate and lateral acceleration, small deterministic noise.
+ * CLOCK_MONOTONIC (the clock's own cost is measured and subtracted: vh_bench_common.h).
+ * Inputs: a 0.5 Hz sine steer at 70 km/h with a consistent yaw rate and lateral acceleration, small deterministic noise.
  * Build: cc -O3 -Ic_core/include c_core/bench/vh_bench_skf.c c_core/src/vh_skf.c
  *        c_core/src/vh_skfq.c c_core/src/vh_fix.c -lm  (vehest_can.tireforce.bench_c_loop does it).
  */
 #define _POSIX_C_SOURCE 199309L
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
-#include <time.h>
+
+#include "vh_bench_common.h"
 
 #include "vh_skf.h"
 #include "vh_skfq.h"
 
 #define N_SAMPLES 40000 /* 20 s of driving at 2 kHz */
-
-static double now_ns(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec * 1e9 + (double)ts.tv_nsec;
-}
-
-static int cmp(const void *a, const void *b)
-{
-    const double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
-static void report(const char *name, double *s, int n, double clock_ns)
-{
-    qsort(s, (size_t)n, sizeof *s, cmp);
-    printf("%s %d %.1f %.1f\n", name, n, s[n / 2] - clock_ns, s[(n * 99) / 100] - clock_ns);
-}
 
 static double samples[N_SAMPLES];
 static vh_skf_input_t inputs[N_SAMPLES];
@@ -54,13 +37,7 @@ int main(int argc, char **argv)
     /* optional sample count (the test suite runs a short one) */
     const int n = argc > 1 && atoi(argv[1]) > 100 && atoi(argv[1]) <= N_SAMPLES ? atoi(argv[1]) : N_SAMPLES;
 
-    for (i = 0; i < n; ++i) {
-        t0 = now_ns();
-        samples[i] = now_ns() - t0;
-    }
-    qsort(samples, (size_t)n, sizeof samples[0], cmp);
-    clock_ns = samples[n / 2];
-    printf("clock %d %.1f 0\n", n, clock_ns);
+    clock_ns = vh_bench_clock(samples, n);
 
     for (i = 0; i < n; ++i) {
         const double t = i * 5e-4, vx = 19.44;
@@ -87,11 +64,11 @@ int main(int argc, char **argv)
             return 1;
         }
         for (i = 0; i < n; ++i) {
-            t0 = now_ns();
+            t0 = vh_bench_now_ns();
             sink += vh_skf_step(&kf, &inputs[i], VH_SKF_ALL_VALID);
-            samples[i] = now_ns() - t0;
+            samples[i] = vh_bench_now_ns() - t0;
         }
-        report(v == 0 ? "skfmec_double_step" : "ekf_double_step", samples, n, clock_ns);
+        vh_bench_report(v == 0 ? "skfmec_double_step" : "ekf_double_step", samples, n, clock_ns);
     }
 
     vh_skf_config_default(&cfg, VH_SKF_SKFMEC);
@@ -111,11 +88,11 @@ int main(int argc, char **argv)
             in.omega[w] = row[5 + w];
             in.torque[w] = row[9 + w];
         }
-        t0 = now_ns();
+        t0 = vh_bench_now_ns();
         sink += vh_skfq_step(&kq, &in, VH_SKF_ALL_VALID);
-        samples[i] = now_ns() - t0;
+        samples[i] = vh_bench_now_ns() - t0;
     }
-    report("skfmec_fixed_step", samples, n, clock_ns);
+    vh_bench_report("skfmec_fixed_step", samples, n, clock_ns);
     printf("skfmec_fixed_saturations %u 0 0\n", (unsigned)kq.sat);
     { /* FNV-1a of the final integer state: equal for every build of the same sources */
         uint32_t h = 2166136261u;
