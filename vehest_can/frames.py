@@ -32,6 +32,16 @@ def sent_by(nodes: set[str], bus: str | None = None) -> frozenset[int]:
                      if set(m.senders) & nodes and not m.is_extended_frame)
 
 
+def message(name: str):
+    """A message of either bus's DBC by name (names, like IDs, are unique across the buses)."""
+    for bus in BUSES:
+        try:
+            return database(bus).get_message_by_name(name)
+        except KeyError:
+            continue
+    raise KeyError(name)
+
+
 def is_own(msg: can.Message, own: frozenset[int]) -> bool:
     return not msg.is_extended_id and msg.arbitration_id in own
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .driveline import DkfConfig, DrivelineKF
-from .frames import TICK_S, database
+from .frames import TICK_S, database, message
 from .sim import Session
 
 PAPER = {"speeds+torque": {"rms_meas_est": 6.7, "gain_steps": 20},
@@ -22,8 +22,9 @@ SETTLE_S = 0.5  # excluded from RMS figures: the speeds-only gain needs ~1000 st
 
 
 def decode(session: Session, name: str) -> dict[str, np.ndarray]:
-    """Signals of every frame `name` in the session, by tick (NaN where a tick has none)."""
-    msg = database("pt").get_message_by_name(name)
+    """Signals of every frame `name` (of either bus's DBC) in the session, by tick (NaN where a
+    tick has none)."""
+    msg = message(name)
     n = len(session.truth)
     out = {s.name: np.full(n, np.nan) for s in msg.signals}
     sel = session.frames["id"] == msg.frame_id

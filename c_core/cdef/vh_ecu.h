@@ -30,7 +30,7 @@ typedef struct {
 } vh_ecu_cis_t;
 typedef struct {
     double u[13]; uint16_t valid; uint8_t heard; vh_ecu_rxmsg_t rx;
-    vh_skfq_params_t prm; vh_skfq_t skf; vh_ecu_counters_t cnt;
+    vh_skfq_t skf; vh_ecu_counters_t cnt;
 } vh_ecu_chs_t;
 typedef struct {
     vh_ecu_config_t cfg;

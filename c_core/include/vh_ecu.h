@@ -100,8 +100,7 @@ typedef struct {
     uint16_t valid;       /* bit i: channel i of u valid */
     uint8_t heard;        /* a good CHS_Sensors frame has arrived since reset: the chassis bus is alive */
     vh_ecu_rxmsg_t rx;
-    vh_skfq_params_t prm; /* integer constants from cfg.skf (vh_ecu_init) */
-    vh_skfq_t skf;
+    vh_skfq_t skf;        /* its integer constants (skf.prm) come from cfg.skf in vh_ecu_init */
     vh_ecu_counters_t cnt;
 } vh_ecu_chs_t;
 

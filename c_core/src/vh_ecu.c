@@ -76,7 +76,7 @@ int vh_ecu_init(vh_ecu_t *ecu, const vh_ecu_config_t *cfg)
     }
     memset(ecu, 0, sizeof *ecu);
     ecu->cfg = *cfg;
-    ecu->chs.prm = prm;
+    ecu->chs.skf.prm = prm; /* the filter keeps its constants; vh_ecu_reset re-initialises from them */
     vh_ecu_reset(ecu);
     return VH_OK;
 }
@@ -93,7 +93,7 @@ void vh_ecu_reset(vh_ecu_t *ecu)
 {
     int i;
     const vh_ecu_config_t cfg = ecu->cfg;
-    const vh_skfq_params_t prm = ecu->chs.prm;
+    const vh_skfq_params_t prm = ecu->chs.skf.prm;
     vh_camber_cal_t cal[VH_ECU_N_WHEELS]; /* calibrations are data, not state: they survive */
     for (i = 0; i < VH_ECU_N_WHEELS; ++i) {
         cal[i] = ecu->cis.cmb[i].cal;
@@ -111,7 +111,6 @@ void vh_ecu_reset(vh_ecu_t *ecu)
     rxmsg_init(&ecu->dls.rx);
     rxmsg_init(&ecu->cis.rx);
     rxmsg_init(&ecu->chs.rx);
-    ecu->chs.prm = prm;
     (void)vh_skfq_init(&ecu->chs.skf, &prm); /* validated in vh_ecu_init */
 }
 

@@ -190,16 +190,12 @@ def _tireforce_report(sc, session, sdir: Path) -> dict:
     """Seed 000 against the plant: the ECU's fixed-point estimates from the bus, and the double
     SKFMEC and the paper's plain EKF re-run off-line on the same decoded CHS_Sensors samples."""
     chs = database("ch").get_message_by_name("CHS_Sensors")
-    tfe = database("ch").get_message_by_name("VEHEST_TireForceEst")
     dec = tfreport.decode_inputs(m for m in session.messages() if m.arbitration_id == chs.frame_id)
     runs = tfreport.run_estimators(dec)
-    sel = session.frames["id"] == tfe.frame_id
-    ticks = session.frame_tick[sel]
-    est = [tfe.decode(bytes(f["data"][: f["len"]]), decode_choices=False) for f in session.frames[sel]]
-    on = np.array([e["SkfmecQ_Health"] != 0 for e in est])
-    bus_fy = np.array([[e[f"Fy{i}"] for i in range(1, 5)] for e in est])
-    api_fy = np.floor(runs[tf.FIXED].fy[ticks] / 0.5 + 0.5) * 0.5
-    same = bool(np.array_equal(bus_fy[on], api_fy[on]))
+    est = report.decode(session, "VEHEST_TireForceEst")
+    on = est["SkfmecQ_Health"] > 0  # published (NaN elsewhere) and past INIT: SNA before
+    bus_fy = np.column_stack([est[f"Fy{i}"] for i in range(1, 5)])[on]
+    same = bool(np.array_equal(bus_fy, np.floor(runs[tf.FIXED].fy[on] / 0.5 + 0.5) * 0.5))
     print(f"  ECU's fixed-point Fy on the bus == array API on the decoded samples: "
           f"{'identical' if same else 'DIFFERENT'} ({int(on.sum())} frames)")
     metrics = {"scenario": sc.name, "description": sc.description, "mass_delta_kg": sc.mass_delta_kg,
