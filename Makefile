@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 SOURCES := $(shell find c_core firmware_sim dbc -type f \( -name '*.c' -o -name '*.h' -o -name '*.dbc' -o -name '*.py' \)) pyproject.toml setup.py
 
-.PHONY: demo test bench clean
+.PHONY: demo test bench install clean
 
 demo: $(STAMP)
 	$(BIN)/vehest-can demo $(ARGS)
@@ -16,6 +16,8 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/vehest-can bench $(ARGS)
+
+install: $(STAMP)
 
 $(STAMP): $(SOURCES)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)

@@ -412,7 +412,7 @@ def test_ecu_simulated_against_a_car_in_another_process(tmp_path):
                                   nodes__real=["DLS", "SIM"], scenario=None))
     proc, sock = start_ready(["hil", str(path), "--duration", "60"])
     try:
-        car_bus = can.Bus(interface="udp_multicast", channel=channel, fd=True)
+        car_bus = busmod.open_bus({"interface": "udp_multicast", "channel": channel, "fd": True})
         try:
             session = SimMaster(car_bus, drive_from_scenario(load_scenario("launch_2nd"), 1.5)).run_realtime()
         finally:

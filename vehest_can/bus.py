@@ -1,21 +1,29 @@
 """Opening buses the python-can way: its CLI flags, env (CAN_INTERFACE/CAN_CHANNEL/CAN_CONFIG),
 config files (``~/.canrc``, ``can.ini``), plus one embedded default.
 
-The default, when nothing else names an interface, is ``udp_multicast`` on loopback: it needs no
-kernel CAN support and no root, and carries CAN FD between processes.
+The default, when nothing else names an interface, is ``udp_multicast`` on this host only: it needs
+no kernel CAN support and no root, and carries CAN FD between processes. python-can's own
+``UdpMulticastBus`` joins its group on ``INADDR_ANY`` (the interface of the default route) and sends
+with TTL 1, which puts every frame on the local network segment and lets any host there inject
+frames; every ``udp_multicast`` bus this package opens is instead joined on loopback and sends with
+TTL 0 (:class:`HostMulticastBus`), unless the user names another interface and a TTL >= 1.
 """
 from __future__ import annotations
 
 import argparse
+import ipaddress
 import logging
 import random
 import signal
 import socket
+import struct
 import sys
 from contextlib import contextmanager
+from pathlib import Path
 
 import can
 from can.cli import add_bus_arguments
+from can.interfaces.udp_multicast.bus import GeneralPurposeUdpMulticastBus, UdpMulticastBus
 
 from .errors import BusError
 
@@ -83,39 +91,134 @@ def cli_args(config: dict) -> list[str]:
 
 
 IP_MULTICAST_ALL = getattr(socket, "IP_MULTICAST_ALL", 49)  # Linux <linux/in.h>
-
-
+SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)      # Linux <asm/socket.h>
+IFF_LOOPBACK = 0x8                                          # Linux <linux/if.h>
 RCVBUF_BYTES = 4 << 20  # ~2 s of this project's traffic; the kernel caps it at net.core.rmem_max
+LOOPBACK_V4 = "127.0.0.1"
 
 
-def _tune_multicast(bus: can.BusABC) -> None:
-    """Two fixes for python-can's udp_multicast socket, where we can reach it:
-
-    * Linux hands a socket bound to INADDR_ANY:port the datagrams of *every* group joined on the
-      machine (IP_MULTICAST_ALL defaults to 1), so two sessions on different groups but one port
-      hear each other: switch that off.
-    * The default receive buffer (~200 kB) holds ~0.1 s of a 2 kHz exchange; a process descheduled
-      longer loses frames. A larger buffer turns such a stall into latency instead of loss."""
-    sock = getattr(getattr(bus, "_multicast", None), "_socket", None)
-    if sock is None or not sys.platform.startswith("linux"):
-        return
+def _is_loopback(interface: str) -> bool:
+    """An interface address (IPv4/IPv6) or a Linux interface name that is the loopback device."""
     try:
-        if sock.family == socket.AF_INET:
-            sock.setsockopt(socket.IPPROTO_IP, IP_MULTICAST_ALL, 0)
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RCVBUF_BYTES)
-    except OSError as exc:  # pragma: no cover - a kernel without the option
-        log.debug("udp_multicast socket options not set: %s", exc)
+        return ipaddress.ip_address(interface).is_loopback
+    except ValueError:
+        pass
+    try:
+        return bool(int(Path(f"/sys/class/net/{interface}/flags").read_text(), 16) & IFF_LOOPBACK)
+    except (OSError, ValueError):
+        return interface in ("lo", "lo0")
+
+
+class _GroupSocket(GeneralPurposeUdpMulticastBus):
+    """python-can's multicast socket handler, with the group joined on one named interface (not
+    INADDR_ANY), outgoing multicast through that interface, and bound to the group address, so
+    neither a unicast datagram to this host's port nor another group's traffic is heard."""
+
+    def __init__(self, group: str, port: int, hop_limit: int, interface: str) -> None:
+        self.interface = interface
+        super().__init__(group, port, hop_limit)
+
+    def _create_socket(self, address_family: socket.AddressFamily) -> socket.socket:
+        sock = socket.socket(address_family, socket.SOCK_DGRAM)
+        try:
+            group = socket.inet_pton(address_family, self.group)
+            if address_family == socket.AF_INET:
+                try:
+                    addr = socket.inet_aton(str(ipaddress.IPv4Address(self.interface)))
+                    join, out_if = group + addr, addr                           # struct ip_mreq
+                except ValueError:  # an interface name: struct ip_mreqn (Linux)
+                    out_if = struct.pack("@4s4si", b"\0" * 4, b"\0" * 4, socket.if_nametoindex(self.interface))
+                    join = struct.pack("@4s4si", group, b"\0" * 4, socket.if_nametoindex(self.interface))
+                sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, self.hop_limit)
+                sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_IF, out_if)
+                if sys.platform.startswith("linux"):  # hear only the groups this socket joined
+                    sock.setsockopt(socket.IPPROTO_IP, IP_MULTICAST_ALL, 0)
+                membership = (socket.IPPROTO_IP, socket.IP_ADD_MEMBERSHIP, join)
+            else:
+                index = socket.if_nametoindex(self.interface)
+                sock.setsockopt(socket.IPPROTO_IPV6, socket.IPV6_MULTICAST_HOPS, self.hop_limit)
+                sock.setsockopt(socket.IPPROTO_IPV6, socket.IPV6_MULTICAST_IF, index)
+                membership = (socket.IPPROTO_IPV6, socket.IPV6_JOIN_GROUP, group + struct.pack("@I", index))
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            if hasattr(socket, "SO_REUSEPORT"):
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEPORT, 1)
+            try:
+                sock.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
+                self.timestamp_nanosecond = True  # python-can's recv() then reads the kernel's stamp
+            except OSError:
+                self.timestamp_nanosecond = False
+            # A larger receive buffer turns a descheduled process's stall into latency, not loss.
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RCVBUF_BYTES)
+            sock.bind((self.group, self.port) if sys.platform.startswith("linux") else ("", self.port))
+            sock.setsockopt(*membership)
+            return sock
+        except OSError as exc:
+            sock.close()
+            raise can.CanInitializationError(
+                f"udp_multicast group {self.group} on interface {self.interface}: {exc}") from exc
+
+
+class HostMulticastBus(UdpMulticastBus):
+    """python-can's ``udp_multicast`` bus (same wire format, same group and port), kept on this host
+    unless asked otherwise: joined on loopback, sent through loopback with TTL/hop limit 0, so even
+    a misrouted datagram is never transmitted (RFC 1112: TTL 0 stays on the host).
+
+    A bus across machines (two laptops on a bench network) is asked for explicitly:
+    ``--bus-kwargs multicast_interface=192.168.1.10 hop_limit=1`` (an interface's IPv4 address or
+    its name, e.g. ``eth0``; IPv6 groups need a name)."""
+
+    def __init__(self, channel: str = UdpMulticastBus.DEFAULT_GROUP_IPv4, port: int = 43113,
+                 hop_limit: int = 0, multicast_interface: str | None = None,
+                 receive_own_messages: bool = False, fd: bool = True, **kwargs) -> None:
+        channel = str(channel)
+        try:
+            ipv6 = ipaddress.ip_address(channel).version == 6
+        except ValueError:
+            raise can.CanInitializationError(f"udp_multicast channel {channel!r} is not an IP multicast group") from None
+        if isinstance(hop_limit, str) and hop_limit.strip().isdigit():  # from a config file
+            hop_limit = int(hop_limit)
+        if isinstance(hop_limit, bool) or not isinstance(hop_limit, int) or not 0 <= hop_limit <= 255:
+            raise can.CanInitializationError(f"udp_multicast hop_limit must be an integer 0..255, not {hop_limit!r}")
+        interface = str(multicast_interface) if multicast_interface is not None else ("lo" if ipv6 else LOOPBACK_V4)
+        self.host_only = _is_loopback(interface) or hop_limit == 0
+        if not _is_loopback(interface) and hop_limit == 0:
+            raise can.CanInitializationError(
+                f"udp_multicast on {interface} with hop_limit=0 would hear other machines but send them "
+                "nothing: give hop_limit=1 (or more) for a bus across machines, or leave "
+                "multicast_interface out for this host only")
+        if ipv6 and _is_loopback(interface) and sys.platform.startswith("linux"):
+            raise can.CanInitializationError(
+                f"udp_multicast IPv6 group {channel} cannot stay on this host: Linux's loopback carries no "
+                f"IPv6 multicast. Use an IPv4 group (the default {UdpMulticastBus.DEFAULT_GROUP_IPv4}), or "
+                "name an interface and a hop limit for a bus across machines (multicast_interface=eth0 hop_limit=1)")
+        if receive_own_messages:
+            raise can.CanInterfaceNotImplementedError("receiving own messages is not yet implemented")
+        can.BusABC.__init__(self, channel, **kwargs)
+        self._multicast = _GroupSocket(channel, int(port), hop_limit, interface)
+        self._can_protocol = can.CanProtocol.CAN_FD if fd else can.CanProtocol.CAN_20
+        self.channel_info = (f"udp_multicast {channel} port {int(port)} on {interface}, "
+                             f"TTL {hop_limit}: " + ("this host only" if self.host_only else "reaches other machines"))
 
 
 def open_bus(config: dict) -> can.BusABC:
+    """A python-can bus; ``udp_multicast`` is :class:`HostMulticastBus` (this host only by default)."""
     try:
-        bus = can.Bus(**config)
+        if config.get("interface") == "udp_multicast":
+            bus = HostMulticastBus(**{k: v for k, v in config.items() if k != "interface"})
+        else:
+            bus = can.Bus(**config)
     except (can.CanError, OSError, ValueError, ImportError, TypeError) as exc:
         raise BusError(f"cannot open bus {_describe(config)}: {exc}") from exc
-    if config.get("interface") == "udp_multicast":
-        _tune_multicast(bus)
-    log.info("bus open: %s", _describe(config))
+    log.info("bus open: %s", describe_bus(bus, config))
     return bus
+
+
+def describe_bus(bus: can.BusABC, config: dict) -> str:
+    """What a user needs to know of an open bus: interface, channel and, for udp_multicast, where
+    its datagrams go (interface and TTL)."""
+    if isinstance(bus, HostMulticastBus):
+        return bus.channel_info
+    return _describe(config)
 
 
 @contextmanager

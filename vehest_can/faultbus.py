@@ -407,6 +407,7 @@ def bus_run(drive, config=None, *, bus_config: dict | None = None, bitrate: int 
 
     from .busload import bus_load
     from .daemon import EcuDaemon
+    from .bus import open_bus
     from .faults import FaultConfig
     from .frames import TICK_S, database
     from .paths import dbc_path
@@ -424,9 +425,9 @@ def bus_run(drive, config=None, *, bus_config: dict | None = None, bitrate: int 
     wire = Wire(bitrate, data_bitrate, stuffing=stuffing, tx_queue=tx_queue, tx_policy=tx_policy)
     buses, daemon, thread, result, snaps = [], None, None, {}, []
     try:
-        ecu_bus = FaultBus(can.Bus(**bus_config), FaultInjector(no_flood, stream=1), wire=wire)
+        ecu_bus = FaultBus(open_bus(bus_config), FaultInjector(no_flood, stream=1), wire=wire)
         buses.append(ecu_bus)
-        sim_bus = FaultBus(can.Bus(**bus_config), FaultInjector(config), wire=wire)
+        sim_bus = FaultBus(open_bus(bus_config), FaultInjector(config), wire=wire)
         buses.append(sim_bus)
         daemon = EcuDaemon(ecu_bus)
         thread = threading.Thread(target=lambda: result.setdefault("stats", daemon.serve_realtime()),

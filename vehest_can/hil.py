@@ -15,7 +15,7 @@ import difflib
 import logging
 import threading
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -488,6 +488,7 @@ class HilResult:
     session: Any = None      # sim.Session when the car was simulated here
     ecu_bus: str | None = None
     car_bus: str | None = None
+    bus_info: list[str] = field(default_factory=list)  # where each opened handle's frames go
 
 
 class ResidualBus:
@@ -519,12 +520,16 @@ class ResidualBus:
             if cfg.ecu_simulated:
                 result.ecu_bus = cfg.bus_of(ECU_NODE).name
                 opened.append(busmod.open_bus(cfg.bus_kwargs(result.ecu_bus)))
+                result.bus_info.append(f"ecu: bus {result.ecu_bus}: "
+                                       + busmod.describe_bus(opened[-1], cfg.bus_kwargs(result.ecu_bus)))
                 daemon = EcuDaemon(opened[-1], notifier=self.notifier)
                 daemon.stop_event = self.stop_event
             if cfg.car_simulated:
                 # Its own handle even on the ECU's bus: python-can hands each frame to one reader per handle.
                 result.car_bus = cfg.bus_of(CAR_NODES[0]).name
                 opened.append(busmod.open_bus(cfg.bus_kwargs(result.car_bus)))
+                result.bus_info.append(f"car: bus {result.car_bus}: "
+                                       + busmod.describe_bus(opened[-1], cfg.bus_kwargs(result.car_bus)))
                 drive = drive_from_scenario(cfg.scenario, self.duration_s)
                 master = SimMaster(opened[-1], drive, progress=self.progress)
                 master.stop_event = self.stop_event

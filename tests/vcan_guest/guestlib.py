@@ -18,6 +18,7 @@ from pathlib import Path
 
 import can
 
+from vehest_can import bus as busmod
 from vehest_can import lockstep
 from vehest_can.frames import frame_id
 
@@ -98,7 +99,8 @@ def daemon_result(out: Path, name: str, proc: subprocess.Popen) -> dict:
 
 
 def open_bus(interface: str = "socketcan", channel: str = CHANNEL) -> can.BusABC:
-    return can.Bus(interface=interface, channel=channel, fd=True)
+    """The bus as vehest-can opens it (udp_multicast: host only, as the daemon's)."""
+    return busmod.open_bus({"interface": interface, "channel": channel, "fd": True})
 
 
 def recv_or_error(bus: can.BusABC, timeout: float):

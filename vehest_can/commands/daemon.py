@@ -46,6 +46,7 @@ def run(args) -> int:
         ecu.set_camber_calibrations(load_calibrations(args.camber_cal))
     config = busmod.bus_config(args)
     bus = busmod.open_bus(config)
+    print(f"vehest-can daemon: bus {busmod.describe_bus(bus, config)}", file=sys.stderr, flush=True)
     writer = can.Logger(args.log) if args.log else None
     daemon = EcuDaemon(bus, ecu, log_writer=writer,
                        log_channel=config.get("channel") if config["interface"] == "socketcan" else "vcan0",

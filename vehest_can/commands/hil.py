@@ -53,6 +53,7 @@ def run(args) -> int:
             notifier.stopping()
     if progress is not None:
         progress.done()
+    print("\n".join(result.bus_info))
 
     if result.ecu is not None:
         print(f"ECU (simulated here, bus {result.ecu_bus}):")
