@@ -7,7 +7,8 @@ from setuptools.command.build_py import build_py
 
 
 DATA = {"dbc": ("dbc", "*.dbc"), "scenarios": ("firmware_sim/scenarios", "*.toml"),
-        "scenarios/chassis": ("firmware_sim/scenarios/chassis", "*.toml")}
+        "scenarios/chassis": ("firmware_sim/scenarios/chassis", "*.toml"),
+        "campaigns": ("firmware_sim/campaigns", "*.toml")}
 
 
 class BuildPyWithData(build_py):
