@@ -285,3 +285,48 @@ values = [0.4]
     with pytest.raises(ScenarioError, match=r"road.mu\[5\]\[1\]: the base scenario has no item \[5\]"):
         load_campaign(spec(tmp_path, "[campaign]\nbase = 'chassis_relation_70kph'\nruns = 1\n[[vary]]\n"
                                      "key = 'road.mu[5][1]'\ndist = 'list'\nvalues = [0.4]\n", "b.toml"))
+
+
+def test_faults_from_the_catalogue_are_campaign_parameters(tmp_path):
+    c = load_campaign(spec(tmp_path, """
+[campaign]
+base = "launch_2nd"
+runs = 2
+[[vary]]
+key = "fault"
+dist = "grid"
+values = ["", "drop:DLS_Sensors:p=0.5;corrupt_crc:DLS_Sensors:p=0.2"]
+[[vary]]
+key = "duration_s"
+dist = "list"
+values = [1.5]
+"""))
+    store = Store(tmp_path / "out", c)
+    assert execute(c, store, workers=1)["failed"] == 0
+    t = frame(store)
+    assert t["param.fault"] == ["", "drop:DLS_Sensors:p=0.5;corrupt_crc:DLS_Sensors:p=0.2"]
+    assert t["metric.counters.crc_error"][0] == 0 and t["metric.counters.crc_error"][1] > 50
+    assert t["metric.counters.timeout"][0] == 0
+    assert t["metric.speeds+torque.valid_fraction"][0] > 0.9
+    # without faults, the fault path's estimate is the in-process run's (the injectors pass it through)
+    from vehest_can.campaign.systems import Driveline
+    doc, _ = c.run_doc(0)
+    plain = flatten(Driveline.run(doc, c.base_path))
+    assert abs(plain["speeds+torque.rms_est_minus_truth_nm"] - t["metric.speeds+torque.rms_est_minus_truth_nm"][0]) < 0.5
+
+
+@pytest.mark.parametrize("values, problem", [
+    ('["nosuch:DLS_Sensors"]', "vary[0].values[0]: --fault 'nosuch:DLS_Sensors': unknown fault kind 'nosuch'"),
+    ("[3]", "vary[0].values[0]: must be a fault string"),
+])
+def test_bad_fault_strings_are_clear_errors(tmp_path, values, problem):
+    with pytest.raises(ScenarioError) as err:
+        load_campaign(spec(tmp_path, f"[campaign]\nbase = 'launch_2nd'\nruns = 1\n[[vary]]\nkey = 'fault'\n"
+                                     f"dist = 'list'\nvalues = {values}\n"))
+    assert problem in str(err.value)
+
+
+def test_faults_on_a_system_that_takes_none_are_refused(tmp_path):
+    with pytest.raises(ScenarioError, match="the tireforce system's runs take no faults"):
+        load_campaign(spec(tmp_path, "[campaign]\nbase = 'chassis_relation_70kph'\nruns = 1\n[[vary]]\n"
+                                     "key = 'fault'\ndist = 'list'\nvalues = ['']\n"))

@@ -38,7 +38,7 @@ def run_batch(campaign: Campaign, indices: list[int]) -> list[dict]:
         row.update({f"param.{k}": v for k, v in values.items()})
         t0 = time.perf_counter()
         try:
-            metrics = flatten(system.run(doc, campaign.base_path))
+            metrics = flatten(system.run(doc, campaign.base_path, campaign.faults(values)))
             row.update({f"metric.{k}": v for k, v in metrics.items() if campaign.keep(k)})
         except Exception as exc:  # noqa: BLE001 - recorded in the row, the campaign goes on
             row["error"] = f"{type(exc).__name__}: {exc}"

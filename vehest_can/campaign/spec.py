@@ -8,7 +8,8 @@
     metrics = ["variants.skfmec-fixed.rms_pct.*"]   # which metrics to keep (glob on dotted names)
 
     [[vary]]
-    key = "vehicle.mass_delta_kg"        # a dotted path into the scenario document
+    key = "vehicle.mass_delta_kg"        # a dotted path into the scenario document (list items: road.mu[0][1]),
+                                         # or "fault": faults in the `faults` verb's syntax, "" for none
     dist = "uniform"                     # uniform (low, high) | normal (mean, sd) | list (values) | grid (values)
     low = -100
     high = 400
@@ -35,8 +36,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ScenarioError
+from ..errors import ConfigError, ScenarioError
 
+FAULT = "fault"  # a vary key that is not a scenario key: fault specs, ";"-separated
 DISTS = {"uniform": ("low", "high"), "normal": ("mean", "sd"), "list": ("values",), "grid": ("values",)}
 
 
@@ -99,8 +101,15 @@ class Campaign:
         doc["seed"] = int(np.random.default_rng([self.seed, index, 1]).integers(1, 2**63))
         doc["name"] = f"{self.name}_run{index:05d}"
         for key, value in values.items():
-            set_dotted(doc, key, value)
+            if key != FAULT:
+                set_dotted(doc, key, value)
         return doc, values
+
+    def faults(self, values: dict) -> tuple[str, ...] | None:
+        """The run's faults (None: the campaign varies none, the plain in-process run)."""
+        if not any(v.key == FAULT for v in self.vary):
+            return None
+        return tuple(f for f in str(values.get(FAULT, "")).split(";") if f.strip())
 
     def keep(self, metric: str) -> bool:
         return not self.metrics or any(fnmatch.fnmatchcase(metric, g) for g in self.metrics)
@@ -209,6 +218,20 @@ def load_campaign(path: str | Path) -> Campaign:
             if dist == "normal" and args[1] < 0:
                 _fail(path, f"{k}.sd", f"must be >= 0, not {args[1]:g}")
         vary.append(Vary(v["key"], dist, args))
+    for i, v in enumerate(vary):
+        if v.key == FAULT:
+            if v.dist not in ("list", "grid"):
+                _fail(path, f"vary[{i}].dist", f'the {FAULT} key takes list or grid (of fault strings)')
+            from ..faults import parse_fault
+
+            for j, text in enumerate(v.args[0]):
+                if not isinstance(text, str):
+                    _fail(path, f"vary[{i}].values[{j}]", f"must be a fault string (\"\" for none), not {text!r}")
+                for f in (f for f in text.split(";") if f.strip()):
+                    try:
+                        parse_fault(f)
+                    except ConfigError as exc:  # the faults module's own clear message
+                        _fail(path, f"vary[{i}].values[{j}]", str(exc))
     keys = [v.key for v in vary]
     if len(set(keys)) != len(keys):
         _fail(path, "vary", f"key {next(k for k in keys if keys.count(k) > 1)!r} is varied twice")
@@ -241,6 +264,8 @@ def load_campaign(path: str | Path) -> Campaign:
     from .systems import system_for
 
     system = system_for(base)
+    if FAULT in keys and not system.takes_faults:
+        _fail(path, f"vary[{keys.index(FAULT)}].key", f"the {system.name} system's runs take no faults (yet)")
     try:
         system.validate(c.run_doc(0)[0], base_path)
     except ScenarioError as exc:
