@@ -220,3 +220,20 @@ def test_daemon_with_bad_bus_kwargs_is_an_error_not_a_traceback(capsys):
     err = capsys.readouterr().err
     assert rc == 1 and "error:" in err and "hop_limit must be an integer 0..255" in err
     assert "Traceback" not in err
+
+
+@pytest.mark.parametrize("where", ["env", "file"])
+def test_a_bogus_interface_named_outside_the_flags_is_an_error_not_the_default_bus(tmp_path, monkeypatch, capsys, where):
+    """python-can refuses an unknown interface; so does vehest-can, wherever it was named (a bench
+    that silently ran on the default bus would be on the wrong bus without knowing it)."""
+    for var in ("CAN_INTERFACE", "CAN_CHANNEL", "CAN_CONFIG"):
+        monkeypatch.delenv(var, raising=False)
+    monkeypatch.setenv("HOME", str(tmp_path))
+    if where == "env":
+        monkeypatch.setenv("CAN_INTERFACE", "bogus")
+    else:
+        (tmp_path / ".canrc").write_text("[default]\ninterface = bogus\n")
+    assert main(["daemon", "--duration", "0.1"]) == 1
+    err = capsys.readouterr().err
+    assert 'Unknown interface type "bogus"' in err
+    assert ("CAN_INTERFACE" in err) if where == "env" else ("configuration file" in err)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import ipaddress
 import logging
+import os
 import random
 import signal
 import socket
@@ -55,8 +56,11 @@ def bus_config(args: argparse.Namespace, **overrides) -> dict:
     try:
         config = dict(can.util.load_config(path=path, config=given, context=getattr(args, "bus_context", None)))
     except can.CanInterfaceNotImplementedError as exc:
-        if "interface" in given or path:  # the user named one, and it is wrong
-            raise BusError(f"bus configuration: {exc}") from exc
+        context = getattr(args, "bus_context", None)
+        named = ("interface" in given or path or os.environ.get("CAN_INTERFACE")
+                 or can.util.load_file_config(path, context or "default").get("interface"))
+        if named:  # the user named one (flag, CAN_INTERFACE, a config file), and it is wrong
+            raise BusError(f"bus configuration: {exc} (from {_named_where(given, path)})") from exc
         config = {"interface": DEFAULT_INTERFACE, "channel": DEFAULT_CHANNEL, **given}
     except (can.CanError, ValueError, KeyError) as exc:
         raise BusError(f"bus configuration: {exc}") from exc
@@ -64,6 +68,16 @@ def bus_config(args: argparse.Namespace, **overrides) -> dict:
         config["fd"] = True  # the PT bus is CAN FD; these interfaces carry it as is
     config.update(overrides)
     return config
+
+
+def _named_where(given: dict, path) -> str:
+    if "interface" in given:
+        return "-i/--interface"
+    if path:
+        return f"--bus-config {path}"
+    if os.environ.get("CAN_INTERFACE"):
+        return "the CAN_INTERFACE environment variable"
+    return "a python-can configuration file (~/.canrc, /etc/can.conf)"
 
 
 def private_multicast() -> dict:
