@@ -214,6 +214,13 @@ class HostMulticastBus(UdpMulticastBus):
                              f"TTL {hop_limit}: " + ("this host only" if self.host_only else "reaches other machines"))
 
 
+def is_undecodable(exc: BaseException) -> bool:
+    """A receive error about the bytes that arrived, not about the bus: python-can's udp_multicast
+    raises CanOperationError("could not unpack received message") from its msgpack error."""
+    cause = exc.__cause__
+    return isinstance(exc, can.CanOperationError) and cause is not None and not isinstance(cause, OSError)
+
+
 def open_bus(config: dict) -> can.BusABC:
     """A python-can bus; ``udp_multicast`` is :class:`HostMulticastBus` (this host only by default)."""
     try:

@@ -23,9 +23,10 @@ from dataclasses import dataclass, field
 import can
 
 from . import lockstep, sdnotify
+from .bus import is_undecodable
 from .ecu import Ecu
 from .frames import TICK_S, frame_id, is_own, sent_by
-from .rt import Ticker, percentiles_us
+from .rt import Durations, Ticker, percentiles_us
 
 log = logging.getLogger(__name__)
 
@@ -47,6 +48,7 @@ class DaemonStats:
     bus_outages: int = 0      # runs of bus errors, each ended by a frame sent or received
     send_failures: int = 0    # frames the bus refused (not sent, not logged)
     recv_errors: int = 0      # errors raised by the bus's receive
+    rx_undecodable: int = 0   # datagrams/frames the transport could not turn into a CAN frame
     bus_down_s: float = 0.0   # wall time from the first error of an outage to its end
 
     def lines(self) -> list[str]:
@@ -60,6 +62,8 @@ class DaemonStats:
         chassis = {k: v for k, v in self.chassis_counters.items() if v}
         if chassis:
             out.append("chassis faults: " + ", ".join(f"{k}={v}" for k, v in chassis.items()))
+        if self.rx_undecodable:
+            out.append(f"undecodable input: {self.rx_undecodable} (not a CAN frame of the bus's transport; dropped)")
         if self.bus_outages:
             out.append(f"bus errors: {self.bus_outages} outage(s), {self.send_failures} failed sends, "
                        f"{self.recv_errors} receive errors, down {self.bus_down_s:.1f} s")
@@ -105,6 +109,19 @@ class EcuDaemon:
             return False
         self._bus_ok("send")
         self._log(msg, timestamp)
+        return True
+
+    def _rx_error(self, exc: Exception) -> bool:
+        """Count a receive error. An undecodable datagram (garbage on a udp_multicast port, a
+        truncated frame) is a counted fault of the input, not an outage: the bus is fine and the
+        next frame may be good, so nothing waits. True if it was an outage-like error."""
+        if is_undecodable(exc):
+            self.stats.rx_undecodable += 1
+            if self.stats.rx_undecodable in (1, 10, 100, 1000) or self.stats.rx_undecodable % 10000 == 0:
+                log.warning("undecodable input on the bus (%d so far): %s", self.stats.rx_undecodable, exc)
+            return False
+        self.stats.recv_errors += 1
+        self._bus_error("receive", exc)
         return True
 
     def _bus_error(self, what: str, exc: Exception) -> None:
@@ -154,10 +171,9 @@ class EcuDaemon:
             try:
                 msg = self.bus.recv(timeout=0.05)
             except (can.CanError, OSError) as exc:
-                stats.recv_errors += 1
-                self._bus_error("receive", exc)
                 msg = None
-                self.stop_event.wait(0.05)  # a bus that fails at once must not make us spin
+                if self._rx_error(exc):
+                    self.stop_event.wait(0.05)  # a bus that fails at once must not make us spin
             watchdog.tick()
             if msg is None:
                 if idle_timeout is not None and time.perf_counter() - last > idle_timeout:
@@ -198,17 +214,25 @@ class EcuDaemon:
         stop_event = self.stop_event
 
         class Inbox(can.Listener):
+            in_row = 0  # receive errors since the last frame
+
             def on_message_received(self, msg: can.Message) -> None:
+                self.in_row = 0
                 inbox.put((time.perf_counter(), msg))
 
             def on_error(self, exc: Exception) -> None:
-                # The notifier goes on receiving after this; counted on the ticking thread.
+                # The notifier goes on receiving after this; counted on the ticking thread. Only a
+                # bus failing again and again (no frame between) backs off, up to 50 ms: garbage
+                # between good frames must not stall the receive path.
                 inbox.put((time.perf_counter(), exc))
-                stop_event.wait(0.05)  # a bus that fails at once must not make it spin
+                if not is_undecodable(exc):
+                    self.in_row += 1
+                    if self.in_row > 3:
+                        stop_event.wait(min(0.05, 0.001 * 2 ** (self.in_row - 4)))
 
         notifier = can.Notifier(self.bus, [Inbox()], timeout=0.005)
         ticker = Ticker(TICK_S)
-        latencies: list[float] = []
+        latencies = Durations()  # fixed memory: the daemon may run for weeks
         t0 = time.perf_counter()
         watchdog = self._start(stats)
         ticker.start()
@@ -227,8 +251,7 @@ class EcuDaemon:
                     except queue.Empty:
                         break
                     if isinstance(msg, Exception):
-                        stats.recv_errors += 1
-                        self._bus_error("receive", msg)
+                        self._rx_error(msg)
                         continue
                     self._bus_ok("receive")
                     if msg.is_error_frame or msg.is_remote_frame or is_own(msg, self._own):

@@ -21,6 +21,7 @@ import numpy as np
 
 from . import lockstep
 from .ecu import Ecu
+from .bus import is_undecodable
 from .errors import BusError, VehestError
 from .frames import FRAME_DTYPE, TICK_S, is_own, sent_by, to_frame, to_message
 from .native import check, ffi, lib, struct_dtype
@@ -290,10 +291,22 @@ class SimMaster:
         truth = np.zeros(n, dtype=self.car.truth_dtype)
         inbox: queue.SimpleQueue = queue.SimpleQueue()
 
+        errors = {"rx_undecodable": 0, "recv_errors": 0}
+        stop_event = self.stop_event
+
         class Inbox(can.Listener):
             def on_message_received(inner, msg: can.Message) -> None:  # noqa: N805
                 if not is_own(msg, self._own):
                     inbox.put(msg)
+
+            def on_error(inner, exc: Exception) -> None:  # noqa: N805
+                # Counted; the notifier goes on receiving (without this its thread would die and
+                # the car would stop hearing the ECU). A failing bus backs off a little.
+                if is_undecodable(exc):
+                    errors["rx_undecodable"] += 1
+                else:
+                    errors["recv_errors"] += 1
+                    stop_event.wait(0.005)
 
         notifier = can.Notifier(self.bus, [Inbox()], timeout=0.005)
         ticker = Ticker(TICK_S)
@@ -327,7 +340,7 @@ class SimMaster:
         wall = time.perf_counter() - t0
         return self._session("realtime", truth[: k + 1], {
             "wall_s": wall, "frames_sent": sent, "deadline_misses": ticker.misses,
-            "lateness_us": percentiles_us(ticker.lateness),
+            "lateness_us": percentiles_us(ticker.lateness), **errors,
         })
 
 
