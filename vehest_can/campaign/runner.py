@@ -3,6 +3,7 @@ rows appended to a Parquet dataset as it completes, so an interrupted campaign r
 from __future__ import annotations
 
 import hashlib
+import logging
 import json
 import math
 import os
@@ -141,7 +142,7 @@ def execute(campaign: Campaign, store: Store, *, workers: int, scheduler: str | 
         cluster = None
         if scheduler == LOCAL_DASK:
             cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                   host="127.0.0.1", dashboard_address=None)
+                                   host="127.0.0.1", dashboard_address=None, silence_logs=logging.CRITICAL)
         client = Client(cluster if cluster is not None else scheduler)
         try:
             futures = [client.submit(run_batch, campaign, b, pure=False) for b in jobs]

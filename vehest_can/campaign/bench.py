@@ -1,0 +1,66 @@
+"""Campaign throughput side by side in one run: the same runs on 1 and N local workers and on a
+Dask LocalCluster with N workers (each from scratch), runs per minute, scaling efficiency and
+Dask's overhead per run against the local pool.
+
+    python -m vehest_can.campaign.bench tireforce_payload --runs 200 --repeats 3
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+from .runner import LOCAL_DASK, Store, execute
+from .spec import load_campaign
+
+
+def measure(spec: str, runs: int | None = None, workers: int | None = None, repeats: int = 3,
+            batch_size: int | None = None) -> dict:
+    from ..paths import shipped_dir, shipped_file
+
+    c = load_campaign(shipped_file(spec, shipped_dir("campaigns", "firmware_sim/campaigns", "*.toml")))
+    if runs is not None:
+        c = dataclasses.replace(c, runs=runs)
+    n = workers or os.cpu_count() or 1
+    setups = {"local x1": (1, None), f"local x{n}": (n, None), f"dask x{n}": (n, LOCAL_DASK)}
+    wall: dict[str, list[float]] = {k: [] for k in setups}
+    for _ in range(repeats):
+        for label, (w, sched) in setups.items():  # interleaved: a noisy machine hurts each alike
+            with tempfile.TemporaryDirectory() as d:
+                t0 = time.perf_counter()
+                counts = execute(c, Store(Path(d), c), workers=w, scheduler=sched, batch_size=batch_size)
+                wall[label].append(time.perf_counter() - t0)
+                assert counts["ran"] == c.runs and counts["failed"] == 0, counts
+    med = {k: statistics.median(v) for k, v in wall.items()}
+    one, many, dask = med["local x1"], med[f"local x{n}"], med[f"dask x{n}"]
+    return {"campaign": c.name, "runs": c.runs, "workers": n, "repeats": repeats,
+            "median_wall_s": med, "runs_per_min": {k: c.runs / v * 60 for k, v in med.items()},
+            "scaling_efficiency": one / (n * many),
+            "dask_overhead_per_run_ms": (dask - many) / c.runs * 1e3,
+            "dask_overhead_pct": 100 * (dask - many) / many}
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("spec")
+    p.add_argument("--runs", type=int)
+    p.add_argument("-j", "--workers", type=int)
+    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--batch-size", type=int)
+    a = p.parse_args(argv)
+    r = measure(a.spec, a.runs, a.workers, a.repeats, a.batch_size)
+    print(f"campaign {r['campaign']}: {r['runs']} runs, median of {r['repeats']} (interleaved)")
+    for k, v in r["median_wall_s"].items():
+        print(f"  {k:<10} {v:7.2f} s  {r['runs_per_min'][k]:8.1f} runs/min")
+    print(f"  scaling efficiency 1 -> {r['workers']} workers: {100 * r['scaling_efficiency']:.0f} %")
+    print(f"  Dask over the local pool: {r['dask_overhead_per_run_ms']:+.1f} ms per run "
+          f"({r['dask_overhead_pct']:+.1f} %)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
