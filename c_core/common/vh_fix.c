@@ -5,6 +5,9 @@ int64_t vh_fix_dot(const int32_t *a, int sa, const int32_t *b, int sb, int n)
 {
     int64_t acc = 0;
     int i;
+    if (n < 0 || n > VH_FIX_DOT_MAX) {
+        return 0; /* precondition: more terms could overflow the accumulator */
+    }
     for (i = 0; i < n; ++i) {
         acc += vh_fix_asr64((int64_t)a[i * sa] * b[i * sb], VH_FIX_GUARD);
     }
@@ -21,10 +24,9 @@ int32_t vh_fix_div(int32_t num, int32_t den, int s, uint32_t *sat)
         vh_fix_count(sat);
         return num > 0 ? INT32_MAX : INT32_MIN;
     }
-    if (s < 0) {
-        s = 0;
-    } else if (s > 30) {
-        s = 30;
+    if (s < 0 || s > 30) { /* 2 num 2^s would not fit int64: clamp, and say so */
+        vh_fix_count(sat);
+        s = s < 0 ? 0 : 30;
     }
     /* floor((2 num 2^s + den) / (2 den)): |2 num 2^s| <= 2^62 */
     n2 = (int64_t)num * ((int64_t)1 << (s + 1)) + den;
