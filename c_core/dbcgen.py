@@ -10,6 +10,9 @@ For each ``dbc/vehest_<bus>.dbc`` this writes into the output folder:
   round half up(value / scale), clamped to the DBC's [minimum, maximum], NaN -> the SNA value
   (0 without one). cantools' own ``_encode`` truncates toward zero, does not clamp and is
   undefined for NaN, so the firmware transmits through these; either way the scale is the DBC's;
+* ``vh_<bus>_q.h``: for the fixed-point path, ``..._decode_q(raw, frac, sat)`` /
+  ``..._encode_q(v, frac)``: raw to Q.frac and back with the scale as the exact fraction num/den
+  (integer only, vh_fix.h);
 * ``vh_<bus>.cdef``: cffi declarations of the generated structs and functions, so Python
   tests can call the generated C directly.
 
@@ -20,6 +23,7 @@ from __future__ import annotations
 
 import re
 import sys
+from fractions import Fraction
 from pathlib import Path
 
 import cantools
@@ -128,6 +132,49 @@ def encoders_header(db, name: str) -> str:
     return "\n".join(lines)
 
 
+def fixed_header(db, name: str) -> str:
+    """Integer-only raw <-> Q.frac conversions for every scaled signal (see the module docstring)."""
+    up = name.upper()
+    lines = [
+        f"/* {name}_q.h - generated from the DBC by c_core/dbcgen.py: do not edit.",
+        " * Raw signals to and from fixed point with the DBC scale as an exact fraction: integer only. */",
+        f"#ifndef {up}_Q_H",
+        f"#define {up}_Q_H",
+        "",
+        "#include <stdint.h>",
+        "",
+        '#include "vh_fix.h" /* vh_fix_from_raw, vh_fix_to_raw */',
+        "",
+    ]
+    for m in db.messages:
+        for s in m.signals:
+            if s.is_float or (s.scale == 1 and s.offset == 0):
+                continue
+            base = f"{name}_{camel_to_snake_case(m.name)}_{camel_to_snake_case(s.name)}"
+            lo, hi, _ = _raw_bounds(s)
+            ct = _ctype(s)
+            q = Fraction(repr(float(s.scale)))
+            if s.offset != 0 or s.length > 16 or q.numerator > 1 << 15 or q.denominator > 1 << 30:
+                continue
+            lines += [
+                f"/* raw * {float(s.scale)!r} in Q.frac (round half up, saturating): exact, integer only */",
+                f"static inline int32_t {base}_decode_q({ct} raw, int frac, uint32_t *sat)",
+                "{",
+                f"    return vh_fix_from_raw((int32_t)raw, {q.numerator}, {q.denominator}, frac, sat);",
+                "}",
+                "",
+                "/* a Q.frac value in raw units (round half up), clamped to the DBC range: integer only */",
+                f"static inline {ct} {base}_encode_q(int32_t v, int frac)",
+                "{",
+                f"    const int64_t r = vh_fix_to_raw(v, frac, {q.numerator}, {q.denominator});",
+                f"    return r > {hi} ? ({ct})({hi}) : (r < {lo} ? ({ct})({lo}) : ({ct})r);",
+                "}",
+                "",
+            ]
+    lines += [f"#endif /* {up}_Q_H */", ""]
+    return "\n".join(lines)
+
+
 _STRUCT_RE = re.compile(r"^struct (\w+) \{(.*?)^\};", re.S | re.M)
 _FIELD_RE = re.compile(r"^\s+((?:u?int(?:8|16|32|64)_t)) (\w+);", re.M)
 _FUNC_RE = re.compile(r"^(int|bool|double|u?int(?:8|16|32|64)_t) (\w+)\(\s*([^;]*?)\);", re.M | re.S)
@@ -159,6 +206,7 @@ def generate_all(out_dir: Path, dbc_dir: Path = DBC_DIR) -> list[str]:
         _write(out_dir / f"{name}.c", source)
         _write(out_dir / f"{name}_meta.h", meta_header(db, name))
         _write(out_dir / f"{name}_enc.h", encoders_header(db, name))
+        _write(out_dir / f"{name}_q.h", fixed_header(db, name))
         _write(out_dir / f"{name}.cdef", cdef_from_header(header))
         names.append(name)
     return names

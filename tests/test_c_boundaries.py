@@ -83,14 +83,16 @@ def test_every_scaled_signal_goes_through_the_generated_codec(preprocessed):
             prefix, sigs = msgs[struct]
             for sig in sigs:
                 for m in re.finditer(rf"\b{var}\.{sig}\b(\s*=(?!=)([^;]*);)?", code):
-                    before = code[max(0, m.start() - len(prefix) - len(sig) - 12):m.start()]
+                    before = code[max(0, m.start() - len(prefix) - len(sig) - 14):m.start()]
                     after = code[m.end():m.end() + 4]
                     if m.group(1):  # a write
                         rhs = m.group(2)
-                        assert f"{prefix}_{sig}_encode_round(" in rhs or re.fullmatch(r"\s*\(?-?\d+u?\)?\s*", rhs), \
+                        assert (f"{prefix}_{sig}_encode_round(" in rhs or f"{prefix}_{sig}_encode_q(" in rhs
+                                or re.fullmatch(r"\s*\(?-?\d+u?\)?\s*", rhs)), \
                             f"{src.name}: {var}.{sig} = {rhs.strip()[:60]} (not the DBC's encoder)"
                     else:  # a read: the generated decode, or a comparison with a raw constant (SNA)
-                        assert before.endswith(f"{prefix}_{sig}_decode(") or re.match(r"\s*[!=]=", after), \
+                        assert (before.endswith(f"{prefix}_{sig}_decode(") or before.endswith(f"{prefix}_{sig}_decode_q(")
+                                or re.match(r"\s*[!=]=", after)), \
                             f"{src.name}: {var}.{sig} read by hand"
                     checked += 1
     assert checked >= 80  # every encode and decode of the ECU and both sensor nodes

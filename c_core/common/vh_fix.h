@@ -142,6 +142,17 @@ int64_t vh_fix_dot(const int32_t *a, int sa, const int32_t *b, int sb, int n);
  * result is then not num 2^s / den). den <= 0 saturates towards the sign of num (counted). */
 int32_t vh_fix_div(int32_t num, int32_t den, int s, uint32_t *sat);
 
+/* A raw CAN signal times its DBC scale num/den, in Q.frac: round_half_up(raw num 2^frac / den),
+ * saturated (counted). Exact (one rounding of the exact rational), so for the DBC's decimal
+ * scales it equals rounding the double decode (tests/test_c_integer_path.py checks every raw
+ * value). Preconditions, checked (result 0, counted): |raw| <= 2^16, 0 < num <= 2^15, den > 0,
+ * 0 <= frac <= 30, so that 2 raw num 2^frac fits int64. */
+int32_t vh_fix_from_raw(int32_t raw, int32_t num, int32_t den, int frac, uint32_t *sat);
+/* The inverse: a value in Q.frac to raw units of scale num/den, round_half_up(v den / (num 2^frac)),
+ * as int64 (the caller clamps to the signal's range). Exact; 0 < den <= 2^30, num > 0, 0 <= frac <= 30
+ * (outside: 0). */
+int64_t vh_fix_to_raw(int32_t v, int frac, int32_t num, int32_t den);
+
 /* sin and cos of an angle in Q1.30 [rad], |angle| <= 1 (larger is clipped to +-1 and counted),
  * results in Q1.30: Horner-form Taylor polynomials to x^9 and x^10 (truncation < 3e-8 at 1 rad),
  * each step rounded half-up. */

@@ -5,9 +5,9 @@
 #include "vh_ch.h"
 #include "vh_ch_enc.h"
 #include "vh_ch_meta.h"
+#include "vh_ch_q.h"
 #include "vh_e2e.h"
 #include "vh_health.h"
-#include "vh_skfq_host.h"
 #include "vh_tireforce_app.h"
 
 #define CHS_TIMEOUT_TICKS (VH_CH_CHS_SENSORS_RX_TIMEOUT_CYCLES * (VH_CH_CHS_SENSORS_CYCLE_TIME_US / VH_TICK_US))
@@ -22,7 +22,7 @@ void vh_tf_app_reset(vh_ecu_chs_t *c)
 }
 
 /* One chassis channel: a raw SNA value or a cleared qualifier makes it invalid (counted). */
-static void take_ch(vh_ecu_chs_t *c, int ok, double value, int ch)
+static void take_ch(vh_ecu_chs_t *c, int ok, int32_t value, int ch)
 {
     if (!ok) {
         vh_rx_count(&c->cnt.signal_invalid);
@@ -33,13 +33,16 @@ static void take_ch(vh_ecu_chs_t *c, int ok, double value, int ch)
     c->valid |= (uint16_t)(1u << ch);
 }
 
-/* take_ch of one signal: qualifier set and not the SNA value, then its DBC decode. */
-#define TAKE(sig, SIG, ch) \
-    take_ch(c, m.qf_##sig && m.sig != VH_CH_CHS_SENSORS_##SIG##_SNA_CHOICE, vh_ch_chs_sensors_##sig##_decode(m.sig), ch)
+/* take_ch of one signal: qualifier set and not the SNA value, then raw -> Q.frac exactly (the same
+ * integer as rounding the double decode; saturation as that rounding's, not counted). */
+#define TAKE(sig, SIG, ch, frac)                                                                  \
+    take_ch(c, m.qf_##sig && m.sig != VH_CH_CHS_SENSORS_##SIG##_SNA_CHOICE,                        \
+            vh_ch_chs_sensors_##sig##_decode_q(m.sig, (frac), &ignored), ch)
 
 void vh_tf_app_rx(vh_ecu_chs_t *c, const vh_frame_t *f)
 {
     struct vh_ch_chs_sensors_t m;
+    uint32_t ignored = 0u;
     if ((f->flags & VH_FRAME_EXT) != 0u) {
         vh_rx_count(&c->cnt.dlc_error);
         return;
@@ -49,19 +52,19 @@ void vh_tf_app_rx(vh_ecu_chs_t *c, const vh_frame_t *f)
     }
     (void)vh_ch_chs_sensors_unpack(&m, f->data, f->len);
     c->heard = 1u;
-    TAKE(long_accel, LONG_ACCEL, 0);
-    TAKE(lat_accel, LAT_ACCEL, 1);
-    TAKE(yaw_rate, YAW_RATE, 2);
-    TAKE(roll_rate, ROLL_RATE, 3);
-    TAKE(steer_angle, STEER_ANGLE, 4);
-    TAKE(wheel_speed_fl, WHEEL_SPEED_FL, 5);
-    TAKE(wheel_speed_fr, WHEEL_SPEED_FR, 6);
-    TAKE(wheel_speed_rl, WHEEL_SPEED_RL, 7);
-    TAKE(wheel_speed_rr, WHEEL_SPEED_RR, 8);
-    TAKE(wheel_torque_fl, WHEEL_TORQUE_FL, 9);
-    TAKE(wheel_torque_fr, WHEEL_TORQUE_FR, 10);
-    TAKE(wheel_torque_rl, WHEEL_TORQUE_RL, 11);
-    TAKE(wheel_torque_rr, WHEEL_TORQUE_RR, 12);
+    TAKE(long_accel, LONG_ACCEL, 0, VH_SKFQ_FA);
+    TAKE(lat_accel, LAT_ACCEL, 1, VH_SKFQ_FA);
+    TAKE(yaw_rate, YAW_RATE, 2, VH_SKFQ_FW);
+    TAKE(roll_rate, ROLL_RATE, 3, VH_SKFQ_FW);
+    TAKE(steer_angle, STEER_ANGLE, 4, VH_SKFQ_FD);
+    TAKE(wheel_speed_fl, WHEEL_SPEED_FL, 5, VH_SKFQ_FO);
+    TAKE(wheel_speed_fr, WHEEL_SPEED_FR, 6, VH_SKFQ_FO);
+    TAKE(wheel_speed_rl, WHEEL_SPEED_RL, 7, VH_SKFQ_FO);
+    TAKE(wheel_speed_rr, WHEEL_SPEED_RR, 8, VH_SKFQ_FO);
+    TAKE(wheel_torque_fl, WHEEL_TORQUE_FL, 9, VH_SKFQ_FT);
+    TAKE(wheel_torque_fr, WHEEL_TORQUE_FR, 10, VH_SKFQ_FT);
+    TAKE(wheel_torque_rl, WHEEL_TORQUE_RL, 11, VH_SKFQ_FT);
+    TAKE(wheel_torque_rr, WHEEL_TORQUE_RR, 12, VH_SKFQ_FT);
 }
 
 void vh_tf_app_step(vh_ecu_chs_t *c, unsigned burst_limit)
@@ -80,13 +83,11 @@ void vh_tf_app_step(vh_ecu_chs_t *c, unsigned burst_limit)
         }
     } else {
         unsigned mask = 0u;
-        int32_t q[VH_SKF_NU];
         const uint32_t sat0 = f->sat;
         if (usable) {
             mask = (c->valid & 0xFu) | ((c->valid & CHS_ALL_INPUTS) == CHS_ALL_INPUTS ? VH_SKF_U_VALID : 0u);
         }
-        vh_skfq_quantise_inputs(1u, c->u, q);
-        if (vh_skfq_step(f, (const vh_skfq_input_t *)(const void *)q, mask)) {
+        if (vh_skfq_step(f, (const vh_skfq_input_t *)(const void *)c->u, mask)) { /* same layout (vh_skfq.c) */
             vh_rx_count(&c->cnt.filter_reset);
         }
         if (f->sat != sat0) {
@@ -102,7 +103,7 @@ int vh_tf_app_fill_est(vh_ecu_chs_t *c, const double s[VH_SKF_NX], uint8_t *data
 {
     struct vh_ch_vehest_tire_force_est_t m;
     const vh_skfq_t *f = &c->skf;
-    const double fx = 1.0 / (double)(1L << VH_SKFQ_FX), fn = 1.0 / (double)(1L << VH_SKFQ_FN);
+    const double fx = 1.0 / (double)(1L << VH_SKFQ_FX);
     const int ok = !c->rx.timed_out && (f->health == VH_HEALTH_OK || f->health == VH_HEALTH_DEGRADED);
     if (!c->heard) {
         return 0;
@@ -110,10 +111,12 @@ int vh_tf_app_fill_est(vh_ecu_chs_t *c, const double s[VH_SKF_NX], uint8_t *data
     memset(&m, 0, sizeof m);
     m.skfmec_q_health = f->health;
     m.skfmec_q_valid = !c->rx.timed_out && f->health == VH_HEALTH_OK;
-    m.fy1 = EST(fy1, f->fy[0] * fn);
-    m.fy2 = EST(fy2, f->fy[1] * fn);
-    m.fy3 = EST(fy3, f->fy[2] * fn);
-    m.fy4 = EST(fy4, f->fy[3] * fn);
+    /* the tyre forces in integers (Q.FN -> raw, exact); the states below still through double:
+     * their scaling S is a double of the configuration, not a DBC fraction (docs/firmware.md) */
+    m.fy1 = ok ? vh_ch_vehest_tire_force_est_fy1_encode_q(f->fy[0], VH_SKFQ_FN) : VH_CH_VEHEST_TIRE_FORCE_EST_FY1_SNA_CHOICE;
+    m.fy2 = ok ? vh_ch_vehest_tire_force_est_fy2_encode_q(f->fy[1], VH_SKFQ_FN) : VH_CH_VEHEST_TIRE_FORCE_EST_FY2_SNA_CHOICE;
+    m.fy3 = ok ? vh_ch_vehest_tire_force_est_fy3_encode_q(f->fy[2], VH_SKFQ_FN) : VH_CH_VEHEST_TIRE_FORCE_EST_FY3_SNA_CHOICE;
+    m.fy4 = ok ? vh_ch_vehest_tire_force_est_fy4_encode_q(f->fy[3], VH_SKFQ_FN) : VH_CH_VEHEST_TIRE_FORCE_EST_FY4_SNA_CHOICE;
     m.fyf = EST(fyf, f->x[VH_SKF_FYF] * fx / s[VH_SKF_FYF]);
     m.fyr = EST(fyr, f->x[VH_SKF_FYR] * fx / s[VH_SKF_FYR]);
     m.est_vx = EST(est_vx, f->x[VH_SKF_VX] * fx / s[VH_SKF_VX]);

@@ -1,7 +1,8 @@
 /* vh_tireforce_app.h - the tyre-force ECU application (seed 000) on the chassis bus.
  *
  * RX: CHS_Sensors (length, E2E, extended-ID refusal, per-signal qualifier and SNA), timeout and
- * burst. Step: one fixed-point SKFMEC step per tick on the fresh sample (prediction only,
+ * burst; each raw signal to the filter's Q format by an exact integer scaling (the DBC's scale as a
+ * fraction, vh_ch_q.h: no double). Step: one fixed-point SKFMEC step per tick on the fresh sample (prediction only,
  * DEGRADED, without one), restarted after a timeout so that it re-seeds from live data. TX:
  * VEHEST_TireForceEst and VEHEST_ChassisStatus at their DBC cycles, once the chassis bus has been
  * heard (a powertrain-only car sees no chassis frames). Its own counters (VEHEST_ChassisStatus).
@@ -16,7 +17,7 @@
 
 /* Chassis side (seed 000): last good CHS_Sensors sample, the fixed-point SKFMEC, its counters. */
 typedef struct {
-    double u[VH_SKF_NU];   /* last good sample in vh_skf_input_t order (physical units) */
+    int32_t u[VH_SKFQ_NU]; /* last good sample as vh_skfq_input_t: the raw signals in the filter's Q formats */
     uint16_t valid;        /* bit i: channel i of u valid */
     uint8_t heard;         /* a good CHS_Sensors frame has arrived since reset: the chassis bus is alive */
     vh_ecu_rxmsg_t rx;
