@@ -6,6 +6,9 @@ double, then round to the Q format) for every raw value of every signal, so the 
 the same integers as before. The tyre forces Fy1..Fy4 go out the same way (Q.FN -> raw, exact).
 """
 import math
+import os
+import shutil
+import subprocess
 import sys
 from pathlib import Path
 
@@ -19,6 +22,7 @@ from vehest_can.native import ffi, lib
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "c_core"))
 import dbcgen  # noqa: E402
+import vehest_build  # noqa: E402
 
 I32_MIN, I32_MAX = -(2**31), 2**31 - 1
 CH = cantools.database.load_file(str(ROOT / "dbc" / "vehest_ch.dbc"))
@@ -76,3 +80,23 @@ def test_from_raw_checks_its_preconditions():
     assert lib.vh_fix_from_raw(1, 0, 1000, 24, sat) == 0 and sat[0] == 3
     assert lib.vh_fix_from_raw(-3, 1, 2, 0, sat) == -1 and sat[0] == 3  # floor(-1.5 + 0.5)
     assert lib.vh_fix_to_raw(5, 31, 1, 2) == 0 and lib.vh_fix_to_raw(5, 0, 1, 2**31 - 1) == 0
+
+
+@pytest.mark.skipif(shutil.which("gcc") is None or os.uname().machine != "x86_64", reason="needs x86-64 gcc")
+def test_the_conversions_are_integer_only(tmp_path):
+    """Every generated raw <-> Q conversion of the chassis bus, and vh_fix.c behind them, compile
+    under -mgeneral-regs-only (GCC refuses any floating point), like the filter itself."""
+    gen = tmp_path / "gen"
+    dbcgen.generate_all(gen)
+    calls = [f"    acc += vh_ch_{dbcgen.camel_to_snake_case(m.name)}_{dbcgen.camel_to_snake_case(s.name)}_"
+             f"{'decode_q(1, 20, &sat)' if m is CHS else 'encode_q(1, 14)'};"
+             for m in (CHS, TFE) for s in m.signals if s.scale != 1]
+    src = tmp_path / "use_q.c"
+    src.write_text('#include "vh_ch_q.h"\nint64_t use(void);\nint64_t use(void)\n{\n    uint32_t sat = 0u;\n'
+                   '    int64_t acc = 0;\n' + "\n".join(calls) + "\n    return acc + sat;\n}\n")
+    for f in (src, vehest_build.firmware_path("vh_fix.c")):
+        r = subprocess.run(["gcc", *vehest_build.STRICT_FLAGS, "-O2", "-mgeneral-regs-only",
+                            f"-I{vehest_build.firmware_path('vh_fix.h').parent}", f"-I{gen}", "-c", str(f),
+                            "-o", str(tmp_path / (f.stem + ".o"))], capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+    assert len(calls) == 13 + 10
