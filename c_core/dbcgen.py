@@ -94,85 +94,67 @@ def _ctype(sig) -> str:
     return f"{'' if sig.is_signed else 'u'}int{bits}_t"
 
 
-def encoders_header(db, name: str) -> str:
-    """Rounding, clamping, NaN-safe encoders for every scaled signal (see the module docstring)."""
-    up = name.upper()
-    lines = [
-        f"/* {name}_enc.h - generated from the DBC by c_core/dbcgen.py: do not edit.",
-        " * raw = floor(value / scale + 0.5) clamped to the DBC range; NaN -> SNA (0 without one). */",
-        f"#ifndef {up}_ENC_H",
-        f"#define {up}_ENC_H",
-        "",
-        "#include <math.h>",
-        "#include <stdint.h>",
-        "",
-    ]
+def _scaled(db, name: str):
+    """(C name prefix of the signal, signal, raw lo, raw hi, SNA, C type) of every scaled signal."""
     for m in db.messages:
         for s in m.signals:
-            if s.is_float or (s.scale == 1 and s.offset == 0):
-                continue
-            fn = f"{name}_{camel_to_snake_case(m.name)}_{camel_to_snake_case(s.name)}_encode_round"
-            lo, hi, sna = _raw_bounds(s)
-            ct = _ctype(s)
-            val = "value" if s.offset == 0 else f"(value - {float(s.offset)!r})"
-            nan = sna if sna is not None else 0
-            lines += [
-                f"static inline {ct} {fn}(double value)",
-                "{",
-                "    double r;",
-                "    if (value != value) {",
-                f"        return ({ct})({nan});",
-                "    }",
-                f"    r = floor({val} / {float(s.scale)!r} + 0.5);",
-                f"    return r > {float(hi)!r} ? ({ct})({hi}) : (r < {float(lo)!r} ? ({ct})({lo}) : ({ct})r);",
-                "}",
-                "",
-            ]
-    lines += [f"#endif /* {up}_ENC_H */", ""]
-    return "\n".join(lines)
+            if not s.is_float and (s.scale != 1 or s.offset != 0):
+                lo, hi, sna = _raw_bounds(s)
+                yield f"{name}_{camel_to_snake_case(m.name)}_{camel_to_snake_case(s.name)}", s, lo, hi, sna, _ctype(s)
+
+
+def _header(name: str, suffix: str, doc: str, includes: list[str], body: list[str]) -> str:
+    guard = f"{name.upper()}_{suffix.upper()}_H"
+    return "\n".join([f"/* {name}_{suffix}.h - generated from the DBC by c_core/dbcgen.py: do not edit.", f" * {doc} */",
+                      f"#ifndef {guard}", f"#define {guard}", "", *includes, "", *body,
+                      f"#endif /* {guard} */", ""])
+
+
+def encoders_header(db, name: str) -> str:
+    """Rounding, clamping, NaN-safe encoders for every scaled signal (see the module docstring)."""
+    body = []
+    for base, s, lo, hi, sna, ct in _scaled(db, name):
+        val = "value" if s.offset == 0 else f"(value - {float(s.offset)!r})"
+        body += [
+            f"static inline {ct} {base}_encode_round(double value)",
+            "{",
+            "    double r;",
+            "    if (value != value) {",
+            f"        return ({ct})({sna if sna is not None else 0});",
+            "    }",
+            f"    r = floor({val} / {float(s.scale)!r} + 0.5);",
+            f"    return r > {float(hi)!r} ? ({ct})({hi}) : (r < {float(lo)!r} ? ({ct})({lo}) : ({ct})r);",
+            "}",
+            "",
+        ]
+    return _header(name, "enc", "raw = floor(value / scale + 0.5) clamped to the DBC range; NaN -> SNA (0 without one).",
+                   ["#include <math.h>", "#include <stdint.h>"], body)
 
 
 def fixed_header(db, name: str) -> str:
     """Integer-only raw <-> Q.frac conversions for every scaled signal (see the module docstring)."""
-    up = name.upper()
-    lines = [
-        f"/* {name}_q.h - generated from the DBC by c_core/dbcgen.py: do not edit.",
-        " * Raw signals to and from fixed point with the DBC scale as an exact fraction: integer only. */",
-        f"#ifndef {up}_Q_H",
-        f"#define {up}_Q_H",
-        "",
-        "#include <stdint.h>",
-        "",
-        '#include "vh_fix.h" /* vh_fix_from_raw, vh_fix_to_raw */',
-        "",
-    ]
-    for m in db.messages:
-        for s in m.signals:
-            if s.is_float or (s.scale == 1 and s.offset == 0):
-                continue
-            base = f"{name}_{camel_to_snake_case(m.name)}_{camel_to_snake_case(s.name)}"
-            lo, hi, _ = _raw_bounds(s)
-            ct = _ctype(s)
-            q = Fraction(repr(float(s.scale)))
-            if s.offset != 0 or s.length > 16 or q.numerator > 1 << 15 or q.denominator > 1 << 30:
-                continue
-            lines += [
-                f"/* raw * {float(s.scale)!r} in Q.frac (round half up, saturating): exact, integer only */",
-                f"static inline int32_t {base}_decode_q({ct} raw, int frac, uint32_t *sat)",
-                "{",
-                f"    return vh_fix_from_raw((int32_t)raw, {q.numerator}, {q.denominator}, frac, sat);",
-                "}",
-                "",
-                "/* a Q.frac value in raw units (round half up), clamped to the DBC range: integer only */",
-                f"static inline {ct} {base}_encode_q(int32_t v, int frac)",
-                "{",
-                f"    const int64_t r = vh_fix_to_raw(v, frac, {q.numerator}, {q.denominator});",
-                f"    return r > {hi} ? ({ct})({hi}) : (r < {lo} ? ({ct})({lo}) : ({ct})r);",
-                "}",
-                "",
-            ]
-    lines += [f"#endif /* {up}_Q_H */", ""]
-    return "\n".join(lines)
+    body = []
+    for base, s, lo, hi, _, ct in _scaled(db, name):
+        q = Fraction(repr(float(s.scale)))
+        if s.offset != 0 or s.length > 16 or q.numerator > 1 << 15 or q.denominator > 1 << 30:
+            continue
+        body += [
+            f"/* raw * {float(s.scale)!r} in Q.frac (round half up, saturating): exact, integer only */",
+            f"static inline int32_t {base}_decode_q({ct} raw, int frac, uint32_t *sat)",
+            "{",
+            f"    return vh_fix_from_raw((int32_t)raw, {q.numerator}, {q.denominator}, frac, sat);",
+            "}",
+            "",
+            "/* a Q.frac value in raw units (round half up), clamped to the DBC range: integer only */",
+            f"static inline {ct} {base}_encode_q(int32_t v, int frac)",
+            "{",
+            f"    const int64_t r = vh_fix_to_raw(v, frac, {q.numerator}, {q.denominator});",
+            f"    return r > {hi} ? ({ct})({hi}) : (r < {lo} ? ({ct})({lo}) : ({ct})r);",
+            "}",
+            "",
+        ]
+    return _header(name, "q", "Raw signals to and from fixed point with the DBC scale as an exact fraction: integer only.",
+                   ["#include <stdint.h>", "", '#include "vh_fix.h" /* vh_fix_from_raw, vh_fix_to_raw */'], body)
 
 
 _STRUCT_RE = re.compile(r"^struct (\w+) \{(.*?)^\};", re.S | re.M)
