@@ -131,7 +131,7 @@ def measure(tmp: Path) -> tuple[dict, dict[str, set[str]]]:
 
 
 #: the ECU's entry points: what the stack of a task that runs the firmware must hold
-ENTRIES = ("vh_ecu_init", "vh_ecu_rx", "vh_ecu_step")
+ENTRIES = ("vh_ecu_init_params", "vh_ecu_rx", "vh_ecu_step")
 
 
 def call_graph() -> dict[str, set[str]]:
@@ -167,7 +167,7 @@ def table(all_res: dict, files: bool = False) -> str:
     lines.append("worst-case stack depth of the ECU's entry points [bytes]:")
     for fn, r in all_res["entries"].items():
         chain = " > ".join(f.rsplit(":", 1)[-1] for f in r["chain"])
-        lines.append(f"  {fn:<12} {r['stack']:>6}  {chain}")
+        lines.append(f"  {fn:<18} {r['stack']:>6}  {chain}")
     lines.append("")
     lines.append("stack: bytes, worst call chain of our code (frames from -fstack-usage, all static);")
     lines.append("plus the leaf routines of libgcc/newlib each folder calls:")

@@ -35,9 +35,9 @@ def test_stack_depth_of_the_entry_points(figures):
     SKFMEC step: well inside the few KB a Cortex-M4 task stack has; init holds the matrix exponential."""
     assert all(not r["dynamic"] for r in figures["folders"].values())
     e = figures["entries"]
-    assert set(e) == {"vh_ecu_init", "vh_ecu_rx", "vh_ecu_step"}
+    assert set(e) == {"vh_ecu_init_params", "vh_ecu_rx", "vh_ecu_step"}
     assert "vh_skfq_step" in e["vh_ecu_step"]["chain"] and e["vh_ecu_step"]["stack"] < 2048
-    assert "vh_mat_expm" in e["vh_ecu_init"]["chain"] and "vh_mat_expm" not in e["vh_ecu_step"]["chain"]
+    assert "vh_mat_expm" in e["vh_ecu_init_params"]["chain"] and "vh_mat_expm" not in e["vh_ecu_step"]["chain"]
 
 
 def test_cli_prints_the_table(capsys):

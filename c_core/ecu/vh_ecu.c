@@ -7,38 +7,19 @@
 #include "vh_ecu.h"
 #include "vh_pt.h"
 #include "vh_pt_meta.h"
-#include "vh_skfq_host.h"
 
 /* Ticks per cycle of a message; the meta headers refuse a cycle that is not whole ticks. */
 #define TICKS(cycle_us) ((cycle_us) / VH_TICK_US)
 
-void vh_ecu_config_default(vh_ecu_config_t *cfg)
-{
-    memset(cfg, 0, sizeof *cfg);
-    vh_dkf_config_default(&cfg->dkf[VH_ECU_DKF_T], VH_DKF_SPEEDS_TORQUE);
-    vh_dkf_config_default(&cfg->dkf[VH_ECU_DKF_S], VH_DKF_SPEEDS);
-    /* w_o = R_i w_t; 2nd gear = 0.43 (Table 1), the others a typical 5-speed transaxle */
-    cfg->gear_ratio[1] = 0.28;
-    cfg->gear_ratio[2] = 0.43;
-    cfg->gear_ratio[3] = 0.66;
-    cfg->gear_ratio[4] = 0.91;
-    cfg->gear_ratio[5] = 1.18;
-    cfg->we_min = 40.0; /* well below idle (~80 rad/s): an engine this slow is stalling */
-    vh_camber_config_default(&cfg->camber);
-    cfg->camber_still_ww = 0.5; /* 0.15 m/s at the wheel: parked, not rolling */
-    cfg->rx_burst_frames = VH_ECU_BURST_FRAMES;
-    vh_skf_config_default(&cfg->skf, VH_SKF_SKFMEC);
-}
-
-int vh_ecu_init(vh_ecu_t *ecu, const vh_ecu_config_t *cfg)
+int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_params_t *prm)
 {
     int i;
     vh_dkf_t probe;
     vh_camber_t cprobe;
-    vh_skfq_params_t prm;
     vh_skfq_t qprobe;
     if (vh_drv_app_check(cfg->gear_ratio, cfg->we_min) != VH_OK || !(cfg->camber_still_ww >= 0.0) ||
-        !isfinite(cfg->camber_still_ww) || vh_camber_init(&cprobe, &cfg->camber, NULL) != VH_OK) {
+        !isfinite(cfg->camber_still_ww) || vh_camber_init(&cprobe, &cfg->camber, NULL) != VH_OK ||
+        vh_skfq_init(&qprobe, prm) != VH_OK) {
         return VH_EINVAL;
     }
     for (i = 0; i < VH_ECU_N_DKF; ++i) {
@@ -46,14 +27,9 @@ int vh_ecu_init(vh_ecu_t *ecu, const vh_ecu_config_t *cfg)
             return VH_EINVAL;
         }
     }
-    /* the SKFMEC steps once per tick on the 500 us CHS_Sensors samples */
-    if (fabs(cfg->skf.ts - VH_TICK_US * 1e-6) > 1e-12 || vh_skfq_params_from_config(&cfg->skf, &prm) != VH_OK ||
-        vh_skfq_init(&qprobe, &prm) != VH_OK) {
-        return VH_EINVAL;
-    }
     memset(ecu, 0, sizeof *ecu);
     ecu->cfg = *cfg;
-    ecu->chs.skf.prm = prm; /* the filter keeps its constants; vh_ecu_reset re-initialises from them */
+    ecu->chs.skf.prm = *prm; /* the filter keeps its constants; vh_ecu_reset re-initialises from them */
     vh_ecu_reset(ecu);
     return VH_OK;
 }

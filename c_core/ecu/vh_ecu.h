@@ -47,8 +47,13 @@ typedef struct {
     uint32_t tick;
 } vh_ecu_t;
 
+/* Host side (vh_ecu_host.c, not flashed): the defaults, and init from a configuration whose
+ * tyre-force part is translated into the fixed-point constants here (VH_EINVAL if it does not fit). */
 void vh_ecu_config_default(vh_ecu_config_t *cfg);
 int vh_ecu_init(vh_ecu_t *ecu, const vh_ecu_config_t *cfg);
+/* The flashed init: the filter's constants come ready (on a target, a calibration block).
+ * VH_OK, or VH_EINVAL for an invalid configuration or constants (nothing changed). */
+int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_params_t *prm);
 void vh_ecu_reset(vh_ecu_t *ecu);
 /* Hand in one received frame; checked and counted now, used at the next vh_ecu_step. */
 void vh_ecu_rx(vh_ecu_t *ecu, const vh_frame_t *frame);
