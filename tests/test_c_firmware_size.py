@@ -14,8 +14,24 @@ pytestmark = pytest.mark.skipif(shutil.which("arm-none-eabi-gcc") is None, reaso
 
 
 @pytest.fixture(scope="module")
-def figures(tmp_path_factory):
-    return firmware_size.measure(tmp_path_factory.mktemp("fw"))[0]
+def measured(tmp_path_factory):
+    return firmware_size.measure(tmp_path_factory.mktemp("fw"))
+
+
+@pytest.fixture(scope="module")
+def figures(measured):
+    return measured[0]
+
+
+def test_the_flashed_firmware_calls_no_host_code(measured):
+    """*_host.c are left out of the image, so nothing flashed may call into them."""
+    import re
+
+    host = {name for d in vehest_build.FIRMWARE_DIRS for p in d.glob(vehest_build.HOST_ONLY_GLOB)
+            for name in re.findall(r"^[a-z][\w ]*?\b(vh_\w+)\(", p.read_text(), re.M)}
+    assert {"vh_skfq_params_from_config", "vh_skfq_quantise_inputs", "vh_ecu_init"} <= host
+    called = {c for callees in measured[1].values() for c in callees}
+    assert not host & called
 
 
 def test_a_row_per_firmware_folder_and_the_codec(figures):
