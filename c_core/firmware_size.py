@@ -134,6 +134,15 @@ def measure(tmp: Path) -> tuple[dict, dict[str, set[str]]]:
 ENTRIES = ("vh_ecu_init_params", "vh_ecu_rx", "vh_ecu_step")
 
 
+def missing_toolchain() -> str | None:
+    """Why the Cortex-M4 build cannot run here (no cross compiler, no newlib headers), or None."""
+    if shutil.which(CC) is None or shutil.which(SIZE) is None:
+        return f"{CC} not found (Debian: gcc-arm-none-eabi)"
+    r = subprocess.run([CC, *TARGET, "-E", "-x", "c", "-"], input="#include <math.h>\n#include <string.h>\n",
+                       capture_output=True, text=True)
+    return None if r.returncode == 0 else "no newlib headers for arm-none-eabi (Debian: libnewlib-arm-none-eabi)"
+
+
 def call_graph() -> dict[str, set[str]]:
     """The firmware's call graph (Cortex-M4 build), caller -> callees."""
     with tempfile.TemporaryDirectory() as tmp:
@@ -182,8 +191,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", action="store_true", help="print the figures as JSON")
     ap.add_argument("--files", action="store_true", help="also each source file's text/data/bss")
     args = ap.parse_args(argv)
-    if shutil.which(CC) is None:
-        print(f"error: {CC} not found (Debian: gcc-arm-none-eabi libnewlib-arm-none-eabi)", file=sys.stderr)
+    why = missing_toolchain()
+    if why:
+        print(f"error: {why}", file=sys.stderr)
         return 1
     with tempfile.TemporaryDirectory() as tmp:
         res = measure(Path(tmp))[0]

@@ -23,6 +23,7 @@ from vehest_can.native import ffi, lib
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "c_core"))
 import dbcgen  # noqa: E402
+import firmware_size  # noqa: E402
 import vehest_build  # noqa: E402
 
 I32_MIN, I32_MAX = -(2**31), 2**31 - 1
@@ -145,12 +146,10 @@ def test_gear_model_at_init_equals_discretising_in_the_tick():
         assert lib.vh_dkf_gear_model(cfg, 0.0, ffi.new("vh_dkf_gear_model_t *")) == lib.VH_EINVAL
 
 
-@pytest.mark.skipif(shutil.which("arm-none-eabi-gcc") is None, reason="needs gcc-arm-none-eabi")
+@pytest.mark.skipif(firmware_size.missing_toolchain() is not None, reason=str(firmware_size.missing_toolchain()))
 def test_the_tick_computes_no_matrix_exponential():
     """In the call graph of the Cortex-M4 build, vh_ecu_step reaches no vh_mat_expm (a gear change
     copies a model), while vh_ecu_init_params does (it discretises every gear)."""
-    import firmware_size
-
     graph = firmware_size.call_graph()
     assert "vh_mat_expm" in firmware_size.reachable(graph, "vh_ecu_init_params")
     tick = firmware_size.reachable(graph, "vh_ecu_step") | firmware_size.reachable(graph, "vh_ecu_rx")

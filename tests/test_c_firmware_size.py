@@ -1,5 +1,4 @@
 """The firmware-size command (c_core/firmware_size.py, `make firmware-size`) on a Cortex-M4F."""
-import shutil
 import sys
 from pathlib import Path
 
@@ -10,7 +9,8 @@ sys.path.insert(0, str(ROOT / "c_core"))
 import firmware_size  # noqa: E402
 import vehest_build  # noqa: E402
 
-pytestmark = pytest.mark.skipif(shutil.which("arm-none-eabi-gcc") is None, reason="needs gcc-arm-none-eabi")
+pytestmark = pytest.mark.skipif(firmware_size.missing_toolchain() is not None,
+                                reason=str(firmware_size.missing_toolchain()))
 
 
 @pytest.fixture(scope="module")
