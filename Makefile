@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 SOURCES := $(shell find c_core firmware_sim dbc -type f \( -name '*.c' -o -name '*.h' -o -name '*.dbc' -o -name '*.py' \)) pyproject.toml setup.py
 
-.PHONY: demo test bench install clean
+.PHONY: demo test bench install clean firmware-size
 
 demo: $(STAMP)
 	$(BIN)/vehest-can demo $(ARGS)
@@ -18,6 +18,10 @@ bench: $(STAMP)
 	$(BIN)/vehest-can bench $(ARGS)
 
 install: $(STAMP)
+
+# Each system's flash (text/data/bss) and worst-case stack for a Cortex-M4F (arm-none-eabi-gcc -Os).
+firmware-size: $(STAMP)
+	$(BIN)/python c_core/firmware_size.py $(ARGS)
 
 $(STAMP): $(SOURCES)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)

@@ -6,13 +6,24 @@ For each ``dbc/vehest_<bus>.dbc`` this writes into the output folder:
   (never edited by hand, never committed: regenerated on every build, so never stale);
 * ``vh_<bus>_meta.h``: per message the E2E data ID, the cycle time in microseconds and the
   RX timeout in cycles, read from the DBC's attributes (one source of truth for the frames);
+* ``vh_<bus>_enc.h``: per scaled signal a rounding encoder ``..._encode_round(double)``: raw =
+  round half up(value / scale), clamped to the DBC's [minimum, maximum], NaN -> the SNA value
+  (0 without one). cantools' own ``_encode`` truncates toward zero, does not clamp and is
+  undefined for NaN, so the firmware transmits through these; either way the scale is the DBC's;
+* ``vh_<bus>_q.h``: for the fixed-point path, ``..._decode_q(raw, frac, sat)`` /
+  ``..._encode_q(v, frac)``: raw to Q.frac and back with the scale as the exact fraction num/den
+  (integer only, vh_fix.h);
 * ``vh_<bus>.cdef``: cffi declarations of the generated structs and functions, so Python
   tests can call the generated C directly.
+
+A cycle time that is not a whole number of ECU ticks cannot build: the meta header asserts it
+against ``VH_TICK_US`` at compile time.
 """
 from __future__ import annotations
 
 import re
 import sys
+from fractions import Fraction
 from pathlib import Path
 
 import cantools
@@ -47,6 +58,8 @@ def meta_header(db, name: str) -> str:
         f"#ifndef {up}_META_H",
         f"#define {up}_META_H",
         "",
+        '#include "vh_types.h" /* VH_TICK_US */',
+        "",
     ]
     for m in db.messages:
         pre = f"{up}_{camel_to_snake_case(m.name).upper()}"
@@ -54,8 +67,94 @@ def meta_header(db, name: str) -> str:
         lines.append(f"#define {pre}_E2E_DATA_ID ({int(_attr(m, 'E2EDataID', 0))}u)")
         lines.append(f"#define {pre}_RX_TIMEOUT_CYCLES ({int(_attr(m, 'RxTimeoutCycles', 0))}u)")
         lines.append(f"#define {pre}_IS_FD ({1 if m.is_fd else 0}u)")
+        # a cycle the tick cannot hit would run early or late every period: refuse to build
+        lines.append(f"typedef char {pre.lower()}_cycle_is_whole_ticks[({pre}_CYCLE_TIME_US % VH_TICK_US) == 0u ? 1 : -1];")
     lines += ["", f"#endif /* {up}_META_H */", ""]
     return "\n".join(lines)
+
+
+def _raw_bounds(sig) -> tuple[int, int, int | None]:
+    """The raw range the encoder clamps to (the DBC's minimum/maximum in raw units, else the
+    signal's bit range without its SNA value) and the SNA raw value, if the DBC names one."""
+    lo, hi = (-(1 << (sig.length - 1)), (1 << (sig.length - 1)) - 1) if sig.is_signed else (0, (1 << sig.length) - 1)
+    sna = next((int(k) for k, v in (sig.choices or {}).items() if str(v) == "SNA"), None)
+    if sna == lo:
+        lo += 1
+    if sna == hi:
+        hi -= 1
+    if sig.minimum is not None:
+        lo = max(lo, round((sig.minimum - sig.offset) / sig.scale))
+    if sig.maximum is not None:
+        hi = min(hi, round((sig.maximum - sig.offset) / sig.scale))
+    return lo, hi, sna
+
+
+def _ctype(sig) -> str:
+    bits = next(b for b in (8, 16, 32, 64) if sig.length <= b)
+    return f"{'' if sig.is_signed else 'u'}int{bits}_t"
+
+
+def _scaled(db, name: str):
+    """(C name prefix of the signal, signal, raw lo, raw hi, SNA, C type) of every scaled signal."""
+    for m in db.messages:
+        for s in m.signals:
+            if not s.is_float and (s.scale != 1 or s.offset != 0):
+                lo, hi, sna = _raw_bounds(s)
+                yield f"{name}_{camel_to_snake_case(m.name)}_{camel_to_snake_case(s.name)}", s, lo, hi, sna, _ctype(s)
+
+
+def _header(name: str, suffix: str, doc: str, includes: list[str], body: list[str]) -> str:
+    guard = f"{name.upper()}_{suffix.upper()}_H"
+    return "\n".join([f"/* {name}_{suffix}.h - generated from the DBC by c_core/dbcgen.py: do not edit.", f" * {doc} */",
+                      f"#ifndef {guard}", f"#define {guard}", "", *includes, "", *body,
+                      f"#endif /* {guard} */", ""])
+
+
+def encoders_header(db, name: str) -> str:
+    """Rounding, clamping, NaN-safe encoders for every scaled signal (see the module docstring)."""
+    body = []
+    for base, s, lo, hi, sna, ct in _scaled(db, name):
+        val = "value" if s.offset == 0 else f"(value - {float(s.offset)!r})"
+        body += [
+            f"static inline {ct} {base}_encode_round(double value)",
+            "{",
+            "    double r;",
+            "    if (value != value) {",
+            f"        return ({ct})({sna if sna is not None else 0});",
+            "    }",
+            f"    r = floor({val} / {float(s.scale)!r} + 0.5);",
+            f"    return r > {float(hi)!r} ? ({ct})({hi}) : (r < {float(lo)!r} ? ({ct})({lo}) : ({ct})r);",
+            "}",
+            "",
+        ]
+    return _header(name, "enc", "raw = floor(value / scale + 0.5) clamped to the DBC range; NaN -> SNA (0 without one).",
+                   ["#include <math.h>", "#include <stdint.h>"], body)
+
+
+def fixed_header(db, name: str) -> str:
+    """Integer-only raw <-> Q.frac conversions for every scaled signal (see the module docstring)."""
+    body = []
+    for base, s, lo, hi, _, ct in _scaled(db, name):
+        q = Fraction(repr(float(s.scale)))
+        if s.offset != 0 or s.length > 16 or q.numerator > 1 << 15 or q.denominator > 1 << 30:
+            continue
+        body += [
+            f"/* raw * {float(s.scale)!r} in Q.frac (round half up, saturating): exact, integer only */",
+            f"static inline int32_t {base}_decode_q({ct} raw, int frac, uint32_t *sat)",
+            "{",
+            f"    return vh_fix_from_raw((int32_t)raw, {q.numerator}, {q.denominator}, frac, sat);",
+            "}",
+            "",
+            "/* a Q.frac value in raw units (round half up), clamped to the DBC range: integer only */",
+            f"static inline {ct} {base}_encode_q(int32_t v, int frac)",
+            "{",
+            f"    const int64_t r = vh_fix_to_raw(v, frac, {q.numerator}, {q.denominator});",
+            f"    return r > {hi} ? ({ct})({hi}) : (r < {lo} ? ({ct})({lo}) : ({ct})r);",
+            "}",
+            "",
+        ]
+    return _header(name, "q", "Raw signals to and from fixed point with the DBC scale as an exact fraction: integer only.",
+                   ["#include <stdint.h>", "", '#include "vh_fix.h" /* vh_fix_from_raw, vh_fix_to_raw */'], body)
 
 
 _STRUCT_RE = re.compile(r"^struct (\w+) \{(.*?)^\};", re.S | re.M)
@@ -88,6 +187,8 @@ def generate_all(out_dir: Path, dbc_dir: Path = DBC_DIR) -> list[str]:
         _write(out_dir / f"{name}.h", header)
         _write(out_dir / f"{name}.c", source)
         _write(out_dir / f"{name}_meta.h", meta_header(db, name))
+        _write(out_dir / f"{name}_enc.h", encoders_header(db, name))
+        _write(out_dir / f"{name}_q.h", fixed_header(db, name))
         _write(out_dir / f"{name}.cdef", cdef_from_header(header))
         names.append(name)
     return names

@@ -1,16 +1,19 @@
 """cffi build script (out-of-line API mode) for ``vehest_can._native``.
 
-One extension holds the ECU firmware (``c_core/src``), the simulated car and sensor nodes
-(``firmware_sim/src``) and the codec generated from ``dbc/`` at build time. The firmware
-sources never include firmware_sim headers (a test checks it), so ``c_core`` stays a
-portable, self-contained firmware; sharing one extension lets the C lockstep harness pass
+One extension holds the ECU firmware (``c_core/<folder>/``: ``common``, one folder per system,
+``ecu``), the simulated car and sensor nodes (``firmware_sim/src``) and the codec generated from
+``dbc/`` at build time. Two include paths keep the boundary: the firmware and the codec compile
+with the firmware folders only, so a firmware source that includes a simulator header does not
+build; the simulator compiles with both. Sharing one extension lets the C lockstep harness pass
 instances between plant and ECU without copies.
 
-The cdef is read from declaration files (``c_core/cdef/*.h``, ``firmware_sim/cdef/*.h`` and
-the generated ``*.cdef``), not written as Python strings.
+The cdef is generated from the public headers themselves (``header_cdef``): comments, include
+guards and includes dropped, ``static inline`` bodies turned into prototypes, integer macros kept,
+floating ones declared ``static const double``. Nothing is written twice.
 """
 from __future__ import annotations
 
+import re
 import sys
 from pathlib import Path
 
@@ -26,37 +29,137 @@ GEN_DIR = ROOT / "build" / "generated"
 STRICT_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
 # -O3: lets the compiler vectorise the 4x4 products of the filter step (~25% faster than -O2).
 OPT_FLAGS = ["-O3"]
-SOURCE_DIRS = [ROOT / "c_core" / "src", ROOT / "firmware_sim" / "src"]
-INCLUDE_DIRS = [ROOT / "c_core" / "include", ROOT / "firmware_sim" / "include", GEN_DIR]
-CDEF_DIRS = [ROOT / "c_core" / "cdef", ROOT / "firmware_sim" / "cdef"]
-# Declarations other cdef files use by value go first (cffi needs a type before a struct embeds it).
-CDEF_FIRST = ("vh_e2e.h", "vh_rng.h", "vh_dkf.h", "vh_skf.h")
+#: the systems of the firmware, one folder each (sources, headers, the system's ECU application)
+SYSTEMS = ("driveline", "tireforce", "camber")
+#: every folder of the firmware: what it shares, the systems, the scheduler
+FIRMWARE_DIRS = [HERE / "common", *(HERE / s for s in SYSTEMS), HERE / "ecu"]
+SIM_SRC_DIR = ROOT / "firmware_sim" / "src"
+SIM_INCLUDE_DIR = ROOT / "firmware_sim" / "include"
+#: built into the extension but never flashed (host-side calibration helpers)
+HOST_ONLY_GLOB = "*_host.c"
+
+
+def firmware_include_dirs(gen_dir: Path = GEN_DIR) -> list[Path]:
+    """The include path of a firmware build: the firmware folders and the generated codec."""
+    return [*FIRMWARE_DIRS, gen_dir]
+
+
+def sim_include_dirs(gen_dir: Path = GEN_DIR) -> list[Path]:
+    """The include path of the simulator, and of the benches and test drivers that run it (the
+    one declared way from ``c_core/bench`` and ``tests/c`` into ``firmware_sim``)."""
+    return [*FIRMWARE_DIRS, SIM_INCLUDE_DIR, gen_dir]
+
+
+#: the include path of c_core/bench (the simulated car drives the ECU benches)
+bench_include_dirs = sim_include_dirs
+
+
+def firmware_path(name: str) -> Path:
+    """Where a firmware source or header lives, by file name (e.g. ``vh_skfq.c``)."""
+    for d in FIRMWARE_DIRS:
+        if (d / name).exists():
+            return d / name
+    raise FileNotFoundError(name)
+
+
+def ecu_sources(gen_dir: Path = GEN_DIR, host: bool = True) -> list[Path]:
+    """The firmware's C sources (host-only helpers unless host=False), without the codec."""
+    srcs = [p for d in FIRMWARE_DIRS for p in sorted(d.glob("*.c"))]
+    return srcs if host else [p for p in srcs if not p.match(HOST_ONLY_GLOB)]
 
 
 def firmware_sources(gen_dir: Path = GEN_DIR) -> list[Path]:
     """Every C source of the extension, generated codec included (after generating it)."""
     names = dbcgen.generate_all(gen_dir)
-    srcs = [p for d in SOURCE_DIRS for p in sorted(d.glob("*.c"))]
-    return srcs + [gen_dir / f"{n}.c" for n in names]
+    return ecu_sources(gen_dir) + sorted(SIM_SRC_DIR.glob("*.c")) + [gen_dir / f"{n}.c" for n in names]
+
+
+# ---- cdef from the headers ----------------------------------------------------------------
+
+_COMMENT = re.compile(r"/\*.*?\*/|//[^\n]*", re.S)
+_INT_LITERAL = re.compile(r"^-?(0x[0-9a-fA-F]+|\d+)[uUlL]*$")
+_FLOAT_LITERAL = re.compile(r"^-?(\d+\.\d*|\.\d+|\d+)([eE][-+]?\d+)?$")
+_INCLUDE = re.compile(r'^#include\s+"([^"]+)"', re.M)
+
+
+def _inline_prototypes(text: str) -> str:
+    """``static inline T f(args) { ... }`` -> ``T f(args);`` (cffi wraps the inline function)."""
+    out, i = [], 0
+    for m in re.finditer(r"static inline ([^;{]*?\))\s*\{", text):
+        if m.start() < i:
+            continue
+        depth, j = 1, m.end()
+        while depth:
+            depth += {"{": 1, "}": -1}.get(text[j], 0)
+            j += 1
+        out.append(text[i:m.start()] + m.group(1) + ";")
+        i = j
+    return "".join(out) + text[i:]
+
+
+def header_cdef(text: str) -> str:
+    """The cffi declarations of one public header, from the header itself."""
+    text = _inline_prototypes(_COMMENT.sub("", text))
+    lines = []
+    for line in text.splitlines():
+        s = line.strip()
+        if s.startswith("#"):
+            m = re.match(r"#define\s+(\w+)\s+(.+)$", s)
+            if not m or m.group(1).endswith("_H"):
+                continue  # include guards, includes, function-like macros
+            name, value = m.group(1), m.group(2).strip()
+            if _INT_LITERAL.match(value):
+                lines.append(f"#define {name} {value}")
+            elif _FLOAT_LITERAL.match(value):
+                lines.append(f"static const double {name};")
+            elif re.fullmatch(r"\(\s*-?\d+[uUlL]*\s*\)", value):
+                lines.append(f"#define {name} ...")
+            continue
+        if re.match(r"typedef char \w+\[", s):
+            continue  # compile-time checks
+        if s:
+            lines.append(line.rstrip())
+    return "\n".join(lines) + "\n"
+
+
+def public_headers(gen_dir: Path = GEN_DIR) -> list[Path]:
+    """Every public header of the extension, each after the headers it includes."""
+    by_name = {p.name: p for d in (*FIRMWARE_DIRS, SIM_INCLUDE_DIR) for p in sorted(d.glob("*.h"))}
+    by_name.update({p.name: p for p in sorted(gen_dir.glob("vh_*_enc.h")) + sorted(gen_dir.glob("vh_*_q.h"))})
+    order: list[Path] = []
+
+    def visit(name: str) -> None:
+        p = by_name.get(name)
+        if p is None or p in order:
+            return
+        for dep in _INCLUDE.findall(p.read_text()):
+            visit(dep)
+        if p not in order:
+            order.append(p)
+
+    for name in sorted(by_name):
+        visit(name)
+    return order
 
 
 def cdef_text(gen_dir: Path = GEN_DIR) -> str:
-    files = sorted((p for d in CDEF_DIRS for p in d.glob("*.h")),
-                   key=lambda p: (p.name not in CDEF_FIRST, str(p.parent) != str(CDEF_DIRS[0]), p.name))
-    parts = [p.read_text() for p in files]
-    parts += [p.read_text() for p in sorted(gen_dir.glob("*.cdef"))]
+    dbcgen.generate_all(gen_dir)
+    parts = [p.read_text() for p in sorted(gen_dir.glob("*.cdef"))]  # the generated codec
+    parts += [f"/* {p.name} */\n" + header_cdef(p.read_text()) for p in public_headers(gen_dir)]
     return "\n".join(parts)
 
 
 def include_text(gen_dir: Path = GEN_DIR) -> str:
-    headers = [p.name for d in INCLUDE_DIRS[:2] for p in sorted(d.glob("*.h"))]
-    headers += [p.name for p in sorted(gen_dir.glob("*.h"))]
+    headers = [p.name for p in public_headers(gen_dir)]
+    headers += [p.name for p in sorted(gen_dir.glob("vh_*.h")) if p.name not in headers and "_meta" not in p.name]
     return "\n".join(f'#include "{h}"' for h in headers)
 
 
-def compile_firmware(out_dir: Path = ROOT / "build" / "obj", extra_flags: list[str] | None = None) -> list[str]:
-    """Compile every firmware source with the strict flags; returns the object files.
+def compile_firmware(out_dir: Path = ROOT / "build" / "obj", extra_flags: list[str] | None = None,
+                     gen_dir: Path = GEN_DIR) -> list[str]:
+    """Compile every source with the strict flags; returns the object files.
 
+    The firmware and the codec see only the firmware's include path; the simulator sees both.
     The firmware is compiled here, apart from cffi's own glue: the glue casts object pointers
     to function pointers, which ``-pedantic`` rejects, and it is not our code to hold to C99.
     """
@@ -66,12 +169,14 @@ def compile_firmware(out_dir: Path = ROOT / "build" / "obj", extra_flags: list[s
     cc = new_compiler()
     customize_compiler(cc)
     flags = STRICT_FLAGS + OPT_FLAGS + ["-fPIC"] + (extra_flags or [])
-    return cc.compile(
-        [str(s) for s in firmware_sources()],
-        output_dir=str(out_dir),
-        include_dirs=[str(d) for d in INCLUDE_DIRS],
-        extra_postargs=flags,
-    )
+    srcs = firmware_sources(gen_dir)
+    sim = [s for s in srcs if s.parent == SIM_SRC_DIR]
+    fw = [s for s in srcs if s.parent != SIM_SRC_DIR]
+    objs = cc.compile([str(s) for s in fw], output_dir=str(out_dir / "firmware"),
+                      include_dirs=[str(d) for d in firmware_include_dirs(gen_dir)], extra_postargs=flags)
+    objs += cc.compile([str(s) for s in sim], output_dir=str(out_dir / "sim"),
+                       include_dirs=[str(d) for d in sim_include_dirs(gen_dir)], extra_postargs=flags)
+    return objs
 
 
 def make_ffi() -> FFI:
@@ -81,7 +186,7 @@ def make_ffi() -> FFI:
     ffi.set_source(
         "vehest_can._native",
         include_text(),
-        include_dirs=[str(d) for d in INCLUDE_DIRS],
+        include_dirs=[str(d) for d in sim_include_dirs()],
         extra_objects=objects,
         libraries=["m"],
     )

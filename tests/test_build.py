@@ -1,4 +1,5 @@
 """The cffi build script (c_core/vehest_build.py) and the codec generator (c_core/dbcgen.py)."""
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -14,7 +15,8 @@ import vehest_build  # noqa: E402
 def test_sources_include_every_firmware_file_and_the_generated_codec(tmp_path):
     srcs = vehest_build.firmware_sources(tmp_path)
     names = {s.name for s in srcs}
-    assert {p.name for p in (ROOT / "c_core" / "src").glob("*.c")} <= names
+    for d in vehest_build.FIRMWARE_DIRS:
+        assert {p.name for p in d.glob("*.c")} <= names
     assert {p.name for p in (ROOT / "firmware_sim" / "src").glob("*.c")} <= names
     assert "vh_pt.c" in names and (tmp_path / "vh_pt_meta.h").exists()
 
@@ -22,10 +24,59 @@ def test_sources_include_every_firmware_file_and_the_generated_codec(tmp_path):
 def test_cdef_parses_and_declares_the_public_api(tmp_path):
     vehest_build.firmware_sources(tmp_path)
     text = vehest_build.cdef_text(tmp_path)
-    ffi = cffi.FFI()
-    ffi.cdef(text)  # raises on anything cffi cannot parse
+    cffi.FFI().cdef(text)  # raises on anything cffi cannot parse
     for fn in ("vh_ecu_step", "vh_dkf_run", "vh_e2e_p01_protect", "vh_pt_dls_sensors_pack", "vh_lockstep_run"):
         assert fn in text
+
+
+def test_every_firmware_folder_is_listed():
+    """A new folder under c_core holding C must be named in vehest_build (system or shared), so
+    that the build, the boundary checks and the firmware-size report see it."""
+    listed = {d.name for d in vehest_build.FIRMWARE_DIRS} | {"bench"}
+    with_c = {p.parent.name for p in (ROOT / "c_core").glob("*/*.[ch]")}
+    assert with_c <= listed
+
+
+def test_cdef_is_generated_from_the_headers_not_kept_by_hand():
+    assert not (ROOT / "c_core" / "cdef").exists() and not (ROOT / "firmware_sim" / "cdef").exists()
+    hdr = """/* doc */
+#ifndef X_H
+#define X_H
+#include <stdint.h>
+#include "y.h"
+#define N 4 /* count */
+#define K 7u
+#define G 9.81
+#define P (500u)
+#define F(x) ((x) + 1)
+typedef char layout_check[1];
+typedef struct { int32_t a[N]; } x_t; // trailing
+static inline int32_t x_twice(int32_t v)
+{
+    if (v) { return 2 * v; }
+    return 0;
+}
+int x_step(x_t *x);
+#endif /* X_H */
+"""
+    out = vehest_build.header_cdef(hdr)
+    assert "#define N 4" in out and "#define K 7u" in out and "static const double G;" in out
+    assert "#define P ..." in out and "F(" not in out and "layout_check" not in out
+    assert "int32_t x_twice(int32_t v);" in out and "return" not in out
+    assert "int x_step(x_t *x);" in out and "#include" not in out and "X_H" not in out and "doc" not in out
+    cffi.FFI().cdef("typedef int int32_t; typedef struct y_s y_t;\n" + out)  # and cffi parses it
+
+
+def test_every_public_function_of_a_header_reaches_the_cdef(tmp_path):
+    """What a header declares, Python can call: a prototype added to any public header (say the
+    roll actuator in firmware_sim/include/vh_veh14.h) appears in the cdef without another edit."""
+    vehest_build.firmware_sources(tmp_path)
+    text = vehest_build.cdef_text(tmp_path)
+    proto = re.compile(r"^[a-z][\w ]*?\b(vh_\w+)\(", re.M)
+    for h in vehest_build.public_headers(tmp_path):
+        body = re.sub(r"/\*.*?\*/", "", h.read_text(), flags=re.S)
+        for name in proto.findall(body):
+            assert f"{name}(" in text, (h.name, name)
 
 
 def test_strict_flags_reject_a_warning(tmp_path):

@@ -521,12 +521,12 @@ def test_node_truth_noise_and_determinism():
 def test_firmware_is_single_precision_only(tmp_path):
     """The firmware source compiles with double promotion and float conversions as errors
     and never names `double`: the float32 claim of docs/camber.md holds."""
-    src = ROOT / "c_core" / "src" / "vh_camber.c"
+    src = ROOT / "c_core" / "camber" / "vh_camber.c"
     code = re.sub(r"/\*.*?\*/", "", src.read_text(), flags=re.S)
     assert "double" not in code and "malloc" not in code
     cc = (sysconfig.get_config_var("CC") or "cc").split()[0]
     if shutil.which(cc) is None:
         pytest.skip(f"no C compiler {cc!r}")
     subprocess.run([cc, "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-Wdouble-promotion",
-                    "-Wfloat-conversion", "-Wconversion", "-I", str(ROOT / "c_core" / "include"), "-c", str(src),
+                    "-Wfloat-conversion", "-Wconversion", "-I", str(ROOT / "c_core" / "common"), "-c", str(src),
                     "-o", str(tmp_path / "vh_camber.o")], check=True)

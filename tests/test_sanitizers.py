@@ -23,7 +23,7 @@ def test_firmware_under_asan_ubsan(tmp_path):
     if sim_driver.exists():
         sources.append(str(sim_driver))
         defines.append("-DVH_WITH_SIM")
-    includes = [f"-I{d}" for d in (ROOT / "c_core" / "include", ROOT / "firmware_sim" / "include", gen)]
+    includes = [f"-I{d}" for d in vehest_build.sim_include_dirs(gen)]
     exe = tmp_path / "sanitize"
     build = subprocess.run(
         ["cc", *vehest_build.STRICT_FLAGS, *SAN, *defines, *includes, *sources, "-lm", "-o", str(exe)],

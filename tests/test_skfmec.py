@@ -27,8 +27,8 @@ from vehest_can.errors import ConfigError, NativeError
 from vehest_can.native import ffi, lib
 
 ROOT = Path(__file__).resolve().parent.parent
-INCLUDE = ROOT / "c_core" / "include"
-FIXED_SOURCES = [ROOT / "c_core" / "src" / "vh_skfq.c", ROOT / "c_core" / "src" / "vh_fix.c"]
+INCLUDE = ROOT / "c_core" / "common"
+FIXED_SOURCES = [ROOT / "c_core" / "tireforce" / "vh_skfq.c", ROOT / "c_core" / "common" / "vh_fix.c"]
 I32_MIN, I32_MAX = -(2**31), 2**31 - 1
 
 
@@ -419,9 +419,9 @@ def test_fixed_point_units_need_no_soft_float_on_cortex_m(tmp_path):
 
 def build_bench(tmp: Path, name: str, flags: list[str]) -> Path:
     exe = tmp / name
-    sources = [ROOT / "c_core" / "bench" / "vh_bench_skf.c"] + [ROOT / "c_core" / "src" / f
-                                                                  for f in ("vh_skf.c", "vh_skfq.c", "vh_fix.c")]
-    build = subprocess.run(["cc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", *flags, f"-I{INCLUDE}",
+    sources = [ROOT / "c_core" / "bench" / "vh_bench_skf.c"] + [ROOT / "c_core" / f for f in (
+        "tireforce/vh_skf.c", "tireforce/vh_skfq.c", "tireforce/vh_skfq_host.c", "common/vh_fix.c")]
+    build = subprocess.run(["cc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", *flags, f"-I{INCLUDE}", f"-I{INCLUDE.parent / 'tireforce'}",
                             *map(str, sources), "-lm", "-o", str(exe)], capture_output=True, text=True)
     assert build.returncode == 0, build.stderr
     return exe

@@ -928,7 +928,7 @@ def test_plant_tyre_and_node_under_asan_ubsan(tmp_path):
 
     gen = tmp_path / "generated"
     sources = [str(s) for s in vehest_build.firmware_sources(gen)] + [str(ROOT / "tests" / "c" / "sanitize_veh14.c")]
-    inc = [f"-I{d}" for d in (ROOT / "c_core" / "include", ROOT / "firmware_sim" / "include", gen)]
+    inc = [f"-I{d}" for d in vehest_build.sim_include_dirs(gen)]
     exe = tmp_path / "san"
     san = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer", "-g", "-O1"]
     build = subprocess.run(["cc", *vehest_build.STRICT_FLAGS, *san, *inc, *sources, "-lm", "-o", str(exe)],

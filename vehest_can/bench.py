@@ -55,7 +55,7 @@ def c_loop() -> dict[str, tuple[float, float]] | None:
     with tempfile.TemporaryDirectory() as tmp:
         gen = Path(tmp) / "generated"
         sources = [str(s) for s in vehest_build.firmware_sources(gen)] + [str(src)]
-        inc = [f"-I{d}" for d in (ROOT / "c_core" / "include", ROOT / "firmware_sim" / "include", gen)]
+        inc = [f"-I{d}" for d in vehest_build.bench_include_dirs(gen)]
         exe = Path(tmp) / "vh_bench"
         subprocess.run([cc, *vehest_build.STRICT_FLAGS, *vehest_build.OPT_FLAGS, *inc, *sources, "-lm", "-o", str(exe)],
                        check=True, capture_output=True, text=True)

@@ -426,10 +426,10 @@ def bench_c_loop(cc: str | None = None, samples: int = 40000) -> dict[str, tuple
     sys.path.insert(0, str(root / "c_core"))
     import vehest_build
 
-    sources = [src] + [root / "c_core" / "src" / f for f in ("vh_skf.c", "vh_skfq.c", "vh_fix.c")]
+    sources = [src] + [vehest_build.firmware_path(f) for f in ("vh_skf.c", "vh_skfq.c", "vh_skfq_host.c", "vh_fix.c")]
     with tempfile.TemporaryDirectory() as tmp:
         exe = Path(tmp) / "vh_bench_skf"
-        subprocess.run([cc, *vehest_build.STRICT_FLAGS, *vehest_build.OPT_FLAGS, f"-I{root / 'c_core' / 'include'}",
+        subprocess.run([cc, *vehest_build.STRICT_FLAGS, *vehest_build.OPT_FLAGS, *(f"-I{d}" for d in vehest_build.FIRMWARE_DIRS),
                         *map(str, sources), "-lm", "-o", str(exe)], check=True, capture_output=True, text=True)
         out = subprocess.run([str(exe), str(samples)], check=True, capture_output=True, text=True).stdout
     rows = {}

@@ -17,6 +17,7 @@
 
 #include "vh_skf.h"
 #include "vh_skfq.h"
+#include "vh_skfq_host.h"
 
 #define N_SAMPLES 40000 /* 20 s of driving at 2 kHz */
 

@@ -4,12 +4,14 @@
 #include <math.h>
 
 #include "vh_ch.h"
+#include "vh_ch_enc.h"
 #include "vh_ch_meta.h"
 #include "vh_e2e.h"
 
-/* Resolutions of dbc/vehest_ch.dbc, per channel. */
-static const double SCALE[VH_CHS_NCH] = {0.001, 0.001, 0.0001, 0.0001, 0.0001, 0.01, 0.01,
-                                         0.01,  0.01,  0.25,   0.25,   0.25,   0.25};
+/* One channel: raw = round(phys / scale) clamped to the DBC range (the generated encoder), or
+ * the signal's SNA value when the sensor failed. */
+#define ENC(sig, SIG, ch) \
+    (ok[ch] ? vh_ch_chs_sensors_##sig##_encode_round(n->meas[ch]) : VH_CH_CHS_SENSORS_##SIG##_SNA_CHOICE)
 
 void vh_chs_config_default(vh_chs_config_t *cfg)
 {
@@ -62,29 +64,11 @@ void vh_chs_reset(vh_chs_t *n)
     n->frames = 0u;
 }
 
-/* raw = round(phys / scale), clamped to [-32767, 32767] (-32768 is SNA). */
-static int16_t quant_s16(double v, double scale)
-{
-    double r = floor(v / scale + 0.5);
-    r = r > 32767.0 ? 32767.0 : (r < -32767.0 ? -32767.0 : r);
-    return (int16_t)r;
-}
-
-/* raw = round(phys / scale), clamped to [0, 65534] (65535 is SNA). */
-static uint16_t quant_u16(double v, double scale)
-{
-    double r = floor(v / scale + 0.5);
-    r = r > 65534.0 ? 65534.0 : (r < 0.0 ? 0.0 : r);
-    return (uint16_t)r;
-}
-
 size_t vh_chs_step(vh_chs_t *n, const vh_v14_truth_t *truth, vh_frame_t *out, size_t cap)
 {
     struct vh_ch_chs_sensors_t m;
     double phys[VH_CHS_NCH];
     uint8_t ok[VH_CHS_NCH];
-    int16_t raw_s[VH_CHS_NCH];
-    uint16_t raw_w[4];
     int i;
 
     if (out == NULL || cap == 0u || truth == NULL) {
@@ -109,27 +93,21 @@ size_t vh_chs_step(vh_chs_t *n, const vh_v14_truth_t *truth, vh_frame_t *out, si
         n->meas[i] = phys[i] + n->cfg.bias[i] + n->cfg.noise_std[i] * vh_rng_gauss(&n->rng);
         /* a sensor that reads garbage reports it rather than sending a clamped number */
         ok[i] = (uint8_t)(isfinite(n->meas[i]) && !(n->cfg.fail_mask & (1u << i)));
-        raw_s[i] = ok[i] ? quant_s16(n->meas[i], SCALE[i]) : (int16_t)-32768;
     }
-    for (i = 0; i < 4; ++i) {
-        raw_w[i] = ok[VH_CHS_CH_W + i] ? quant_u16(n->meas[VH_CHS_CH_W + i], SCALE[VH_CHS_CH_W + i])
-                                        : (uint16_t)VH_CH_CHS_SENSORS_WHEEL_SPEED_FL_SNA_CHOICE;
-    }
-
     (void)vh_ch_chs_sensors_init(&m);
-    m.long_accel = raw_s[VH_CHS_CH_AX];
-    m.lat_accel = raw_s[VH_CHS_CH_AY];
-    m.yaw_rate = raw_s[VH_CHS_CH_YAW];
-    m.roll_rate = raw_s[VH_CHS_CH_ROLL];
-    m.steer_angle = raw_s[VH_CHS_CH_STEER];
-    m.wheel_speed_fl = raw_w[0];
-    m.wheel_speed_fr = raw_w[1];
-    m.wheel_speed_rl = raw_w[2];
-    m.wheel_speed_rr = raw_w[3];
-    m.wheel_torque_fl = raw_s[VH_CHS_CH_T + 0];
-    m.wheel_torque_fr = raw_s[VH_CHS_CH_T + 1];
-    m.wheel_torque_rl = raw_s[VH_CHS_CH_T + 2];
-    m.wheel_torque_rr = raw_s[VH_CHS_CH_T + 3];
+    m.long_accel = ENC(long_accel, LONG_ACCEL, VH_CHS_CH_AX);
+    m.lat_accel = ENC(lat_accel, LAT_ACCEL, VH_CHS_CH_AY);
+    m.yaw_rate = ENC(yaw_rate, YAW_RATE, VH_CHS_CH_YAW);
+    m.roll_rate = ENC(roll_rate, ROLL_RATE, VH_CHS_CH_ROLL);
+    m.steer_angle = ENC(steer_angle, STEER_ANGLE, VH_CHS_CH_STEER);
+    m.wheel_speed_fl = ENC(wheel_speed_fl, WHEEL_SPEED_FL, VH_CHS_CH_W + 0);
+    m.wheel_speed_fr = ENC(wheel_speed_fr, WHEEL_SPEED_FR, VH_CHS_CH_W + 1);
+    m.wheel_speed_rl = ENC(wheel_speed_rl, WHEEL_SPEED_RL, VH_CHS_CH_W + 2);
+    m.wheel_speed_rr = ENC(wheel_speed_rr, WHEEL_SPEED_RR, VH_CHS_CH_W + 3);
+    m.wheel_torque_fl = ENC(wheel_torque_fl, WHEEL_TORQUE_FL, VH_CHS_CH_T + 0);
+    m.wheel_torque_fr = ENC(wheel_torque_fr, WHEEL_TORQUE_FR, VH_CHS_CH_T + 1);
+    m.wheel_torque_rl = ENC(wheel_torque_rl, WHEEL_TORQUE_RL, VH_CHS_CH_T + 2);
+    m.wheel_torque_rr = ENC(wheel_torque_rr, WHEEL_TORQUE_RR, VH_CHS_CH_T + 3);
     m.qf_long_accel = ok[VH_CHS_CH_AX];
     m.qf_lat_accel = ok[VH_CHS_CH_AY];
     m.qf_yaw_rate = ok[VH_CHS_CH_YAW];

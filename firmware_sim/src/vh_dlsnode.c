@@ -5,10 +5,8 @@
 
 #include "vh_e2e.h"
 #include "vh_pt.h"
+#include "vh_pt_enc.h"
 #include "vh_pt_meta.h"
-
-#define SPEED_SCALE 0.02 /* rad/s per bit, DBC */
-#define TORQUE_SCALE 0.25 /* Nm per bit, DBC */
 
 void vh_dls_config_default(vh_dls_config_t *cfg)
 {
@@ -57,22 +55,6 @@ void vh_dls_reset(vh_dls_t *n)
     n->frames = 0u;
 }
 
-/* raw = round(phys / scale), clamped to the signal's range: [0, 65534] (65535 is SNA). */
-static uint16_t quant_speed(double v)
-{
-    double r = floor(v / SPEED_SCALE + 0.5);
-    r = r > 65534.0 ? 65534.0 : (r < 0.0 ? 0.0 : r);
-    return (uint16_t)r;
-}
-
-/* raw = round(phys / scale), clamped to [-32767, 32767] (-32768 is SNA). */
-static int16_t quant_torque(double v)
-{
-    double r = floor(v / TORQUE_SCALE + 0.5);
-    r = r > 32767.0 ? 32767.0 : (r < -32767.0 ? -32767.0 : r);
-    return (int16_t)r;
-}
-
 size_t vh_dls_step(vh_dls_t *n, const vh_dlp_truth_t *truth, vh_frame_t *out, size_t cap)
 {
     struct vh_pt_dls_sensors_t m;
@@ -96,18 +78,19 @@ size_t vh_dls_step(vh_dls_t *n, const vh_dlp_truth_t *truth, vh_frame_t *out, si
         ok[i] = (uint8_t)(isfinite(n->meas[i]) && !(n->cfg.fail_mask & (1u << i)));
     }
 
+    /* raw = round(phys / scale), clamped to the DBC range (generated from the DBC) */
     (void)vh_pt_dls_sensors_init(&m);
-    m.out_shaft_speed = ok[VH_DLS_CH_WO] ? quant_speed(n->meas[VH_DLS_CH_WO])
+    m.out_shaft_speed = ok[VH_DLS_CH_WO] ? vh_pt_dls_sensors_out_shaft_speed_encode_round(n->meas[VH_DLS_CH_WO])
                                          : VH_PT_DLS_SENSORS_OUT_SHAFT_SPEED_SNA_CHOICE;
-    m.wheel_speed_l = ok[VH_DLS_CH_WL] ? quant_speed(n->meas[VH_DLS_CH_WL])
+    m.wheel_speed_l = ok[VH_DLS_CH_WL] ? vh_pt_dls_sensors_wheel_speed_l_encode_round(n->meas[VH_DLS_CH_WL])
                                        : VH_PT_DLS_SENSORS_WHEEL_SPEED_L_SNA_CHOICE;
-    m.wheel_speed_r = ok[VH_DLS_CH_WR] ? quant_speed(n->meas[VH_DLS_CH_WR])
+    m.wheel_speed_r = ok[VH_DLS_CH_WR] ? vh_pt_dls_sensors_wheel_speed_r_encode_round(n->meas[VH_DLS_CH_WR])
                                        : VH_PT_DLS_SENSORS_WHEEL_SPEED_R_SNA_CHOICE;
-    m.shaft_torque = ok[VH_DLS_CH_TO] ? quant_torque(n->meas[VH_DLS_CH_TO])
+    m.shaft_torque = ok[VH_DLS_CH_TO] ? vh_pt_dls_sensors_shaft_torque_encode_round(n->meas[VH_DLS_CH_TO])
                                       : (int16_t)VH_PT_DLS_SENSORS_SHAFT_TORQUE_SNA_CHOICE;
-    m.engine_speed = ok[VH_DLS_CH_WE] ? quant_speed(n->meas[VH_DLS_CH_WE])
+    m.engine_speed = ok[VH_DLS_CH_WE] ? vh_pt_dls_sensors_engine_speed_encode_round(n->meas[VH_DLS_CH_WE])
                                       : VH_PT_DLS_SENSORS_ENGINE_SPEED_SNA_CHOICE;
-    m.turbine_speed = ok[VH_DLS_CH_WT] ? quant_speed(n->meas[VH_DLS_CH_WT])
+    m.turbine_speed = ok[VH_DLS_CH_WT] ? vh_pt_dls_sensors_turbine_speed_encode_round(n->meas[VH_DLS_CH_WT])
                                        : VH_PT_DLS_SENSORS_TURBINE_SPEED_SNA_CHOICE;
     m.qf_out_shaft_speed = ok[VH_DLS_CH_WO];
     m.qf_wheel_speed_l = ok[VH_DLS_CH_WL];

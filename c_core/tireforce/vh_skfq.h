@@ -8,7 +8,7 @@
  * like those states (z* = T y, T = diag(1, 1, s_r, s_p)), so the innovations share the state format.
  *
  * All constants (vh_skfq_params_t) are integers computed off-line from a vh_skf_config_t by
- * vh_skfq_params_from_config (in vh_skf.c, the double-precision "calibration tool").
+ * vh_skfq_params_from_config (vh_skfq_host.c, the double-precision "calibration tool", not flashed).
  * Arithmetic: round-half-up everywhere, saturating operations that count (vh_fix.h); a step with
  * a saturation is DEGRADED, the count is kept (`sat`), the filter carries on. Divergence (a
  * non-positive variance, a variance above p_max, |x*| above x_max) resets it (FAULT), as vh_skf;

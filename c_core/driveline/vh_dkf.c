@@ -317,6 +317,27 @@ int vh_dkf_set_ratio(vh_dkf_t *f, double ri)
     return VH_OK;
 }
 
+int vh_dkf_gear_model(const vh_dkf_config_t *cfg, double ri, vh_dkf_gear_model_t *m)
+{
+    vh_dkf_config_t c = *cfg;
+    double a[16], b[4];
+    if (!(ri > 0.0) || !isfinite(ri)) {
+        return VH_EINVAL;
+    }
+    c.ri = ri;
+    vh_dkf_model(&c, a, b);
+    vh_dkf_discretise(a, b, c.ts, c.disc, m->ad, m->bd);
+    m->ri = ri;
+    return VH_OK;
+}
+
+void vh_dkf_use_gear_model(vh_dkf_t *f, const vh_dkf_gear_model_t *m)
+{
+    f->cfg.ri = m->ri;
+    memcpy(f->ad, m->ad, sizeof f->ad);
+    memcpy(f->bd, m->bd, sizeof f->bd);
+}
+
 uint32_t vh_dkf_run(vh_dkf_t *f, size_t n, const double *u, const double *z, const uint8_t *mask,
                     double *x_out, double *k_out, double *p_out)
 {

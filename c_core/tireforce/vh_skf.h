@@ -23,24 +23,10 @@
 #ifndef VH_SKF_H
 #define VH_SKF_H
 
-#include "vh_dkf.h" /* vh_health_t */
+#include "vh_health.h"
+#include "vh_tf_types.h"
 #include "vh_types.h"
 
-#define VH_SKF_NX 7
-#define VH_SKF_NY 4
-#define VH_SKF_NU 13 /* doubles in vh_skf_input_t */
-
-/* State and measurement indices. */
-enum { VH_SKF_VX = 0, VH_SKF_VY = 1, VH_SKF_R = 2, VH_SKF_PHI = 3, VH_SKF_P = 4, VH_SKF_FYF = 5, VH_SKF_FYR = 6 };
-enum { VH_SKF_AX = 0, VH_SKF_AY = 1, VH_SKF_YR = 2, VH_SKF_YP = 3 };
-/* Validity mask of a step: measurement bits, and one bit for the inputs (steer, wheel speeds,
- * torques). Without a measurement bit that row is not used (and eq. 39 takes 0 for an invalid
- * ax or ay); without U_VALID the last longitudinal forces and steering angle are held. Either
- * makes the step DEGRADED. A non-finite input clears the whole mask for that step. */
-enum {
-    VH_SKF_Y_AX = 1u, VH_SKF_Y_AY = 2u, VH_SKF_Y_R = 4u, VH_SKF_Y_P = 8u, VH_SKF_Y_ALL = 15u,
-    VH_SKF_U_VALID = 16u, VH_SKF_ALL_VALID = 31u
-};
 typedef enum { VH_SKF_SKFMEC = 0, VH_SKF_EKF = 1 } vh_skf_variant_t;
 
 /* One step's inputs; the layout is VH_SKF_NU doubles (the Python API passes rows of an array). */
@@ -98,6 +84,8 @@ typedef struct {
 void vh_skf_config_default(vh_skf_config_t *cfg, int variant);
 /* zeta1, zeta2 that make eq. 31-32 consistent with the model's own steady cornering. */
 void vh_skf_zeta_steady(const vh_skf_config_t *cfg, double *zeta1, double *zeta2);
+/* 1 when the configuration is physical and finite (what vh_skf_init accepts), else 0. */
+int vh_skf_config_check(const vh_skf_config_t *cfg);
 /* VH_OK, or VH_EINVAL for a non-physical or non-finite configuration (nothing changed). */
 int vh_skf_init(vh_skf_t *f, const vh_skf_config_t *cfg);
 void vh_skf_reset(vh_skf_t *f);
@@ -110,13 +98,5 @@ void vh_skf_state(const vh_skf_t *f, double x[VH_SKF_NX]);
  * (filter coordinates) and health_out[n]. Returns the resets during the run. */
 uint32_t vh_skf_run(vh_skf_t *f, size_t n, const double *u, const uint8_t *mask, double *x_out,
                     double *fy_out, double *fz_out, double *p_out, uint8_t *health_out);
-
-/* The fixed-point filter's integer constants (vh_skfq.h) from a configuration with scaled = 1:
- * VH_OK, or VH_EINVAL if the configuration is invalid, not scaled, or a constant does not fit. */
-struct vh_skfq_params_s;
-int vh_skfq_params_from_config(const vh_skf_config_t *cfg, struct vh_skfq_params_s *prm);
-/* Inputs to the fixed-point formats (round half up, saturating): u[n*13] doubles as
- * vh_skf_input_t rows -> q[n*13] int32 as vh_skfq_input_t rows. */
-void vh_skfq_quantise_inputs(size_t n, const double *u, int32_t *q);
 
 #endif /* VH_SKF_H */

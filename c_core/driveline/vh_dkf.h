@@ -14,6 +14,7 @@
 #ifndef VH_DKF_H
 #define VH_DKF_H
 
+#include "vh_health.h"
 #include "vh_types.h"
 
 #define VH_DKF_NX 4
@@ -21,7 +22,6 @@
 
 typedef enum { VH_DKF_EULER = 0, VH_DKF_ZOH = 1 } vh_dkf_disc_t;
 typedef enum { VH_DKF_SPEEDS_TORQUE = 0, VH_DKF_SPEEDS = 1 } vh_dkf_meas_t;
-typedef enum { VH_HEALTH_INIT = 0, VH_HEALTH_OK = 1, VH_HEALTH_DEGRADED = 2, VH_HEALTH_FAULT = 3 } vh_health_t;
 
 /* Measurement-valid bits for vh_dkf_step's mask. */
 enum { VH_DKF_Z_WO = 1u, VH_DKF_Z_WW = 2u, VH_DKF_Z_TO = 4u, VH_DKF_Z_ALL = 7u };
@@ -73,6 +73,19 @@ double vh_dkf_road_load_coeff(double rt, double rho_a, double ca, double area, d
 void vh_dkf_model(const vh_dkf_config_t *cfg, double a[16], double b[4]);
 /* Discretise (A, B) at ts: x+ = Ad x + Bd u. Euler: Ad = I + ts A (eq. 10); ZOH: exact. */
 void vh_dkf_discretise(const double a[16], const double b[4], double ts, int disc, double ad[16], double bd[4]);
+
+/* The discrete model (Ad, Bd) of a configuration for one gear ratio. */
+typedef struct {
+    double ri;
+    double ad[VH_DKF_NX * VH_DKF_NX];
+    double bd[VH_DKF_NX];
+} vh_dkf_gear_model_t;
+/* Discretise cfg's model with ratio ri (the matrix exponential: do it at init, once per gear);
+ * VH_EINVAL for a ratio that is not positive and finite (m unchanged). */
+int vh_dkf_gear_model(const vh_dkf_config_t *cfg, double ri, vh_dkf_gear_model_t *m);
+/* Switch a running filter to a precomputed gear model: a copy, no exponential in the tick.
+ * The same Ad, Bd as vh_dkf_set_ratio(f, m->ri), bit for bit. */
+void vh_dkf_use_gear_model(vh_dkf_t *f, const vh_dkf_gear_model_t *m);
 
 /* VH_OK, or VH_EINVAL for a non-physical or non-finite configuration (nothing changed). */
 int vh_dkf_init(vh_dkf_t *f, const vh_dkf_config_t *cfg);

@@ -3,8 +3,10 @@
  * The code follows vh_skf.c step by step (same names); every line says which format it produces
  * when that is not the destination's. KM(k, v, fin, fout) multiplies by an off-line constant.
  */
-#include "vh_skf.h" /* mask bits, state indices, vh_health_t (declarations only) */
+#include "vh_health.h"
 #include "vh_skfq.h"
+#include "vh_tf_types.h"
+#include "vh_types.h"
 
 #define NX VH_SKFQ_NX
 #define NY VH_SKFQ_NY
@@ -29,6 +31,9 @@
 #define ADD(a, b) vh_fix_add((a), (b), sat)
 #define SUB(a, b) vh_fix_sub((a), (b), sat)
 #define MUL(a, fa, b, fb, fo) vh_fix_mul((a), (fa), (b), (fb), (fo), sat)
+
+/* Every guarded dot product here is at most NX long: within vh_fix_dot's precondition. */
+typedef char dot_length_check[(NX <= VH_FIX_DOT_MAX) ? 1 : -1];
 
 /* vh_skfq_run passes rows of 13 int32 as vh_skfq_input_t: no padding allowed. */
 typedef char input_layout_check[(sizeof(vh_skfq_input_t) == VH_SKFQ_NU * sizeof(int32_t)) ? 1 : -1];

@@ -5,6 +5,9 @@ int64_t vh_fix_dot(const int32_t *a, int sa, const int32_t *b, int sb, int n)
 {
     int64_t acc = 0;
     int i;
+    if (n < 0 || n > VH_FIX_DOT_MAX) {
+        return 0; /* precondition: more terms could overflow the accumulator */
+    }
     for (i = 0; i < n; ++i) {
         acc += vh_fix_asr64((int64_t)a[i * sa] * b[i * sb], VH_FIX_GUARD);
     }
@@ -21,10 +24,9 @@ int32_t vh_fix_div(int32_t num, int32_t den, int s, uint32_t *sat)
         vh_fix_count(sat);
         return num > 0 ? INT32_MAX : INT32_MIN;
     }
-    if (s < 0) {
-        s = 0;
-    } else if (s > 30) {
-        s = 30;
+    if (s < 0 || s > 30) { /* 2 num 2^s would not fit int64: clamp, and say so */
+        vh_fix_count(sat);
+        s = s < 0 ? 0 : 30;
     }
     /* floor((2 num 2^s + den) / (2 den)): |2 num 2^s| <= 2^62 */
     n2 = (int64_t)num * ((int64_t)1 << (s + 1)) + den;
@@ -34,6 +36,35 @@ int32_t vh_fix_div(int32_t num, int32_t den, int s, uint32_t *sat)
         --q; /* C division truncates; floor for negatives */
     }
     return vh_fix_sat32(q, sat);
+}
+
+/* floor(n / d) for d > 0 (C division truncates toward zero). */
+static int64_t floor_div(int64_t n, int64_t d)
+{
+    const int64_t q = n / d;
+    return (n % d != 0 && n < 0) ? q - 1 : q;
+}
+
+int32_t vh_fix_from_raw(int32_t raw, int32_t num, int32_t den, int frac, uint32_t *sat)
+{
+    if (raw > 65536 || raw < -65536 || num <= 0 || num > 32768 || den <= 0 || frac < 0 || frac > 30) {
+        vh_fix_count(sat);
+        return 0;
+    }
+    /* floor(raw num 2^frac / den + 1/2) = floor((2 raw num 2^frac + den) / (2 den)); |.| < 2^63 */
+    return vh_fix_sat32(floor_div(2 * (int64_t)raw * num * ((int64_t)1 << frac) + den, 2 * (int64_t)den), sat);
+}
+
+int64_t vh_fix_to_raw(int32_t v, int frac, int32_t num, int32_t den)
+{
+    int64_t d;
+    if (num <= 0 || den <= 0 || den > 1073741824 || frac < 0 || frac > 30) {
+        return 0;
+    }
+    /* floor(v den / (num 2^frac) + 1/2) = floor((2 v den + num 2^frac) / (2 num 2^frac)):
+     * |2 v den| < 2^63, 2 num 2^frac < 2^62 */
+    d = (int64_t)num * ((int64_t)1 << frac);
+    return floor_div(2 * (int64_t)v * den + d, 2 * d);
 }
 
 #define ONE_Q30 1073741824 /* 1.0 in Q1.30 */

@@ -66,9 +66,21 @@ static inline int32_t vh_fix_rshift_rnd(int64_t x, int s, uint32_t *sat)
     return vh_fix_sat32(vh_fix_asr64(x + ((int64_t)1 << (s - 1)), s), sat);
 }
 
-/* x * 2^s for s in [0, 31], saturated (the int64 product of an int32 and 2^31 cannot overflow). */
+/* x * 2^s for s in [0, 31], saturated (the int64 product of an int32 and 2^31 cannot overflow).
+ * Outside that range, still defined: s < 0 is vh_fix_rshift_rnd(x, -s); s > 31 saturates any
+ * x != 0 (counted), as the exact result would. */
 static inline int32_t vh_fix_lshift_sat(int32_t x, int s, uint32_t *sat)
 {
+    if (s < 0) {
+        return vh_fix_rshift_rnd(x, -s, sat);
+    }
+    if (s > 31) {
+        if (x == 0) {
+            return 0;
+        }
+        vh_fix_count(sat);
+        return x > 0 ? INT32_MAX : INT32_MIN;
+    }
     return vh_fix_sat32((int64_t)x * ((int64_t)1 << s), sat);
 }
 
@@ -115,16 +127,31 @@ static inline int32_t vh_fix_kmul(vh_fix_k_t k, int32_t v, int fin, int fout, ui
     return vh_fix_sat32(prod * ((int64_t)1 << -s), sat);
 }
 
-/* Guarded dot product sum_i a[i*sa] * b[i*sb], n <= 8, returned in Q.(fa + fb - 3): each exact
- * product is floored by the 3 guard bits before accumulation, so 8 products of two int32 cannot
- * overflow the int64 accumulator (8 * 2^62 / 2^3 = 2^62). The result differs from the exact sum by
- * less than n LSB of Q.(fa+fb-3), far below the final rounding (vh_fix_rshift_rnd to the output). */
+/* Guarded dot product sum_i a[i*sa] * b[i*sb], 0 <= n <= VH_FIX_DOT_MAX, returned in
+ * Q.(fa + fb - 3): each exact product is floored by the 3 guard bits before accumulation, so 8
+ * products of two int32 cannot overflow the int64 accumulator (8 * 2^62 / 2^3 = 2^62). The result
+ * differs from the exact sum by less than n LSB of Q.(fa+fb-3), far below the final rounding
+ * (vh_fix_rshift_rnd to the output). An n outside [0, 8] is refused: the result is 0 (a longer
+ * sum could overflow; callers size n at compile time, see vh_skfq.c). */
 #define VH_FIX_GUARD 3
+#define VH_FIX_DOT_MAX 8
 int64_t vh_fix_dot(const int32_t *a, int sa, const int32_t *b, int sb, int n);
 
-/* round_half_up(num * 2^s / den) with den > 0, saturated; s in [0, 32] and |num| < 2^31 so the
- * numerator fits int64. den <= 0 saturates towards the sign of num (counted). */
+/* round_half_up(num * 2^s / den) with den > 0, saturated; s in [0, 30] so that the numerator
+ * 2 num 2^s fits int64. An s outside [0, 30] is clamped to it and counted as a saturation (the
+ * result is then not num 2^s / den). den <= 0 saturates towards the sign of num (counted). */
 int32_t vh_fix_div(int32_t num, int32_t den, int s, uint32_t *sat);
+
+/* A raw CAN signal times its DBC scale num/den, in Q.frac: round_half_up(raw num 2^frac / den),
+ * saturated (counted). Exact (one rounding of the exact rational), so for the DBC's decimal
+ * scales it equals rounding the double decode (tests/test_c_integer_path.py checks every raw
+ * value). Preconditions, checked (result 0, counted): |raw| <= 2^16, 0 < num <= 2^15, den > 0,
+ * 0 <= frac <= 30, so that 2 raw num 2^frac fits int64. */
+int32_t vh_fix_from_raw(int32_t raw, int32_t num, int32_t den, int frac, uint32_t *sat);
+/* The inverse: a value in Q.frac to raw units of scale num/den, round_half_up(v den / (num 2^frac)),
+ * as int64 (the caller clamps to the signal's range). Exact; 0 < den <= 2^30, num > 0, 0 <= frac <= 30
+ * (outside: 0). */
+int64_t vh_fix_to_raw(int32_t v, int frac, int32_t num, int32_t den);
 
 /* sin and cos of an angle in Q1.30 [rad], |angle| <= 1 (larger is clipped to +-1 and counted),
  * results in Q1.30: Horner-form Taylor polynomials to x^9 and x^10 (truncation < 3e-8 at 1 rad),

@@ -1,0 +1,98 @@
+/* vh_camber_app.c - the camber inspection ECU application, see vh_camber_app.h. */
+#include <string.h>
+
+#include "vh_camber_app.h"
+#include "vh_e2e.h"
+#include "vh_pt.h"
+#include "vh_pt_enc.h"
+#include "vh_pt_meta.h"
+
+#define CIS_TIMEOUT_TICKS (VH_PT_CIS_ACCEL_RX_TIMEOUT_CYCLES * (VH_PT_CIS_ACCEL_CYCLE_TIME_US / VH_TICK_US))
+
+void vh_cmb_app_reset(vh_ecu_cis_t *c, const vh_camber_config_t *cfg)
+{
+    int i;
+    vh_camber_cal_t cal[VH_ECU_N_WHEELS];
+    for (i = 0; i < VH_ECU_N_WHEELS; ++i) {
+        cal[i] = c->cmb[i].cal;
+    }
+    memset(c, 0, sizeof *c);
+    for (i = 0; i < VH_ECU_N_WHEELS; ++i) {
+        (void)vh_camber_init(&c->cmb[i], cfg, cal[i].valid ? &cal[i] : NULL); /* cfg validated by the caller */
+    }
+    vh_rx_init(&c->rx);
+}
+
+int vh_cmb_app_set_calibration(vh_ecu_cis_t *c, unsigned wheel, const vh_camber_cal_t *cal)
+{
+    if (wheel >= VH_ECU_N_WHEELS) {
+        return VH_EINVAL;
+    }
+    c->have[wheel] = 0u;
+    return vh_camber_set_calibration(&c->cmb[wheel], cal);
+}
+
+void vh_cmb_app_rx(vh_ecu_cis_t *c, vh_ecu_counters_t *cnt, const vh_frame_t *f)
+{
+    struct vh_pt_cis_accel_t m;
+    if (!vh_rx_accept(cnt, &c->rx, f, VH_PT_CIS_ACCEL_LENGTH, VH_PT_CIS_ACCEL_E2E_DATA_ID)) {
+        return;
+    }
+    (void)vh_pt_cis_accel_unpack(&m, f->data, f->len);
+    c->raw[0][0] = m.cis_acc_x_fl; c->raw[0][1] = m.cis_acc_y_fl; c->raw[0][2] = m.cis_acc_z_fl;
+    c->raw[1][0] = m.cis_acc_x_fr; c->raw[1][1] = m.cis_acc_y_fr; c->raw[1][2] = m.cis_acc_z_fr;
+    c->raw[2][0] = m.cis_acc_x_rl; c->raw[2][1] = m.cis_acc_y_rl; c->raw[2][2] = m.cis_acc_z_rl;
+    c->raw[3][0] = m.cis_acc_x_rr; c->raw[3][1] = m.cis_acc_y_rr; c->raw[3][2] = m.cis_acc_z_rr;
+    c->present = m.cis_present;
+}
+
+void vh_cmb_app_step(vh_ecu_cis_t *c, int still, vh_ecu_counters_t *cnt, unsigned burst_limit)
+{
+    const int fresh = c->rx.fresh;
+    int w;
+    if (vh_rx_tick(cnt, &c->rx, CIS_TIMEOUT_TICKS, burst_limit) && fresh) {
+        for (w = 0; w < VH_ECU_N_WHEELS; ++w) {
+            if (c->present & (1u << w)) {
+                vh_camber_result_t r;
+                if (vh_camber_step(&c->cmb[w], c->raw[w], still != 0, &r)) {
+                    c->last[w] = r;
+                    c->have[w] = 1u;
+                }
+            }
+        }
+    }
+    c->rx.fresh = 0u;
+}
+
+/* One wheel's result in VEHEST_Camber units (degrees); no completed window yet: reason SNA. */
+#define RAD2DEG 57.29577951308232
+#define CAMBER_FIELDS(W, wheel)                                                                                  \
+    do {                                                                                                       \
+        if (!c->have[W]) {                                                                                     \
+            m.camber_reason_##wheel = VH_ECU_CAMBER_NO_RESULT;                                                  \
+        } else {                                                                                               \
+            m.camber_reason_##wheel = c->last[W].reason;                                                       \
+            if (c->last[W].reason == VH_CAMBER_OK) {                                                           \
+                m.camber_##wheel = vh_pt_vehest_camber_camber_##wheel##_encode_round(c->last[W].theta_rad * RAD2DEG); \
+                m.misalign_##wheel = vh_pt_vehest_camber_misalign_##wheel##_encode_round(c->last[W].psi_rad * RAD2DEG); \
+                m.camber_bound_##wheel =                                                                       \
+                    vh_pt_vehest_camber_camber_bound_##wheel##_encode_round(c->last[W].bound_rad * RAD2DEG);    \
+            }                                                                                                  \
+        }                                                                                                      \
+    } while (0)
+
+int vh_cmb_app_fill(vh_ecu_cis_t *c, uint8_t *data)
+{
+    struct vh_pt_vehest_camber_t m;
+    if (c->rx.timed_out) {
+        return 0;
+    }
+    memset(&m, 0, sizeof m);
+    CAMBER_FIELDS(0, fl);
+    CAMBER_FIELDS(1, fr);
+    CAMBER_FIELDS(2, rl);
+    CAMBER_FIELDS(3, rr);
+    (void)vh_pt_vehest_camber_pack(data, &m, VH_PT_VEHEST_CAMBER_LENGTH);
+    vh_e2e_p01_protect(data, VH_PT_VEHEST_CAMBER_LENGTH, VH_PT_VEHEST_CAMBER_E2E_DATA_ID, &c->tx_counter);
+    return 1;
+}

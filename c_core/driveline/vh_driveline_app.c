@@ -1,0 +1,216 @@
+/* vh_driveline_app.c - the driveline ECU application, see vh_driveline_app.h. */
+#include <math.h>
+#include <string.h>
+
+#include "vh_driveline_app.h"
+#include "vh_e2e.h"
+#include "vh_pt.h"
+#include "vh_pt_enc.h"
+#include "vh_pt_meta.h"
+
+/* Signal order of vh_ecu_dls_t.valid */
+enum { SIG_WO = 0, SIG_WWL, SIG_WWR, SIG_TO, SIG_WE, SIG_WT, N_SIG };
+#define GEAR_SNA 15u
+/* RX timeout in ticks: RxTimeoutCycles of the DBC times the cycle time */
+#define DLS_TIMEOUT_TICKS (VH_PT_DLS_SENSORS_RX_TIMEOUT_CYCLES * (VH_PT_DLS_SENSORS_CYCLE_TIME_US / VH_TICK_US))
+
+int vh_drv_app_check(const double gear_ratio[VH_ECU_N_GEARS], double we_min)
+{
+    int i;
+    if (!(we_min > 0.0) || !isfinite(we_min)) {
+        return VH_EINVAL;
+    }
+    for (i = 1; i < VH_ECU_N_GEARS; ++i) {
+        if (!(gear_ratio[i] >= 0.0) || !isfinite(gear_ratio[i])) {
+            return VH_EINVAL;
+        }
+    }
+    return VH_OK;
+}
+
+void vh_drv_app_reset(vh_drv_app_t *a, const vh_dkf_config_t cfg[VH_ECU_N_DKF], const double gear_ratio[VH_ECU_N_GEARS])
+{
+    int i, g;
+    memset(a, 0, sizeof *a);
+    for (i = 0; i < VH_ECU_N_DKF; ++i) {
+        for (g = 1; g < VH_ECU_N_GEARS; ++g) {
+            (void)vh_dkf_gear_model(&cfg[i], gear_ratio[g], &a->gears[i][g]); /* 0: not usable, left zero */
+        }
+    }
+    a->gear = 0u;
+    a->dls.gear = GEAR_SNA;
+    vh_rx_init(&a->dls.rx);
+}
+
+/* One speed/torque signal: raw SNA value or a cleared qualifier makes it invalid. */
+static void take(vh_ecu_dls_t *d, vh_ecu_counters_t *cnt, int ok, double value, double *dst, int sig)
+{
+    if (!ok) {
+        vh_rx_count(&cnt->signal_invalid);
+        d->valid &= (uint8_t)~(1u << sig);
+        return;
+    }
+    *dst = value;
+    d->valid |= (uint8_t)(1u << sig);
+}
+
+void vh_drv_app_rx(vh_drv_app_t *a, const double gear_ratio[VH_ECU_N_GEARS], vh_ecu_counters_t *cnt,
+                   const vh_frame_t *f)
+{
+    struct vh_pt_dls_sensors_t m;
+    vh_ecu_dls_t *d = &a->dls;
+    if ((f->flags & VH_FRAME_EXT) != 0u) {
+        vh_rx_count(&cnt->dlc_error);
+        return;
+    }
+    if (!vh_rx_accept(cnt, &d->rx, f, VH_PT_DLS_SENSORS_LENGTH, VH_PT_DLS_SENSORS_E2E_DATA_ID)) {
+        return;
+    }
+    (void)vh_pt_dls_sensors_unpack(&m, f->data, f->len);
+    d->valid = 0u;
+    take(d, cnt, m.qf_out_shaft_speed && m.out_shaft_speed != VH_PT_DLS_SENSORS_OUT_SHAFT_SPEED_SNA_CHOICE,
+         vh_pt_dls_sensors_out_shaft_speed_decode(m.out_shaft_speed), &d->wo, SIG_WO);
+    take(d, cnt, m.qf_wheel_speed_l && m.wheel_speed_l != VH_PT_DLS_SENSORS_WHEEL_SPEED_L_SNA_CHOICE,
+         vh_pt_dls_sensors_wheel_speed_l_decode(m.wheel_speed_l), &d->wwl, SIG_WWL);
+    take(d, cnt, m.qf_wheel_speed_r && m.wheel_speed_r != VH_PT_DLS_SENSORS_WHEEL_SPEED_R_SNA_CHOICE,
+         vh_pt_dls_sensors_wheel_speed_r_decode(m.wheel_speed_r), &d->wwr, SIG_WWR);
+    take(d, cnt, m.qf_shaft_torque && m.shaft_torque != VH_PT_DLS_SENSORS_SHAFT_TORQUE_SNA_CHOICE,
+         vh_pt_dls_sensors_shaft_torque_decode(m.shaft_torque), &d->to, SIG_TO);
+    take(d, cnt, m.qf_engine_speed && m.engine_speed != VH_PT_DLS_SENSORS_ENGINE_SPEED_SNA_CHOICE,
+         vh_pt_dls_sensors_engine_speed_decode(m.engine_speed), &d->we, SIG_WE);
+    take(d, cnt, m.qf_turbine_speed && m.turbine_speed != VH_PT_DLS_SENSORS_TURBINE_SPEED_SNA_CHOICE,
+         vh_pt_dls_sensors_turbine_speed_decode(m.turbine_speed), &d->wt, SIG_WT);
+    if (m.gear_engaged >= VH_ECU_N_GEARS || (m.gear_engaged > 0u && !(gear_ratio[m.gear_engaged] > 0.0))) {
+        if (m.gear_engaged != GEAR_SNA) {
+            vh_rx_count(&cnt->signal_invalid); /* a gear the ECU has no ratio for */
+        }
+        d->gear = GEAR_SNA;
+    } else {
+        d->gear = m.gear_engaged;
+    }
+}
+
+/* Inputs for this tick: timeout, gear, turbine torque (eq. 9, held when not usable). */
+static unsigned update_inputs(vh_drv_app_t *a, vh_dkf_t dkf[VH_ECU_N_DKF], double we_min, vh_ecu_counters_t *cnt,
+                              unsigned burst_limit)
+{
+    vh_ecu_dls_t *d = &a->dls;
+    const int fresh = d->rx.fresh;
+    unsigned mask = 0u;
+    int i;
+    if (!vh_rx_tick(cnt, &d->rx, DLS_TIMEOUT_TICKS, burst_limit) || d->rx.timed_out) {
+        d->valid = 0u; /* burst or silence: no usable sample */
+    }
+    if (d->gear != GEAR_SNA && d->gear != a->gear && !d->rx.timed_out) {
+        if (d->gear > 0u) {
+            for (i = 0; i < VH_ECU_N_DKF; ++i) {
+                vh_dkf_use_gear_model(&dkf[i], &a->gears[i][d->gear]); /* rx_dls admits usable gears only */
+            }
+        }
+        a->gear = d->gear;
+    }
+    /* turbine torque reaches the output only with a gear engaged; neutral gives u = 0 */
+    if (d->rx.timed_out || d->gear == GEAR_SNA) {
+        a->ti_valid = 0u;
+    } else if (d->gear == 0u) {
+        a->ti = 0.0;
+        a->ti_valid = 1u;
+    } else if ((d->valid & (1u << SIG_WE)) && (d->valid & (1u << SIG_WT))) {
+        double ti;
+        a->ti_valid = (uint8_t)(vh_dkf_turbine_torque(d->we, d->wt, we_min, &ti) == 0);
+        if (a->ti_valid) {
+            a->ti = ti;
+        }
+    } else {
+        a->ti_valid = 0u;
+    }
+    if (!a->ti_valid) {
+        vh_rx_count(&cnt->input_invalid);
+    } else {
+        mask |= VH_DKF_U_VALID;
+    }
+    if (d->valid & (1u << SIG_WO)) {
+        mask |= VH_DKF_Z_WO;
+    }
+    if ((d->valid & (1u << SIG_WWL)) && (d->valid & (1u << SIG_WWR))) {
+        mask |= VH_DKF_Z_WW;
+    }
+    if (d->valid & (1u << SIG_TO)) {
+        mask |= VH_DKF_Z_TO;
+    }
+    if (!fresh) { /* measurement update only with samples new since the last tick */
+        mask |= VH_DKF_STALE;
+    }
+    d->rx.fresh = 0u;
+    return mask;
+}
+
+void vh_drv_app_step(vh_drv_app_t *a, vh_dkf_t dkf[VH_ECU_N_DKF], double we_min, vh_ecu_counters_t *cnt,
+                     unsigned burst_limit)
+{
+    const unsigned mask = update_inputs(a, dkf, we_min, cnt, burst_limit);
+    const vh_ecu_dls_t *d = &a->dls;
+    const double z[VH_DKF_NZ] = {d->wo, 0.5 * (d->wwl + d->wwr), d->to};
+    int i;
+    for (i = 0; i < VH_ECU_N_DKF; ++i) {
+        if (vh_dkf_step(&dkf[i], a->ti, z, mask)) {
+            vh_rx_count(&cnt->filter_reset);
+        }
+    }
+}
+
+int vh_drv_app_still(const vh_drv_app_t *a, double lim)
+{
+    const vh_ecu_dls_t *d = &a->dls;
+    return !d->rx.timed_out && (d->valid & (1u << SIG_WWL)) && (d->valid & (1u << SIG_WWR)) && fabs(d->wwl) < lim &&
+           fabs(d->wwr) < lim;
+}
+
+int vh_drv_app_fill_est(vh_drv_app_t *a, const vh_dkf_t dkf[VH_ECU_N_DKF], uint8_t *data)
+{
+    struct vh_pt_vehest_driveline_est_t est;
+    memset(&est, 0, sizeof est);
+    est.dkf_t_health = dkf[VH_ECU_DKF_T].health;
+    est.dkf_s_health = dkf[VH_ECU_DKF_S].health;
+    est.dkf_t_shaft_torque = vh_pt_vehest_driveline_est_dkf_t_shaft_torque_encode_round(dkf[VH_ECU_DKF_T].x[2]);
+    est.dkf_t_road_load_err = vh_pt_vehest_driveline_est_dkf_t_road_load_err_encode_round(dkf[VH_ECU_DKF_T].x[3]);
+    est.dkf_s_shaft_torque = vh_pt_vehest_driveline_est_dkf_s_shaft_torque_encode_round(dkf[VH_ECU_DKF_S].x[2]);
+    est.dkf_s_road_load_err = vh_pt_vehest_driveline_est_dkf_s_road_load_err_encode_round(dkf[VH_ECU_DKF_S].x[3]);
+    est.dkf_t_wheel_speed = vh_pt_vehest_driveline_est_dkf_t_wheel_speed_encode_round(dkf[VH_ECU_DKF_T].x[1]);
+    est.turbine_torque = vh_pt_vehest_driveline_est_turbine_torque_encode_round(a->ti);
+    /* valid only from valid inputs: OK means every input of the filter was good this tick */
+    est.dkf_t_valid = dkf[VH_ECU_DKF_T].health == VH_HEALTH_OK;
+    est.dkf_s_valid = dkf[VH_ECU_DKF_S].health == VH_HEALTH_OK;
+    est.turbine_torque_valid = a->ti_valid;
+    (void)vh_pt_vehest_driveline_est_pack(data, &est, VH_PT_VEHEST_DRIVELINE_EST_LENGTH);
+    vh_e2e_p01_protect(data, VH_PT_VEHEST_DRIVELINE_EST_LENGTH, VH_PT_VEHEST_DRIVELINE_EST_E2E_DATA_ID,
+                       &a->tx_counter[0]);
+    return 1;
+}
+
+int vh_drv_app_fill_status(vh_drv_app_t *a, const vh_dkf_t dkf[VH_ECU_N_DKF], const vh_ecu_counters_t *cnt,
+                           uint32_t tick, uint8_t *data)
+{
+    struct vh_pt_vehest_status_t st;
+    const vh_ecu_dls_t *d = &a->dls;
+    memset(&st, 0, sizeof st);
+    st.dkf_t_health_sts = dkf[VH_ECU_DKF_T].health;
+    st.dkf_s_health_sts = dkf[VH_ECU_DKF_S].health;
+    st.ecu_tick = tick;
+    st.cnt_crc_error = cnt->crc_error;
+    st.cnt_counter_repeat = cnt->counter_repeat;
+    st.cnt_counter_skip = cnt->counter_skip;
+    st.cnt_dlc_error = cnt->dlc_error;
+    st.cnt_timeout = cnt->timeout;
+    st.cnt_unknown_id = cnt->unknown_id;
+    st.cnt_signal_invalid = cnt->signal_invalid;
+    st.cnt_input_invalid = cnt->input_invalid;
+    st.cnt_filter_reset = cnt->filter_reset;
+    st.cnt_deadline_miss = cnt->deadline_miss;
+    st.cnt_rx_burst = cnt->rx_burst;
+    st.rx_fault_active = (uint8_t)((d->rx.timed_out ? 1u : 0u) | (((d->valid & 0x3Fu) != 0x3Fu) ? 2u : 0u) |
+                                   (a->ti_valid ? 0u : 4u));
+    (void)vh_pt_vehest_status_pack(data, &st, VH_PT_VEHEST_STATUS_LENGTH);
+    vh_e2e_p01_protect(data, VH_PT_VEHEST_STATUS_LENGTH, VH_PT_VEHEST_STATUS_E2E_DATA_ID, &a->tx_counter[1]);
+    return 1;
+}

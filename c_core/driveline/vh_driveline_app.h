@@ -1,0 +1,58 @@
+/* vh_driveline_app.h - the driveline ECU application (seed 001) on the powertrain bus.
+ *
+ * RX: DLS_Sensors (length, E2E, extended-ID refusal, per-signal qualifier and SNA, the engaged
+ * gear), timeout and burst. Step: the turbine torque input (eq. 9), the filters' ratio for the
+ * engaged gear, one step of each driveline filter. TX: VEHEST_DrivelineEst every tick and
+ * VEHEST_Status (the powertrain bus's counters) at its DBC cycle.
+ *
+ * The two filters are passed in, not held here: they are the ECU's public face (vh_ecu_t.dkf).
+ */
+#ifndef VH_DRIVELINE_APP_H
+#define VH_DRIVELINE_APP_H
+
+#include "vh_dkf.h"
+#include "vh_rx.h"
+#include "vh_types.h"
+
+/* The two driveline filters: T = speeds + torque transducer, S = speeds only. */
+enum { VH_ECU_DKF_T = 0, VH_ECU_DKF_S = 1, VH_ECU_N_DKF = 2 };
+#define VH_ECU_N_GEARS 6 /* index = GearEngaged 1..5; 0 = neutral */
+
+/* Last good driveline sensor sample (physical units) with per-signal validity. */
+typedef struct {
+    double wo, wwl, wwr, to, we, wt;
+    uint8_t valid;   /* bit i: signal i valid (order as above) */
+    uint8_t gear;    /* 0..14, 15 = SNA */
+    vh_ecu_rxmsg_t rx;
+} vh_ecu_dls_t;
+
+typedef struct {
+    vh_ecu_dls_t dls;
+    double ti;        /* last turbine torque input (eq. 9) */
+    uint8_t ti_valid;
+    uint8_t gear;     /* gear the filters are discretised for */
+    uint8_t tx_counter[2]; /* E2E counters: DrivelineEst, Status */
+    /* each filter's discrete model per usable gear, computed at reset: a gear change in the tick
+     * is a copy, not a matrix exponential (ri = 0: gear not usable) */
+    vh_dkf_gear_model_t gears[VH_ECU_N_DKF][VH_ECU_N_GEARS];
+} vh_drv_app_t;
+
+/* VH_OK, or VH_EINVAL for a negative or non-finite ratio or a non-positive we_min. */
+int vh_drv_app_check(const double gear_ratio[VH_ECU_N_GEARS], double we_min);
+/* Restart; discretises each filter's model for every usable gear (cfg: the filters' configurations). */
+void vh_drv_app_reset(vh_drv_app_t *a, const vh_dkf_config_t cfg[VH_ECU_N_DKF], const double gear_ratio[VH_ECU_N_GEARS]);
+/* One received DLS_Sensors frame, checked and counted into cnt. */
+void vh_drv_app_rx(vh_drv_app_t *a, const double gear_ratio[VH_ECU_N_GEARS], vh_ecu_counters_t *cnt,
+                   const vh_frame_t *f);
+/* The tick's inputs and one step of both filters. */
+void vh_drv_app_step(vh_drv_app_t *a, vh_dkf_t dkf[VH_ECU_N_DKF], double we_min, vh_ecu_counters_t *cnt,
+                     unsigned burst_limit);
+/* 1 when both wheel speeds are valid, fresh enough and below lim [rad/s]: the car stands still. */
+int vh_drv_app_still(const vh_drv_app_t *a, double lim);
+/* The payload (packed, E2E-protected, zeroed beforehand by the scheduler) of VEHEST_DrivelineEst
+ * and VEHEST_Status; 1: send it. */
+int vh_drv_app_fill_est(vh_drv_app_t *a, const vh_dkf_t dkf[VH_ECU_N_DKF], uint8_t *data);
+int vh_drv_app_fill_status(vh_drv_app_t *a, const vh_dkf_t dkf[VH_ECU_N_DKF], const vh_ecu_counters_t *cnt,
+                           uint32_t tick, uint8_t *data);
+
+#endif /* VH_DRIVELINE_APP_H */

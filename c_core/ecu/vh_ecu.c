@@ -1,0 +1,163 @@
+/* vh_ecu.c - the ECU scheduler: dispatch by frame ID, the runnable table, the counters. */
+#include <math.h>
+#include <string.h>
+
+#include "vh_ch.h"
+#include "vh_ch_meta.h"
+#include "vh_ecu.h"
+#include "vh_pt.h"
+#include "vh_pt_meta.h"
+
+/* Ticks per cycle of a message; the meta headers refuse a cycle that is not whole ticks. */
+#define TICKS(cycle_us) ((cycle_us) / VH_TICK_US)
+
+int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_params_t *prm)
+{
+    int i;
+    vh_dkf_t probe;
+    vh_camber_t cprobe;
+    vh_skfq_t qprobe;
+    if (vh_drv_app_check(cfg->gear_ratio, cfg->we_min) != VH_OK || !(cfg->camber_still_ww >= 0.0) ||
+        !isfinite(cfg->camber_still_ww) || vh_camber_init(&cprobe, &cfg->camber, NULL) != VH_OK ||
+        vh_skfq_init(&qprobe, prm) != VH_OK) {
+        return VH_EINVAL;
+    }
+    for (i = 0; i < VH_ECU_N_DKF; ++i) {
+        if (vh_dkf_init(&probe, &cfg->dkf[i]) != VH_OK) {
+            return VH_EINVAL;
+        }
+    }
+    memset(ecu, 0, sizeof *ecu);
+    ecu->cfg = *cfg;
+    ecu->chs.skf.prm = *prm; /* the filter keeps its constants; vh_ecu_reset re-initialises from them */
+    vh_ecu_reset(ecu);
+    return VH_OK;
+}
+
+void vh_ecu_reset(vh_ecu_t *ecu)
+{
+    int i;
+    for (i = 0; i < VH_ECU_N_DKF; ++i) {
+        (void)vh_dkf_init(&ecu->dkf[i], &ecu->cfg.dkf[i]); /* validated in vh_ecu_init */
+    }
+    vh_drv_app_reset(&ecu->drv, ecu->cfg.dkf, ecu->cfg.gear_ratio);
+    vh_cmb_app_reset(&ecu->cis, &ecu->cfg.camber);
+    vh_tf_app_reset(&ecu->chs);
+    memset(&ecu->cnt, 0, sizeof ecu->cnt);
+    ecu->tick = 0u;
+}
+
+int vh_ecu_set_camber_calibration(vh_ecu_t *ecu, unsigned wheel, const vh_camber_cal_t *cal)
+{
+    return vh_cmb_app_set_calibration(&ecu->cis, wheel, cal);
+}
+
+/* ---- RX: dispatch by frame ID ---- */
+
+static void rx_dls(vh_ecu_t *ecu, const vh_frame_t *f) { vh_drv_app_rx(&ecu->drv, ecu->cfg.gear_ratio, &ecu->cnt, f); }
+static void rx_chs(vh_ecu_t *ecu, const vh_frame_t *f) { vh_tf_app_rx(&ecu->chs, f); }
+static void rx_cis(vh_ecu_t *ecu, const vh_frame_t *f)
+{
+    if ((f->flags & VH_FRAME_EXT) == 0u) { /* an extended-ID twin is not ours: ignored, not counted */
+        vh_cmb_app_rx(&ecu->cis, &ecu->cnt, f);
+    }
+}
+static void rx_none(vh_ecu_t *ecu, const vh_frame_t *f) { (void)ecu; (void)f; }
+
+static const struct {
+    uint32_t id;
+    void (*rx)(vh_ecu_t *ecu, const vh_frame_t *f);
+} RX_TABLE[] = {
+    {VH_PT_DLS_SENSORS_FRAME_ID, rx_dls},
+    {VH_CH_CHS_SENSORS_FRAME_ID, rx_chs},
+    {VH_PT_CIS_ACCEL_FRAME_ID, rx_cis},
+    /* known frames that are not the ECU's input: our own TX and the lockstep sync */
+    {VH_PT_VEHEST_DRIVELINE_EST_FRAME_ID, rx_none},
+    {VH_PT_VEHEST_STATUS_FRAME_ID, rx_none},
+    {VH_PT_SIM_SYNC_FRAME_ID, rx_none},
+    {VH_PT_VEHEST_SYNC_ACK_FRAME_ID, rx_none},
+    {VH_PT_VEHEST_CAMBER_FRAME_ID, rx_none},
+    {VH_CH_VEHEST_TIRE_FORCE_EST_FRAME_ID, rx_none},
+    {VH_CH_VEHEST_CHASSIS_STATUS_FRAME_ID, rx_none},
+};
+
+void vh_ecu_rx(vh_ecu_t *ecu, const vh_frame_t *frame)
+{
+    size_t i;
+    for (i = 0; i < sizeof RX_TABLE / sizeof RX_TABLE[0]; ++i) {
+        if (RX_TABLE[i].id == frame->id) {
+            RX_TABLE[i].rx(ecu, frame);
+            return;
+        }
+    }
+    vh_rx_count(&ecu->cnt.unknown_id);
+}
+
+/* ---- runnables: each system's step every tick, each TX frame at its DBC cycle ---- */
+
+static void drv_step(vh_ecu_t *ecu)
+{
+    vh_drv_app_step(&ecu->drv, ecu->dkf, ecu->cfg.we_min, &ecu->cnt, ecu->cfg.rx_burst_frames);
+}
+/* camber after the driveline: "stationary" is this tick's wheel-speed reading */
+static void cmb_step(vh_ecu_t *ecu)
+{
+    vh_cmb_app_step(&ecu->cis, vh_drv_app_still(&ecu->drv, ecu->cfg.camber_still_ww), &ecu->cnt,
+                    ecu->cfg.rx_burst_frames);
+}
+static void tf_step(vh_ecu_t *ecu) { vh_tf_app_step(&ecu->chs, ecu->cfg.rx_burst_frames); }
+
+static int drv_est(vh_ecu_t *ecu, uint8_t *d) { return vh_drv_app_fill_est(&ecu->drv, ecu->dkf, d); }
+static int drv_status(vh_ecu_t *ecu, uint8_t *d)
+{
+    return vh_drv_app_fill_status(&ecu->drv, ecu->dkf, &ecu->cnt, ecu->tick, d);
+}
+static int cmb_tx(vh_ecu_t *ecu, uint8_t *d) { return vh_cmb_app_fill(&ecu->cis, d); }
+static int tf_est(vh_ecu_t *ecu, uint8_t *d) { return vh_tf_app_fill_est(&ecu->chs, ecu->cfg.skf.s, d); }
+static int tf_status(vh_ecu_t *ecu, uint8_t *d) { return vh_tf_app_fill_status(&ecu->chs, d); }
+
+/* A step (step != NULL) or a TX frame (fill: its payload; 0 = nothing to send this time), run in
+ * this order every period_ticks ticks (at tick 0, then each multiple). */
+#define TX(fill, MSG) NULL, fill, MSG##_FRAME_ID, MSG##_LENGTH, MSG##_IS_FD, TICKS(MSG##_CYCLE_TIME_US)
+static const struct {
+    void (*step)(vh_ecu_t *ecu);
+    int (*fill)(vh_ecu_t *ecu, uint8_t *data);
+    uint32_t id;
+    uint8_t len, is_fd;
+    uint32_t period_ticks;
+} RUNNABLES[] = {
+    {drv_step, NULL, 0u, 0u, 0u, 1u},
+    {TX(drv_est, VH_PT_VEHEST_DRIVELINE_EST)},
+    {TX(drv_status, VH_PT_VEHEST_STATUS)},
+    {cmb_step, NULL, 0u, 0u, 0u, 1u},
+    {TX(cmb_tx, VH_PT_VEHEST_CAMBER)},
+    {tf_step, NULL, 0u, 0u, 0u, 1u},
+    {TX(tf_est, VH_CH_VEHEST_TIRE_FORCE_EST)},
+    {TX(tf_status, VH_CH_VEHEST_CHASSIS_STATUS)},
+};
+
+size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap)
+{
+    size_t i, n = 0u;
+    for (i = 0; i < sizeof RUNNABLES / sizeof RUNNABLES[0]; ++i) {
+        if (ecu->tick % RUNNABLES[i].period_ticks != 0u) {
+            continue;
+        }
+        if (RUNNABLES[i].step != NULL) {
+            RUNNABLES[i].step(ecu);
+        } else {
+            vh_frame_t *f = vh_tx_slot(tx, &n, cap, RUNNABLES[i].id, RUNNABLES[i].len, RUNNABLES[i].is_fd);
+            if (f != NULL && !RUNNABLES[i].fill(ecu, f->data)) {
+                --n; /* nothing to send: the slot is free again */
+            }
+        }
+    }
+    ++ecu->tick;
+    return n;
+}
+
+void vh_ecu_note_deadline_miss(vh_ecu_t *ecu, uint32_t n)
+{
+    const uint32_t sum = (uint32_t)ecu->cnt.deadline_miss + n;
+    ecu->cnt.deadline_miss = (uint16_t)(sum > UINT16_MAX ? UINT16_MAX : sum);
+}

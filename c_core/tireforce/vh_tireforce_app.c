@@ -1,0 +1,153 @@
+/* vh_tireforce_app.c - the tyre-force ECU application, see vh_tireforce_app.h. */
+#include <math.h>
+#include <string.h>
+
+#include "vh_ch.h"
+#include "vh_ch_enc.h"
+#include "vh_ch_meta.h"
+#include "vh_ch_q.h"
+#include "vh_e2e.h"
+#include "vh_health.h"
+#include "vh_tireforce_app.h"
+
+#define CHS_TIMEOUT_TICKS (VH_CH_CHS_SENSORS_RX_TIMEOUT_CYCLES * (VH_CH_CHS_SENSORS_CYCLE_TIME_US / VH_TICK_US))
+#define CHS_ALL_INPUTS 0x1FF0u /* channels 4..12 of vh_skf_input_t: steer, wheel speeds, torques */
+
+void vh_tf_app_reset(vh_ecu_chs_t *c)
+{
+    const vh_skfq_params_t prm = c->skf.prm;
+    memset(c, 0, sizeof *c);
+    vh_rx_init(&c->rx);
+    (void)vh_skfq_init(&c->skf, &prm); /* validated in vh_ecu_init */
+}
+
+/* One chassis channel: a raw SNA value or a cleared qualifier makes it invalid (counted). */
+static void take_ch(vh_ecu_chs_t *c, int ok, int32_t value, int ch)
+{
+    if (!ok) {
+        vh_rx_count(&c->cnt.signal_invalid);
+        c->valid &= (uint16_t)~(1u << ch);
+        return;
+    }
+    c->u[ch] = value;
+    c->valid |= (uint16_t)(1u << ch);
+}
+
+/* take_ch of one signal: qualifier set and not the SNA value, then raw -> Q.frac exactly (the same
+ * integer as rounding the double decode; saturation as that rounding's, not counted). */
+#define TAKE(sig, SIG, ch, frac)                                                                  \
+    take_ch(c, m.qf_##sig && m.sig != VH_CH_CHS_SENSORS_##SIG##_SNA_CHOICE,                        \
+            vh_ch_chs_sensors_##sig##_decode_q(m.sig, (frac), &ignored), ch)
+
+void vh_tf_app_rx(vh_ecu_chs_t *c, const vh_frame_t *f)
+{
+    struct vh_ch_chs_sensors_t m;
+    uint32_t ignored = 0u;
+    if ((f->flags & VH_FRAME_EXT) != 0u) {
+        vh_rx_count(&c->cnt.dlc_error);
+        return;
+    }
+    if (!vh_rx_accept(&c->cnt, &c->rx, f, VH_CH_CHS_SENSORS_LENGTH, VH_CH_CHS_SENSORS_E2E_DATA_ID)) {
+        return;
+    }
+    (void)vh_ch_chs_sensors_unpack(&m, f->data, f->len);
+    c->heard = 1u;
+    TAKE(long_accel, LONG_ACCEL, 0, VH_SKFQ_FA);
+    TAKE(lat_accel, LAT_ACCEL, 1, VH_SKFQ_FA);
+    TAKE(yaw_rate, YAW_RATE, 2, VH_SKFQ_FW);
+    TAKE(roll_rate, ROLL_RATE, 3, VH_SKFQ_FW);
+    TAKE(steer_angle, STEER_ANGLE, 4, VH_SKFQ_FD);
+    TAKE(wheel_speed_fl, WHEEL_SPEED_FL, 5, VH_SKFQ_FO);
+    TAKE(wheel_speed_fr, WHEEL_SPEED_FR, 6, VH_SKFQ_FO);
+    TAKE(wheel_speed_rl, WHEEL_SPEED_RL, 7, VH_SKFQ_FO);
+    TAKE(wheel_speed_rr, WHEEL_SPEED_RR, 8, VH_SKFQ_FO);
+    TAKE(wheel_torque_fl, WHEEL_TORQUE_FL, 9, VH_SKFQ_FT);
+    TAKE(wheel_torque_fr, WHEEL_TORQUE_FR, 10, VH_SKFQ_FT);
+    TAKE(wheel_torque_rl, WHEEL_TORQUE_RL, 11, VH_SKFQ_FT);
+    TAKE(wheel_torque_rr, WHEEL_TORQUE_RR, 12, VH_SKFQ_FT);
+}
+
+void vh_tf_app_step(vh_ecu_chs_t *c, unsigned burst_limit)
+{
+    vh_skfq_t *f = &c->skf;
+    const int fresh = c->rx.fresh;
+    const int was_out = c->rx.timed_out;
+    const int usable = vh_rx_tick(&c->cnt, &c->rx, CHS_TIMEOUT_TICKS, burst_limit) && fresh;
+    c->rx.fresh = 0u;
+    if (!c->heard) {
+        return;
+    }
+    if (c->rx.timed_out) {
+        if (!was_out) {
+            vh_skfq_reset(f);
+        }
+    } else {
+        unsigned mask = 0u;
+        const uint32_t sat0 = f->sat;
+        if (usable) {
+            mask = (c->valid & 0xFu) | ((c->valid & CHS_ALL_INPUTS) == CHS_ALL_INPUTS ? VH_SKF_U_VALID : 0u);
+        }
+        if (vh_skfq_step(f, (const vh_skfq_input_t *)(const void *)c->u, mask)) { /* same layout (vh_skfq.c) */
+            vh_rx_count(&c->cnt.filter_reset);
+        }
+        if (f->sat != sat0) {
+            vh_rx_count(&c->cnt.saturation);
+        }
+    }
+}
+
+/* An estimate while the filter is usable, else the signal's SNA (the encoders map NaN to SNA). */
+#define EST(sig, v) vh_ch_vehest_tire_force_est_##sig##_encode_round(ok ? (v) : (double)NAN)
+
+int vh_tf_app_fill_est(vh_ecu_chs_t *c, const double s[VH_SKF_NX], uint8_t *data)
+{
+    struct vh_ch_vehest_tire_force_est_t m;
+    const vh_skfq_t *f = &c->skf;
+    const double fx = 1.0 / (double)(1L << VH_SKFQ_FX);
+    const int ok = !c->rx.timed_out && (f->health == VH_HEALTH_OK || f->health == VH_HEALTH_DEGRADED);
+    if (!c->heard) {
+        return 0;
+    }
+    memset(&m, 0, sizeof m);
+    m.skfmec_q_health = f->health;
+    m.skfmec_q_valid = !c->rx.timed_out && f->health == VH_HEALTH_OK;
+    /* the tyre forces in integers (Q.FN -> raw, exact); the states below still through double:
+     * their scaling S is a double of the configuration, not a DBC fraction (docs/firmware.md) */
+    m.fy1 = ok ? vh_ch_vehest_tire_force_est_fy1_encode_q(f->fy[0], VH_SKFQ_FN) : VH_CH_VEHEST_TIRE_FORCE_EST_FY1_SNA_CHOICE;
+    m.fy2 = ok ? vh_ch_vehest_tire_force_est_fy2_encode_q(f->fy[1], VH_SKFQ_FN) : VH_CH_VEHEST_TIRE_FORCE_EST_FY2_SNA_CHOICE;
+    m.fy3 = ok ? vh_ch_vehest_tire_force_est_fy3_encode_q(f->fy[2], VH_SKFQ_FN) : VH_CH_VEHEST_TIRE_FORCE_EST_FY3_SNA_CHOICE;
+    m.fy4 = ok ? vh_ch_vehest_tire_force_est_fy4_encode_q(f->fy[3], VH_SKFQ_FN) : VH_CH_VEHEST_TIRE_FORCE_EST_FY4_SNA_CHOICE;
+    m.fyf = EST(fyf, f->x[VH_SKF_FYF] * fx / s[VH_SKF_FYF]);
+    m.fyr = EST(fyr, f->x[VH_SKF_FYR] * fx / s[VH_SKF_FYR]);
+    m.est_vx = EST(est_vx, f->x[VH_SKF_VX] * fx / s[VH_SKF_VX]);
+    m.est_vy = EST(est_vy, f->x[VH_SKF_VY] * fx / s[VH_SKF_VY]);
+    m.est_yaw_rate = EST(est_yaw_rate, f->x[VH_SKF_R] * fx / s[VH_SKF_R]);
+    m.est_roll_angle = EST(est_roll_angle, f->x[VH_SKF_PHI] * fx / s[VH_SKF_PHI]);
+    (void)vh_ch_vehest_tire_force_est_pack(data, &m, VH_CH_VEHEST_TIRE_FORCE_EST_LENGTH);
+    vh_e2e_p01_protect(data, VH_CH_VEHEST_TIRE_FORCE_EST_LENGTH, VH_CH_VEHEST_TIRE_FORCE_EST_E2E_DATA_ID,
+                       &c->tx_counter[0]);
+    return 1;
+}
+
+int vh_tf_app_fill_status(vh_ecu_chs_t *c, uint8_t *data)
+{
+    struct vh_ch_vehest_chassis_status_t st;
+    const uint32_t cnt_err = (uint32_t)c->cnt.counter_repeat + c->cnt.counter_skip;
+    if (!c->heard) {
+        return 0;
+    }
+    memset(&st, 0, sizeof st);
+    st.skfmec_q_health_sts = c->skf.health;
+    st.cnt_rx_crc_error = c->cnt.crc_error;
+    st.cnt_rx_counter_error = (uint16_t)(cnt_err > UINT16_MAX ? UINT16_MAX : cnt_err);
+    st.cnt_rx_timeout = c->cnt.timeout;
+    st.cnt_signal_invalid = c->cnt.signal_invalid;
+    st.cnt_saturation = c->cnt.saturation;
+    st.cnt_filter_reset = c->cnt.filter_reset;
+    st.rx_fault_active = (uint8_t)((c->rx.timed_out || c->rx.resync ? 1u : 0u) |
+                                   ((c->valid & 0x1FFFu) != 0x1FFFu ? 2u : 0u));
+    (void)vh_ch_vehest_chassis_status_pack(data, &st, VH_CH_VEHEST_CHASSIS_STATUS_LENGTH);
+    vh_e2e_p01_protect(data, VH_CH_VEHEST_CHASSIS_STATUS_LENGTH, VH_CH_VEHEST_CHASSIS_STATUS_E2E_DATA_ID,
+                       &c->tx_counter[1]);
+    return 1;
+}

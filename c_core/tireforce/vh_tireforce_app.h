@@ -1,0 +1,40 @@
+/* vh_tireforce_app.h - the tyre-force ECU application (seed 000) on the chassis bus.
+ *
+ * RX: CHS_Sensors (length, E2E, extended-ID refusal, per-signal qualifier and SNA), timeout and
+ * burst; each raw signal to the filter's Q format by an exact integer scaling (the DBC's scale as a
+ * fraction, vh_ch_q.h: no double). Step: one fixed-point SKFMEC step per tick on the fresh sample (prediction only,
+ * DEGRADED, without one), restarted after a timeout so that it re-seeds from live data. TX:
+ * VEHEST_TireForceEst and VEHEST_ChassisStatus at their DBC cycles, once the chassis bus has been
+ * heard (a powertrain-only car sees no chassis frames). Its own counters (VEHEST_ChassisStatus).
+ */
+#ifndef VH_TIREFORCE_APP_H
+#define VH_TIREFORCE_APP_H
+
+#include "vh_rx.h"
+#include "vh_skfq.h"
+#include "vh_tf_types.h"
+#include "vh_types.h"
+
+/* Chassis side (seed 000): last good CHS_Sensors sample, the fixed-point SKFMEC, its counters. */
+typedef struct {
+    int32_t u[VH_SKFQ_NU]; /* last good sample as vh_skfq_input_t: the raw signals in the filter's Q formats */
+    uint16_t valid;        /* bit i: channel i of u valid */
+    uint8_t heard;         /* a good CHS_Sensors frame has arrived since reset: the chassis bus is alive */
+    vh_ecu_rxmsg_t rx;
+    vh_skfq_t skf;         /* its integer constants (skf.prm) are set once, at vh_ecu_init */
+    vh_ecu_counters_t cnt;
+    uint8_t tx_counter[2]; /* E2E counters: TireForceEst, ChassisStatus */
+} vh_ecu_chs_t;
+
+/* Restart from the filter's constants (kept in c->skf.prm). */
+void vh_tf_app_reset(vh_ecu_chs_t *c);
+/* One received CHS_Sensors frame, checked and counted. */
+void vh_tf_app_rx(vh_ecu_chs_t *c, const vh_frame_t *f);
+/* Once per tick: RX timeout/burst and one filter step. */
+void vh_tf_app_step(vh_ecu_chs_t *c, unsigned burst_limit);
+/* The payloads of VEHEST_TireForceEst (states back to physical units by the scaling s of the
+ * configuration) and VEHEST_ChassisStatus; 0 (send nothing) before the chassis bus is heard. */
+int vh_tf_app_fill_est(vh_ecu_chs_t *c, const double s[VH_SKF_NX], uint8_t *data);
+int vh_tf_app_fill_status(vh_ecu_chs_t *c, uint8_t *data);
+
+#endif /* VH_TIREFORCE_APP_H */
