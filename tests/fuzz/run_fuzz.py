@@ -33,10 +33,10 @@ def build(work: Path, defines: tuple[str, ...] = ()) -> Path:
     if clang is None:
         raise RuntimeError("clang is needed (Debian: clang libclang-rt-14-dev)")
     gen = work / "generated"
-    firmware = [s for s in vehest_build.firmware_sources(gen)
-                if ROOT / "firmware_sim" not in s.parents]  # the ECU only: no plant, no sensor nodes
+    names = vehest_build.dbcgen.generate_all(gen)
+    firmware = vehest_build.ecu_sources(gen) + [gen / f"{n}.c" for n in names]  # the ECU only: no plant
     exe = work / "fuzz_ecu"
-    includes = [f"-I{d}" for d in vehest_build.INCLUDE_DIRS if ROOT / "firmware_sim" not in d.parents] + [f"-I{gen}"]
+    includes = [f"-I{d}" for d in vehest_build.firmware_include_dirs(gen)]
     r = subprocess.run([clang, "-std=c99", "-Wall", "-Wextra", "-Werror", *SAN, *defines, *includes,
                         *map(str, firmware), str(HERE / "fuzz_ecu.c"), "-lm", "-o", str(exe)],
                        capture_output=True, text=True)
