@@ -49,7 +49,7 @@ void vh_roll_params_default(vh_roll_params_t *prm)
     prm->q[VH_ROLL_X_VY] = 1e-5;
     prm->q[VH_ROLL_X_R] = 1e-6;
     prm->q[VH_ROLL_X_VZ] = 1e-6;
-    prm->q[VH_ROLL_X_P] = 1e-5;
+    prm->q[VH_ROLL_X_P] = 1e-8;  /* the roll balance is well known: small */
     prm->q[VH_ROLL_X_Q] = 1e-6;
     for (i = 0; i < VH_ROLL_NW; ++i) {
         prm->q[VH_ROLL_X_VZU + i] = 1e-4;
