@@ -114,11 +114,13 @@ typedef struct {
     double k;              /* switching gain [rad/s^2] (eq. 32-33) */
     double p;              /* boundary layer thickness [rad/s] (eq. 34-35) */
     double ref_frac;       /* reference roll: this fraction of the estimated passive roll */
-    double ref_tau;        /* low-pass time constant of the reference [s] */
+    double ref_tau;        /* low-pass time constant of the reference [s] (two stages) */
+    double ay_tau;         /* low-pass time constant of the estimated ay in eq. 27 [s] */
     double front_share;    /* front part of the total moment (rule: the passive roll-stiffness split) */
     double m_max_f, m_max_r;   /* actuator roll-moment limit per axle, on the body [Nm] */
     double rate_max_f, rate_max_r; /* rate limit per axle [Nm/s] */
-    double fade_time;      /* moment fades from full to zero over this [s] when the estimator is not OK */
+    double fade_time;      /* moment fades from full to zero over this [s] when the estimator is not OK
+                            * (>= m_max / rate_max per axle: the rate limit holds during the fade) */
     double recover_time;   /* estimator OK this long before the moment comes back (same ramp) [s] */
     double dt;             /* step [s] */
     /* model terms of eq. 27 (from vh_roll_params_t by vh_roll_smc_params_default) */

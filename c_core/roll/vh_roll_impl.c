@@ -578,7 +578,7 @@ void VH_ROLL_NAME(vh_roll_ukf_run)(ukf_t *f, size_t n, const real_t *u, const re
 
 int VH_ROLL_NAME(vh_roll_smc_init)(smc_t *c, const vh_roll_smc_params_t *prm)
 {
-    double v[15];
+    double v[16];
     int i, ok = 1;
     if (c == NULL || prm == NULL) {
         return -1;
@@ -586,12 +586,14 @@ int VH_ROLL_NAME(vh_roll_smc_init)(smc_t *c, const vh_roll_smc_params_t *prm)
     v[0] = prm->lambda; v[1] = prm->k; v[2] = prm->p; v[3] = prm->ref_tau; v[4] = prm->m_max_f;
     v[5] = prm->m_max_r; v[6] = prm->rate_max_f; v[7] = prm->rate_max_r; v[8] = prm->fade_time;
     v[9] = prm->dt; v[10] = prm->i_roll; v[11] = prm->ms_e; v[12] = prm->kphi;
-    v[13] = prm->recover_time + 1.0; v[14] = prm->cphi + 1.0;
-    for (i = 0; i < 15; ++i) {
+    v[13] = prm->recover_time + 1.0; v[14] = prm->cphi + 1.0; v[15] = prm->ay_tau;
+    for (i = 0; i < 16; ++i) {
         ok = ok && v[i] > 0.0 && v[i] < 1e12;
     }
     ok = ok && prm->ref_frac >= 0.0 && prm->ref_frac <= 1.0 && prm->front_share >= 0.0 &&
-         prm->front_share <= 1.0 && prm->recover_time >= 0.0 && prm->cphi >= 0.0;
+         prm->front_share <= 1.0 && prm->recover_time >= 0.0 && prm->cphi >= 0.0 &&
+         prm->fade_time * prm->rate_max_f >= prm->m_max_f * (1.0 - 1e-9) &&
+         prm->fade_time * prm->rate_max_r >= prm->m_max_r * (1.0 - 1e-9); /* the rate limit can follow the fade */
     if (!ok) {
         return -1;
     }
@@ -600,6 +602,7 @@ int VH_ROLL_NAME(vh_roll_smc_init)(smc_t *c, const vh_roll_smc_params_t *prm)
     c->p = RL(prm->p);
     c->ref_frac = RL(prm->ref_frac);
     c->ref_tau = RL(prm->ref_tau);
+    c->ay_tau = RL(prm->ay_tau);
     c->front_share = RL(prm->front_share);
     c->m_max_f = RL(prm->m_max_f);
     c->m_max_r = RL(prm->m_max_r);
@@ -623,6 +626,8 @@ void VH_ROLL_NAME(vh_roll_smc_reset)(smc_t *c)
     c->m_r = RL(0);
     c->fade = RL(0);
     c->ok_time = RL(0);
+    c->ay_f = RL(0);
+    c->ref_a = RL(0);
     c->phi_ref = RL(0);
     c->dphi_ref = RL(0);
     c->s = RL(0);
@@ -639,24 +644,28 @@ static real_t sat_r(real_t v)
     return v > RL(1) ? RL(1) : (v < RL(-1) ? RL(-1) : v);
 }
 
-/* Rate then torque limit of one axle; sets the health bits it used. */
-static real_t limit_axle(real_t want, real_t last, real_t m_max, real_t rate_max, real_t dt, uint32_t *h)
+/* Torque limit (scaled by the fade), then rate limit of one axle; sets the health bits it used.
+ * The rate limit acts last, so it always holds; the bound fade * m_max shrinks no faster than the
+ * rate limit can follow (init checks fade_time >= m_max / rate_max), so the moment is zero when
+ * the fade is. */
+static real_t limit_axle(real_t want, real_t last, real_t m_max, real_t rate_max, real_t dt, real_t fade, uint32_t *h)
 {
     const real_t step = rate_max * dt;
+    const real_t bound = m_max * fade;
     real_t v = want;
+    if (v > bound) {
+        v = bound;
+        *h |= fade >= RL(1) ? VH_ROLL_S_SAT : 0u;
+    } else if (v < -bound) {
+        v = -bound;
+        *h |= fade >= RL(1) ? VH_ROLL_S_SAT : 0u;
+    }
     if (v > last + step) {
         v = last + step;
         *h |= VH_ROLL_S_RATE;
     } else if (v < last - step) {
         v = last - step;
         *h |= VH_ROLL_S_RATE;
-    }
-    if (v > m_max) {
-        v = m_max;
-        *h |= VH_ROLL_S_SAT;
-    } else if (v < -m_max) {
-        v = -m_max;
-        *h |= VH_ROLL_S_SAT;
     }
     return v;
 }
@@ -697,17 +706,20 @@ uint32_t VH_ROLL_NAME(vh_roll_smc_step)(smc_t *c, real_t phi, real_t p, real_t a
 
     if (inputs_ok) {
         /* reference: ref_frac of the passive steady roll the estimated ay would give,
-         * phi_pass = ms e ay / (k_phi - ms g e), low-passed (tau); its rate from the filter,
-         * its second derivative neglected (docs/roll.md) */
-        target = c->ref_frac * c->ms_e * ay / (c->kphi - c->ms_e * c->g);
-        c->dphi_ref = (target - c->phi_ref) / c->ref_tau;
+         * phi_pass = ms e ay / (k_phi - ms g e), through two first-order low-passes (tau each):
+         * its rate is that of the second stage, smooth; its second derivative is neglected
+         * (docs/roll.md) */
+        c->ay_f += c->dt * (ay - c->ay_f) / c->ay_tau;
+        target = c->ref_frac * c->ms_e * c->ay_f / (c->kphi - c->ms_e * c->g);
+        c->ref_a += c->dt * (target - c->ref_a) / c->ref_tau;
+        c->dphi_ref = (c->ref_a - c->phi_ref) / c->ref_tau;
         c->phi_ref += c->dt * c->dphi_ref;
         e = phi - c->phi_ref;
         de = p - c->dphi_ref;
         c->s = de + c->lambda * e;                                           /* eq. 28 */
         /* eq. 27: I phi'' = ms g e phi + ms e ay - k_phi phi - c_phi p + M; eq. 29-31: s' = -k
          * sat(s/p) with the equivalent control, eq. 32-35: switching term with the boundary layer */
-        fpass = c->ms_e * c->g * phi + c->ms_e * ay - c->kphi * phi - c->cphi * p;
+        fpass = c->ms_e * c->g * phi + c->ms_e * c->ay_f - c->kphi * phi - c->cphi * p;
         mdem = c->i_roll * (-c->lambda * de - c->k * sat_r(c->s / c->p)) - fpass; /* eq. 31, 34 */
         c->m_demand = mdem;
     } else {
@@ -716,8 +728,8 @@ uint32_t VH_ROLL_NAME(vh_roll_smc_step)(smc_t *c, real_t phi, real_t p, real_t a
     m_tot = mdem * c->fade;
     want_f = c->front_share * m_tot;                 /* split: the passive roll-stiffness ratio */
     want_r = (RL(1) - c->front_share) * m_tot;
-    c->m_f = limit_axle(want_f, c->m_f, c->m_max_f, c->rate_max_f, c->dt, &h);
-    c->m_r = limit_axle(want_r, c->m_r, c->m_max_r, c->rate_max_r, c->dt, &h);
+    c->m_f = limit_axle(want_f, c->m_f, c->m_max_f, c->rate_max_f, c->dt, c->fade, &h);
+    c->m_r = limit_axle(want_r, c->m_r, c->m_max_r, c->rate_max_r, c->dt, c->fade, &h);
     if ((h & VH_ROLL_S_SAT) != 0u) {
         c->sat_steps += 1u;
     }

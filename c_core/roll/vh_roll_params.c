@@ -89,10 +89,11 @@ void vh_roll_smc_params_default(vh_roll_smc_params_t *c, const vh_roll_params_t 
     h_ra = prm->hf + (prm->hr - prm->hf) * prm->lf / l;
     e = prm->h - h_ra;
     c->lambda = 10.0;
-    c->k = 2.0;
-    c->p = 0.05;
+    c->k = 5.0;
+    c->p = 0.1;
     c->ref_frac = 0.3;
     c->ref_tau = 0.05;
+    c->ay_tau = 0.02;
     c->front_share = prm->kphi_f / (prm->kphi_f + prm->kphi_r);
     /* 48 V electromechanical stabiliser, ~1.2 kNm at the bar per axle; through the bar's lever
      * arms and links that is ~4.8 kNm of roll moment on the body (docs/roll.md) */
@@ -100,7 +101,7 @@ void vh_roll_smc_params_default(vh_roll_smc_params_t *c, const vh_roll_params_t 
     c->m_max_r = 4800.0;
     c->rate_max_f = 16000.0;
     c->rate_max_r = 16000.0;
-    c->fade_time = 0.2;
+    c->fade_time = 0.3; /* = m_max / rate_max: the fastest the rate limit allows */
     c->recover_time = 0.5;
     c->dt = prm->dt;
     c->i_roll = prm->ix + prm->ms * e * e;

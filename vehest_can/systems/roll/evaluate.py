@@ -142,3 +142,76 @@ def main(argv: list[str] | None = None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+
+# ---- closed loop on the estimator's own 9-DOF model ------------------------------------------
+
+@dataclass
+class LoopResult:
+    t: np.ndarray
+    x: np.ndarray          # plant (model) state
+    xhat: np.ndarray       # UKF estimate
+    m_cmd: np.ndarray      # (n, 2) commanded roll moments front, rear [Nm]
+    m_act: np.ndarray      # (n, 2) applied (after the actuator lag)
+    smc_health: np.ndarray
+    ukf_health: np.ndarray
+    ay: np.ndarray
+
+
+def closed_loop_model(speed_kmh: float = 72.0, active: bool = True, duration_s: float = 4.0,
+                      steer_deg: float = 5.0, t_ramp=(0.5, 2.5), smc_over: dict | None = None,
+                      prec: str = "f32", seed: int = 1, act_tau: float = 0.03,
+                      health_override=None, noise: dict | None = None) -> LoopResult:
+    """UKF + SMC (C, precision prec) closing the loop on the 9-DOF model of docs/roll.md (numpy
+    reference model as the plant, so no model error: this checks the controller's mechanics, not
+    its performance on the 14-DOF truth). Measurements: the model's h with Gaussian noise. The
+    actuators lag the command with act_tau; the UKF takes the applied moments as known inputs
+    (an actuator status frame would report them). health_override(k, health) may replace the
+    estimator health the controller sees (fault injection)."""
+    from . import ref
+
+    noise = dict(NOISE, **(noise or {}))
+    prm = rn.default_params()
+    model = ref.RollModel(rn.params_dict(prm))
+    sp = rn.default_smc_params(prm)
+    for k, v in (smc_over or {}).items():
+        setattr(sp, k, v)
+    ukf, smc = rn.Ukf(prm, prec), rn.Smc(sp, prec)
+    dt = prm.dt
+    n = int(round(duration_s / dt))
+    rng = np.random.default_rng(seed)
+    sig = np.array([noise["ay"]] + [noise["azu"]] * 4 + [noise["dt"]] * 4 + [noise["ds"]] * 4 + [noise["r"]])
+    t = np.arange(n) * dt
+    steer = np.radians(np.interp(t, [0.0, t_ramp[0], t_ramp[1]], [0.0, 0.0, steer_deg]))
+    vx = speed_kmh / 3.6
+    x = np.zeros(rn.NX)
+    m_act = np.zeros(2)
+    out_x, out_xh = np.zeros((n, rn.NX)), np.zeros((n, rn.NX))
+    out_mc, out_ma = np.zeros((n, 2)), np.zeros((n, 2))
+    out_sh, out_uh, out_ay = np.zeros(n, np.uint32), np.zeros(n, np.uint32), np.zeros(n)
+    for k in range(n):
+        u = np.array([steer[k], vx, m_act[0], m_act[1]])
+        z = model.h(x, u)[0]
+        out_ay[k] = z[0]
+        zm = z + sig * rng.standard_normal(rn.NZ)
+        um = u.copy()
+        um[0] += noise["steer"] * rng.standard_normal()
+        um[1] += noise["vx"] * rng.standard_normal()
+        uh = ukf.step(um, zm)
+        eh = health_override(k, uh) if health_override is not None else uh
+        xh = ukf.x
+        mf, mr, sh = smc.step(float(xh[4]), float(xh[5]), float(ukf.c.ay_post), int(eh), active)
+        out_x[k], out_xh[k], out_mc[k], out_ma[k] = x, xh, (mf, mr), m_act
+        out_sh[k], out_uh[k] = sh, uh
+        x = model.f(x, u)[0]
+        m_act = m_act + dt / act_tau * (np.array([mf, mr]) - m_act)
+    return LoopResult(t, out_x, out_xh, out_mc, out_ma, out_sh, out_uh, out_ay)
+
+
+def chatter_figures(m: np.ndarray, dt: float, f_hz: float = 50.0) -> tuple[float, float]:
+    """(total variation [Nm], fraction of the signal's energy (mean removed) above f_hz)."""
+    tv = float(np.sum(np.abs(np.diff(m))))
+    spec = np.abs(np.fft.rfft(m - np.mean(m))) ** 2
+    f = np.fft.rfftfreq(len(m), dt)
+    tot = spec.sum()
+    return tv, float(spec[f > f_hz].sum() / tot) if tot > 0 else 0.0
