@@ -33,8 +33,8 @@ void vh_roll_params_default(vh_roll_params_t *prm)
     prm->kt = 250000.0;
     prm->ct = 100.0;
     /* cornering stiffness per unit load of the plant's tyre at the static loads (docs/roll.md) */
-    prm->calpha_f = 17.3;
-    prm->calpha_r = 19.2;
+    prm->calpha_f = 17.34;
+    prm->calpha_r = 20.22;
     prm->mf_c = 1.30;
     prm->mu = 1.0;
     prm->mu_load = 0.94;
