@@ -100,6 +100,17 @@ typedef struct {
     int substeps;
 } vh_v14_truth_t;
 typedef struct {
+    double m_max;
+    double rate_max;
+    double tau;
+} vh_v14_arc_params_t;
+typedef struct {
+    vh_v14_arc_params_t prm[2];
+    double cmd[2];
+    double lim[2];
+    double m[2];
+} vh_v14_arc_t;
+typedef struct {
     vh_v14_params_t prm;
     vh_v14_truth_t truth;
     double x[32];
@@ -119,6 +130,7 @@ typedef struct {
     double rate_fixed;
     vh_mft_state_t pk[4];
     double ck[4];
+    vh_v14_arc_t arc;
 } vh_v14_t;
 void vh_v14_params_default(vh_v14_params_t *prm);
 int vh_v14_init(vh_v14_t *p, const vh_v14_params_t *prm);
@@ -128,6 +140,9 @@ void vh_v14_step(vh_v14_t *p, const vh_v14_input_t *in);
 size_t vh_v14_run(vh_v14_t *p, size_t n, const vh_v14_input_t *in, vh_v14_truth_t *out);
 double vh_v14_energy(const vh_v14_t *p);
 void vh_v14_input_init(vh_v14_input_t *in, double mu);
+void vh_v14_arc_params_default(vh_v14_arc_params_t *a);
+int vh_v14_arc_config(vh_v14_t *p, const vh_v14_arc_params_t *front, const vh_v14_arc_params_t *rear);
+void vh_v14_set_roll_moment(vh_v14_t *p, double m_front, double m_rear);
 
 enum { VH_CHS_CH_AX = 0, VH_CHS_CH_AY = 1, VH_CHS_CH_YAW = 2, VH_CHS_CH_ROLL = 3, VH_CHS_CH_STEER = 4,
        VH_CHS_CH_W = 5, VH_CHS_CH_T = 9, VH_CHS_NCH = 13 };
