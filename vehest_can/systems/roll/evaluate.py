@@ -309,5 +309,37 @@ def plant_loop_summary(speed_kmh: float = 72.0, seed: int = 1) -> list[str]:
     return lines
 
 
+# ---- UKF against an EKF on the same model ---------------------------------------------------------
+
+def sine_case(amp_deg: float = 6.0, f_hz: float = 0.7, speed_kmh: float = 72.0, mu: float = 1.0,
+              duration_s: float = 6.0, seed: int = 1) -> dict:
+    """A harder manoeuvre than the paper's: sinusoidal steer from 0.5 s (amp_deg, f_hz), road mu."""
+    doc = paper_case(speed_kmh, duration_s=duration_s, seed=seed)
+    t = np.arange(0.0, duration_s, 0.02)
+    doc["name"] = f"roll_sine_{amp_deg:g}deg_{f_hz:g}hz"
+    doc["driver"] = {"steer_deg": [[float(x), float(amp_deg * np.sin(2 * np.pi * f_hz * (x - 0.5))) if x > 0.5 else 0.0]
+                                   for x in t]}
+    doc["road"] = {"mu": [[0.0, mu]]}
+    return doc
+
+
+def ukf_vs_ekf(doc: dict, seed: int = 1) -> dict:
+    """RMS errors (fraction of the peak) of roll and roll rate: C double UKF vs the numpy EKF
+    (same model, Q, R, P0) on one scenario's synthesised measurements."""
+    from . import ref
+
+    truth = run_plant(doc)
+    prm = rn.default_params()
+    u, z, idx = synthesise(truth, decim=int(round(prm.dt / PLANT_DT)), seed=seed, prm=prm)
+    phi_t, p_t = truth["phi"][idx], truth["p"][idx]
+    xu, _, _ = rn.Ukf(prm, "f64").run(u, z)
+    xe = ref.RefEkf(rn.params_dict(prm)).run(u, z)
+    out = {"peak_ay": float(np.abs(truth["ay"]).max())}
+    for name, x in (("ukf", xu), ("ekf", xe)):
+        out[name] = (float(np.sqrt(np.mean((x[:, 4] - phi_t) ** 2)) / np.abs(phi_t).max()),
+                     float(np.sqrt(np.mean((x[:, 5] - p_t) ** 2)) / np.abs(p_t).max()))
+    return out
+
+
 if __name__ == "__main__":
     raise SystemExit(main())
