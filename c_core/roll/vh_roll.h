@@ -9,8 +9,8 @@
  *
  * Axes as the project's 14-DOF plant (firmware_sim/include/vh_veh14.h): ISO, x forward, y left,
  * z up; roll + lifts the left side; wheels 0..3 = FL, FR, RL, RR. The paper's SAE axes (y right,
- * z down) map by y -> -y, z -> -z; roll keeps its sign convention "positive = body leans out of
- * a left turn" only in ISO, see docs/roll.md.
+ * z down) map by y -> -y, z -> -z: roll + lifts the left side, so a left turn rolls the body to
+ * phi > 0 (docs/roll.md).
  */
 #ifndef VH_ROLL_H
 #define VH_ROLL_H
@@ -122,6 +122,7 @@ typedef struct {
     double fade_time;      /* moment fades from full to zero over this [s] when the estimator is not OK
                             * (>= m_max / rate_max per axle: the rate limit holds during the fade) */
     double recover_time;   /* estimator OK this long before the moment comes back (same ramp) [s] */
+    double not_ok_debounce; /* a not-OK health (other than RESET) this long trips the fade [s] */
     double dt;             /* step [s] */
     /* model terms of eq. 27 (from vh_roll_params_t by vh_roll_smc_params_default) */
     double i_roll;         /* Ix + ms e^2 [kg m^2] */
@@ -136,7 +137,8 @@ enum {
     VH_ROLL_S_FADING = 4,      /* fade factor between 0 and 1 */
     VH_ROLL_S_SAT = 8,         /* a torque limit acted this step */
     VH_ROLL_S_RATE = 16,       /* a rate limit acted this step */
-    VH_ROLL_S_BAD_INPUT = 32   /* non-finite estimate input: moment held at zero demand */
+    VH_ROLL_S_BAD_INPUT = 32,  /* non-finite estimate input: moment held at zero demand */
+    VH_ROLL_S_TRIPPED = 64     /* the estimate tripped the fade; set until it is OK for recover_time */
 };
 
 void vh_roll_params_default(vh_roll_params_t *prm);

@@ -43,12 +43,14 @@ typedef struct {
 
 typedef struct {
     VH_ROLL_REAL lambda, k, p, ref_frac, ref_tau, ay_tau, front_share;
-    VH_ROLL_REAL m_max_f, m_max_r, rate_max_f, rate_max_r, fade_time, recover_time, dt;
+    VH_ROLL_REAL m_max_f, m_max_r, rate_max_f, rate_max_r, fade_time, recover_time, not_ok_debounce, dt;
     VH_ROLL_REAL i_roll, ms_e, kphi, cphi, g;
     /* state */
     VH_ROLL_REAL m_f, m_r;     /* commanded roll moments on the body [Nm] (eq. 34, limited) */
     VH_ROLL_REAL fade;         /* 0..1 */
     VH_ROLL_REAL ok_time;      /* time the estimator has been OK [s] */
+    VH_ROLL_REAL bad_time;     /* time it has been not OK [s] */
+    uint32_t tripped;          /* 1: fading out / faded, until OK for recover_time */
     VH_ROLL_REAL ay_f;         /* low-passed ay [m/s^2] */
     VH_ROLL_REAL ref_a;        /* first stage of the reference's second-order low-pass */
     VH_ROLL_REAL phi_ref, dphi_ref; /* reference roll and its rate */

@@ -591,7 +591,8 @@ int VH_ROLL_NAME(vh_roll_smc_init)(smc_t *c, const vh_roll_smc_params_t *prm)
         ok = ok && v[i] > 0.0 && v[i] < 1e12;
     }
     ok = ok && prm->ref_frac >= 0.0 && prm->ref_frac <= 1.0 && prm->front_share >= 0.0 &&
-         prm->front_share <= 1.0 && prm->recover_time >= 0.0 && prm->cphi >= 0.0 &&
+         prm->front_share <= 1.0 && prm->recover_time >= 0.0 && prm->not_ok_debounce >= 0.0 &&
+         prm->not_ok_debounce < 1e3 && prm->cphi >= 0.0 &&
          prm->fade_time * prm->rate_max_f >= prm->m_max_f * (1.0 - 1e-9) &&
          prm->fade_time * prm->rate_max_r >= prm->m_max_r * (1.0 - 1e-9); /* the rate limit can follow the fade */
     if (!ok) {
@@ -610,6 +611,7 @@ int VH_ROLL_NAME(vh_roll_smc_init)(smc_t *c, const vh_roll_smc_params_t *prm)
     c->rate_max_r = RL(prm->rate_max_r);
     c->fade_time = RL(prm->fade_time);
     c->recover_time = RL(prm->recover_time);
+    c->not_ok_debounce = RL(prm->not_ok_debounce);
     c->dt = RL(prm->dt);
     c->i_roll = RL(prm->i_roll);
     c->ms_e = RL(prm->ms_e);
@@ -626,6 +628,8 @@ void VH_ROLL_NAME(vh_roll_smc_reset)(smc_t *c)
     c->m_r = RL(0);
     c->fade = RL(0);
     c->ok_time = RL(0);
+    c->bad_time = RL(0);
+    c->tripped = 1u; /* starts passive: on once the estimate has been OK for recover_time */
     c->ay_f = RL(0);
     c->ref_a = RL(0);
     c->phi_ref = RL(0);
@@ -677,13 +681,24 @@ uint32_t VH_ROLL_NAME(vh_roll_smc_step)(smc_t *c, real_t phi, real_t p, real_t a
     const int inputs_ok = finite_r(phi) && finite_r(p) && finite_r(ay);
 
     c->steps += 1u;
-    /* fade: the moment's scale ramps to 0 over fade_time when the estimate is not OK (or passive
-     * mode), back to 1 at the same rate once the estimate has been OK for recover_time */
+    /* fade: the moment's scale ramps to 0 over fade_time once the estimate trips (a filter reset or
+     * non-finite estimate at once; any other not-OK health after it lasted longer than
+     * not_ok_debounce) or in passive mode; after a trip it comes back at the same rate only when the
+     * estimate has been OK for recover_time. While not OK within the debounce the fade holds. */
     if (est_health == VH_ROLL_H_OK && inputs_ok) {
         c->ok_time += c->dt;
+        c->bad_time = RL(0);
     } else {
-        c->ok_time = RL(0);
+        c->bad_time += c->dt;
         h |= VH_ROLL_S_EST_NOT_OK;
+        if (!inputs_ok || est_health == VH_ROLL_H_RESET || est_health == VH_ROLL_H_INIT ||
+            c->bad_time > c->not_ok_debounce) {
+            c->tripped = 1u;
+            c->ok_time = RL(0);
+        }
+    }
+    if (c->tripped != 0u && c->ok_time >= c->recover_time) {
+        c->tripped = 0u;
     }
     if (!inputs_ok) {
         h |= VH_ROLL_S_BAD_INPUT;
@@ -691,15 +706,16 @@ uint32_t VH_ROLL_NAME(vh_roll_smc_step)(smc_t *c, real_t phi, real_t p, real_t a
     if (!active) {
         h |= VH_ROLL_S_PASSIVE;
     }
-    if (active && (h & VH_ROLL_S_EST_NOT_OK) == 0u && c->ok_time >= c->recover_time) {
-        c->fade += c->dt / c->fade_time;
-        c->fade = c->fade > RL(1) ? RL(1) : c->fade;
-    } else if (active && (h & VH_ROLL_S_EST_NOT_OK) == 0u && c->fade >= RL(1)) {
-        /* fully on and still OK: stays on (recover_time only gates a return) */
-    } else {
+    if (c->tripped != 0u) {
+        h |= VH_ROLL_S_TRIPPED;
+    }
+    if (!active || c->tripped != 0u) {
         c->fade -= c->dt / c->fade_time;
         c->fade = c->fade < RL(0) ? RL(0) : c->fade;
-    }
+    } else if ((h & VH_ROLL_S_EST_NOT_OK) == 0u) {
+        c->fade += c->dt / c->fade_time;
+        c->fade = c->fade > RL(1) ? RL(1) : c->fade;
+    } /* else: not OK within the debounce: hold */
     if (c->fade > RL(0) && c->fade < RL(1)) {
         h |= VH_ROLL_S_FADING;
     }

@@ -103,6 +103,7 @@ void vh_roll_smc_params_default(vh_roll_smc_params_t *c, const vh_roll_params_t 
     c->rate_max_r = 16000.0;
     c->fade_time = 0.3; /* = m_max / rate_max: the fastest the rate limit allows */
     c->recover_time = 0.5;
+    c->not_ok_debounce = 0.02; /* 20 steps: a lost frame or two does not fade the actuators */
     c->dt = prm->dt;
     c->i_roll = prm->ix + prm->ms * e * e;
     c->ms_e = prm->ms * e;

@@ -105,13 +105,41 @@ def test_fade_out_when_the_estimator_is_not_ok(prec):
     mf, mr, h, _ = c.run(np.full(n, 0.02), np.zeros(n), np.full(n, 5.0), health, True)
     m = mf + mr
     assert abs(m[1499]) > 1000                      # fully on before
+    k_deb = int(round(sp.not_ok_debounce / DT))
     k_fade = int(round(sp.fade_time / DT))
-    assert np.all(np.abs(m[1500:1500 + k_fade]) <= abs(m[1499]) + 1e-6)
-    assert np.all(m[1500 + k_fade + 2:] == 0)        # faded out within fade_time (+ rounding)
     assert np.all(h[1500:] & H.VH_ROLL_S_EST_NOT_OK)
-    assert np.all(h[1501:1500 + k_fade - 1] & H.VH_ROLL_S_FADING)
+    np.testing.assert_allclose(m[1500:1500 + k_deb - 1], m[1499], rtol=1e-3)  # debounce: fade held
+    assert np.all(h[1500 + k_deb + 1:] & H.VH_ROLL_S_TRIPPED)
+    assert np.all(np.abs(m[1500:]) <= abs(m[1499]) + 1e-6)
+    assert np.all(m[1500 + k_deb + k_fade + 2:] == 0)   # faded out within fade_time after the trip
+    assert np.all(h[1500 + k_deb + 2:1500 + k_deb + k_fade - 1] & H.VH_ROLL_S_FADING)
     # smooth: within the rate limits all the way down
     assert np.abs(np.diff(mf[1499:])).max() <= sp.rate_max_f * DT + 1e-3
+
+
+def test_a_short_not_ok_blip_does_not_fade():
+    """A lost frame or two (a few ms of DEGRADED) stays within the debounce: no fade, no trip."""
+    sp = rn.default_smc_params()
+    c = rn.Smc(sp)
+    n = 2000
+    health = np.full(n, H.VH_ROLL_H_OK)
+    health[1500:1505] = H.VH_ROLL_H_DEGRADED
+    mf, mr, h, _ = c.run(np.full(n, 0.02), np.zeros(n), np.full(n, 5.0), health, True)
+    assert not np.any(h & H.VH_ROLL_S_TRIPPED & (np.arange(n) > 1200).astype(np.uint32) * 0xFF)
+    assert np.all(h[1500:1505] & H.VH_ROLL_S_EST_NOT_OK) and abs(mf[-1]) > 500
+    assert np.all(np.abs(mf[1500:1506] - mf[1499]) < 1e-9)
+
+
+def test_a_filter_reset_trips_at_once():
+    sp = rn.default_smc_params()
+    c = rn.Smc(sp)
+    n = 2000
+    health = np.full(n, H.VH_ROLL_H_OK)
+    health[1500] = H.VH_ROLL_H_RESET
+    mf, mr, h, _ = c.run(np.full(n, 0.02), np.zeros(n), np.full(n, 5.0), health, True)
+    assert h[1500] & H.VH_ROLL_S_TRIPPED and abs(mf[1501]) < abs(mf[1499])
+    k_rec = int(round(sp.recover_time / DT))
+    assert np.all(h[1501:1500 + k_rec] & H.VH_ROLL_S_TRIPPED)
 
 
 def test_comes_back_only_after_the_estimator_is_ok_for_recover_time():
