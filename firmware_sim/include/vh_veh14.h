@@ -138,6 +138,24 @@ typedef struct {
     int substeps;               /* sub-steps of the last step */
 } vh_v14_truth_t;
 
+/* Active roll actuators (roll system, seed 003): per axle a commanded roll moment on the body,
+ * applied as equal and opposite vertical forces +-M/(2t) between the body and the wheels of that
+ * axle (left up for M > 0), through a torque limit, a rate limit and a first-order lag. Defaults:
+ * a 48 V electromechanical stabiliser, ~1.2 kNm at the bar, ~4.8 kNm of body roll moment per axle
+ * (docs/roll.md). With both applied moments zero the plant is exactly the passive one. */
+typedef struct {
+    double m_max;     /* roll moment limit on the body [Nm] */
+    double rate_max;  /* rate limit [Nm/s] */
+    double tau;       /* first-order lag [s]; 0: none */
+} vh_v14_arc_params_t;
+
+typedef struct {
+    vh_v14_arc_params_t prm[2]; /* front, rear */
+    double cmd[2];              /* last commanded moment [Nm], held until the next command */
+    double lim[2];              /* after the torque and rate limits */
+    double m[2];                /* applied (after the lag) over the last step [Nm] */
+} vh_v14_arc_t;
+
 typedef struct {
     vh_v14_params_t prm;
     vh_v14_truth_t truth;       /* state at the start of the last step, with the forces of its inputs */
@@ -159,6 +177,7 @@ typedef struct {
     double rate_fixed;          /* fastest rate not from the tyres [1/s] */
     vh_mft_state_t pk[VH_V14_NW]; /* tyres at the step-start loads (tangent base, held peak slips) */
     double ck[VH_V14_NW];       /* longitudinal slip stiffness at the step-start loads [N] */
+    vh_v14_arc_t arc;           /* active roll actuators (moments zero unless commanded) */
 } vh_v14_t;
 
 /* The paper's parameters plus the documented plausible rest. */
@@ -185,5 +204,14 @@ size_t vh_v14_run(vh_v14_t *p, size_t n, const vh_v14_input_t *in, vh_v14_truth_
 double vh_v14_energy(const vh_v14_t *p);
 /* All torques and steer zero, friction mu under every wheel. */
 void vh_v14_input_init(vh_v14_input_t *in, double mu);
+/* Active roll actuators. Defaults: m_max 4800 Nm, rate_max 16000 Nm/s, tau 0.03 s (docs/roll.md). */
+void vh_v14_arc_params_default(vh_v14_arc_params_t *a);
+/* Limits and lag per axle (front, rear); VH_EINVAL (nothing changed) unless m_max >= 0,
+ * rate_max > 0, tau >= 0, all finite. vh_v14_init sets the defaults; reset zeroes the moments. */
+int vh_v14_arc_config(vh_v14_t *p, const vh_v14_arc_params_t *front, const vh_v14_arc_params_t *rear);
+/* Roll moment command per axle [Nm] for the next steps (non-finite: 0). Each step moves the
+ * limited command by at most rate_max dt towards it, clamps it to +-m_max, and the applied moment
+ * follows with the lag (exact first-order discretisation over the step) and acts over that step. */
+void vh_v14_set_roll_moment(vh_v14_t *p, double m_front, double m_rear);
 
 #endif /* VH_VEH14_H */

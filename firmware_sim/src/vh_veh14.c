@@ -25,6 +25,8 @@ typedef struct {
     /* parameter combinations, so the right-hand side multiplies instead of divides */
     double inv_iw, inv_mu[VH_V14_NW], jack[VH_V14_NW], arb_f, arb_r;
     unsigned refresh;              /* bit i: the truth stage refreshes tyre i's peak slips */
+    int arc_on;                    /* an active roll moment acts this step (else: the passive plant, untouched) */
+    double arc_f[VH_V14_NW];       /* its vertical force on each body corner, + up [N] */
 } ctx_t;
 
 /* What the right-hand side computes besides the derivative (for the truth). */
@@ -185,6 +187,9 @@ static void deriv(const vh_v14_t *p, const ctx_t *c, const double *x, double *dx
         }
         fj = c->jack[i] * fyv; /* vertical part of the link force through the roll centre */
         fb[i] = fsd[i] + farb[i] + fj;
+        if (c->arc_on) {
+            fb[i] += c->arc_f[i]; /* active roll actuator: on the body, reaction on the wheel */
+        }
         sfz_body += fb[i];
 
         sfx += fxv;
@@ -223,6 +228,11 @@ static void deriv(const vh_v14_t *p, const ctx_t *c, const double *x, double *dx
     for (i = 0; i < VH_V14_NW; ++i) {
         smx += p->cy[i] * (fsd[i] + farb[i]);
         smy -= p->cx[i] * fb[i];
+    }
+    if (c->arc_on) {
+        for (i = 0; i < VH_V14_NW; ++i) {
+            smx += p->cy[i] * c->arc_f[i]; /* the actuators' roll moment, Mf + Mr */
+        }
     }
     smx += ms * G * p->e * sin(phi); /* gravity on the rolled sprung mass */
     faero = 0.5 * prm->rho * prm->cda * vx * fabs(vx);
@@ -399,6 +409,8 @@ int vh_v14_init(vh_v14_t *p, const vh_v14_params_t *prm)
     kfast = prm->kt + prm->k_r + p->k_arb_r / (2.0 * prm->tr * prm->tr);
     kfast = sqrt(kfast / prm->m_ur);
     p->rate_fixed = kfast > p->rate_fixed ? kfast : p->rate_fixed;
+    vh_v14_arc_params_default(&p->arc.prm[0]);
+    vh_v14_arc_params_default(&p->arc.prm[1]);
     vh_v14_reset(p);
     return VH_OK;
 }
@@ -426,6 +438,11 @@ static void make_ctx(const vh_v14_t *p, const vh_v14_input_t *in, double h, ctx_
     c->refresh = 1u << (unsigned)(p->steps % VH_V14_NW);
     c->arb_f = p->k_arb_f / (4.0 * prm->tf * prm->tf); /* bar force per compression difference */
     c->arb_r = p->k_arb_r / (4.0 * prm->tr * prm->tr);
+    c->arc_on = p->arc.m[0] != 0.0 || p->arc.m[1] != 0.0;
+    c->arc_f[0] = p->arc.m[0] / (2.0 * prm->tf);
+    c->arc_f[1] = -c->arc_f[0];
+    c->arc_f[2] = p->arc.m[1] / (2.0 * prm->tr);
+    c->arc_f[3] = -c->arc_f[2];
 }
 
 /* Truth of the current state with no input on a road of friction 1; MF peaks from scratch. */
@@ -447,11 +464,66 @@ static void settle(vh_v14_t *p)
     fill_truth(p, &c, dx, &aux, 0.0, 0);
 }
 
+void vh_v14_arc_params_default(vh_v14_arc_params_t *a)
+{
+    a->m_max = 4800.0;    /* ~1.2 kNm at the bar through ~4:1 lever arms and links (docs/roll.md) */
+    a->rate_max = 16000.0;
+    a->tau = 0.03;
+}
+
+static int arc_params_ok(const vh_v14_arc_params_t *a)
+{
+    return a != NULL && isfinite(a->m_max) && a->m_max >= 0.0 && isfinite(a->rate_max) &&
+           a->rate_max > 0.0 && isfinite(a->tau) && a->tau >= 0.0;
+}
+
+int vh_v14_arc_config(vh_v14_t *p, const vh_v14_arc_params_t *front, const vh_v14_arc_params_t *rear)
+{
+    if (p == NULL || !arc_params_ok(front) || !arc_params_ok(rear)) {
+        return VH_EINVAL;
+    }
+    p->arc.prm[0] = *front;
+    p->arc.prm[1] = *rear;
+    return VH_OK;
+}
+
+void vh_v14_set_roll_moment(vh_v14_t *p, double m_front, double m_rear)
+{
+    p->arc.cmd[0] = isfinite(m_front) ? m_front : 0.0;
+    p->arc.cmd[1] = isfinite(m_rear) ? m_rear : 0.0;
+}
+
+/* One step of the actuators: rate limit, torque limit, then the lag; the result acts over the step. */
+static void arc_advance(vh_v14_arc_t *a)
+{
+    int j;
+    for (j = 0; j < 2; ++j) {
+        const vh_v14_arc_params_t *q = &a->prm[j];
+        const double step = q->rate_max * VH_V14_DT;
+        double v = a->cmd[j];
+        if (a->cmd[j] == 0.0 && a->lim[j] == 0.0 && a->m[j] == 0.0) {
+            continue; /* passive: nothing moves */
+        }
+        v = v > a->lim[j] + step ? a->lim[j] + step : (v < a->lim[j] - step ? a->lim[j] - step : v);
+        v = v > q->m_max ? q->m_max : (v < -q->m_max ? -q->m_max : v);
+        a->lim[j] = v;
+        a->m[j] = q->tau > 0.0 ? a->m[j] + (1.0 - exp(-VH_V14_DT / q->tau)) * (v - a->m[j]) : v;
+        if (fabs(a->m[j]) < 1e-9 && v == 0.0) {
+            a->m[j] = 0.0; /* back to exactly passive */
+        }
+    }
+}
+
 void vh_v14_reset(vh_v14_t *p)
 {
     int i;
     for (i = 0; i < VH_V14_NX; ++i) {
         p->x[i] = 0.0;
+    }
+    for (i = 0; i < 2; ++i) {
+        p->arc.cmd[i] = 0.0;
+        p->arc.lim[i] = 0.0;
+        p->arc.m[i] = 0.0;
     }
     p->steps = 0u;
     p->bad_inputs = 0u;
@@ -551,6 +623,7 @@ void vh_v14_step(vh_v14_t *p, const vh_v14_input_t *in)
     if (bad && p->bad_inputs < UINT32_MAX) {
         ++p->bad_inputs;
     }
+    arc_advance(&p->arc);
     n = substeps(p);
     h = VH_V14_DT / (double)n;
     make_ctx(p, &u, h, &c);

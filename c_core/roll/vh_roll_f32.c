@@ -1,0 +1,16 @@
+/* vh_roll_f32.c - the roll UKF and SMC in single precision (the ECU's build: a Cortex-M4F/M33
+ * FPU does float32 in hardware). The code is vh_roll_impl.c. */
+#include <math.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "vh_roll.h"
+
+#define VH_ROLL_REAL float
+#define VH_ROLL_NAME(n) n##_f32
+#define VH_SQRT sqrtf
+#define VH_SIN sinf
+#define VH_COS cosf
+#define VH_ATAN atanf
+#define VH_FABS fabsf
+#include "vh_roll_impl.c"

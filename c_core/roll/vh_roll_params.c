@@ -1,0 +1,112 @@
+/* vh_roll_params.c - default parameters of the roll UKF and its sliding-mode controller.
+ * Vehicle: the project's 14-DOF plant (firmware_sim vh_v14_params_default; seed 000's Ford
+ * FC/HVE car plus the documented chosen values); docs/roll.md has every figure and why. */
+#include <stddef.h>
+
+#include "vh_roll.h"
+
+void vh_roll_params_default(vh_roll_params_t *prm)
+{
+    int i;
+    if (prm == NULL) {
+        return;
+    }
+    prm->ms = 1661.0;
+    prm->ix = 580.0;
+    prm->iy = 2450.0;
+    prm->iz = 2560.0;
+    prm->lf = 1.076;
+    prm->lr = 1.617;
+    prm->tf = 0.784;
+    prm->tr = 0.760;
+    prm->h = 0.55;
+    prm->hf = 0.114;
+    prm->hr = 0.004;
+    prm->kphi_f = 108205.8;
+    prm->kphi_r = 81436.7;
+    prm->cphi_f = 826.8;
+    prm->cphi_r = 658.9;
+    prm->m_uf = 153.0 / 2.0 * 1.617 / (1.076 + 1.617);
+    prm->m_ur = 153.0 / 2.0 * 1.076 / (1.076 + 1.617);
+    prm->k_f = 30000.0;
+    prm->k_r = 25000.0;
+    prm->kt = 250000.0;
+    prm->ct = 100.0;
+    /* cornering stiffness per unit load of the plant's tyre at the static loads (docs/roll.md) */
+    prm->calpha_f = 17.34;
+    prm->calpha_r = 20.22;
+    prm->mf_c = 1.30;
+    prm->mu = 1.0;
+    prm->mu_load = 0.94;
+    prm->v_low = 1.0;
+    prm->dt = 0.001;
+    prm->kappa = 1.0;
+    /* Q per step: random-walk acceleration noise on the velocity states (model error: the
+     * simplified tyre above all), small on the positions */
+    for (i = 0; i < VH_ROLL_NX; ++i) {
+        prm->q[i] = 1e-12;
+    }
+    prm->q[VH_ROLL_X_VY] = 1e-5;
+    prm->q[VH_ROLL_X_R] = 1e-6;
+    prm->q[VH_ROLL_X_VZ] = 1e-6;
+    prm->q[VH_ROLL_X_P] = 1e-8;  /* the roll balance is well known: small */
+    prm->q[VH_ROLL_X_Q] = 1e-6;
+    for (i = 0; i < VH_ROLL_NW; ++i) {
+        prm->q[VH_ROLL_X_VZU + i] = 1e-4;
+    }
+    /* R: the sensor noise of docs/roll.md */
+    prm->r[VH_ROLL_Z_AY] = 0.05 * 0.05;
+    for (i = 0; i < VH_ROLL_NW; ++i) {
+        prm->r[VH_ROLL_Z_AZU + i] = 0.2 * 0.2;
+        prm->r[VH_ROLL_Z_DT + i] = 0.0002 * 0.0002;
+        prm->r[VH_ROLL_Z_DS + i] = 0.0005 * 0.0005;
+    }
+    prm->r[VH_ROLL_Z_R] = 0.005 * 0.005;
+    prm->p0[VH_ROLL_X_VY] = 0.5 * 0.5;
+    prm->p0[VH_ROLL_X_R] = 0.05 * 0.05;
+    prm->p0[VH_ROLL_X_Z] = 0.01 * 0.01;
+    prm->p0[VH_ROLL_X_VZ] = 0.05 * 0.05;
+    prm->p0[VH_ROLL_X_PHI] = 0.02 * 0.02;
+    prm->p0[VH_ROLL_X_P] = 0.05 * 0.05;
+    prm->p0[VH_ROLL_X_THETA] = 0.01 * 0.01;
+    prm->p0[VH_ROLL_X_Q] = 0.05 * 0.05;
+    for (i = 0; i < VH_ROLL_NW; ++i) {
+        prm->p0[VH_ROLL_X_ZU + i] = 0.005 * 0.005;
+        prm->p0[VH_ROLL_X_VZU + i] = 0.05 * 0.05;
+    }
+    prm->reg_eps = 1e-6;
+    prm->nis_max = 1000.0;
+    prm->phi_max = 0.3;
+}
+
+void vh_roll_smc_params_default(vh_roll_smc_params_t *c, const vh_roll_params_t *prm)
+{
+    double l, h_ra, e;
+    if (c == NULL || prm == NULL) {
+        return;
+    }
+    l = prm->lf + prm->lr;
+    h_ra = prm->hf + (prm->hr - prm->hf) * prm->lf / l;
+    e = prm->h - h_ra;
+    c->lambda = 10.0;
+    c->k = 5.0;
+    c->p = 0.1;
+    c->ref_frac = 0.3;
+    c->ref_tau = 0.05;
+    c->ay_tau = 0.02;
+    c->front_share = prm->kphi_f / (prm->kphi_f + prm->kphi_r);
+    /* 48 V electromechanical stabiliser, ~1.2 kNm at the bar per axle; through the bar's lever
+     * arms and links that is ~4.8 kNm of roll moment on the body (docs/roll.md) */
+    c->m_max_f = 4800.0;
+    c->m_max_r = 4800.0;
+    c->rate_max_f = 16000.0;
+    c->rate_max_r = 16000.0;
+    c->fade_time = 0.3; /* = m_max / rate_max: the fastest the rate limit allows */
+    c->recover_time = 0.5;
+    c->not_ok_debounce = 0.02; /* 20 steps: a lost frame or two does not fade the actuators */
+    c->dt = prm->dt;
+    c->i_roll = prm->ix + prm->ms * e * e;
+    c->ms_e = prm->ms * e;
+    c->kphi = prm->kphi_f + prm->kphi_r;
+    c->cphi = prm->cphi_f + prm->cphi_r;
+}

@@ -1,0 +1,165 @@
+"""The roll system's C (``vehest_can._roll``) over numpy arrays: the UKF and the sliding-mode
+controller in the float32 (ECU) and double (reference) builds of one source."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from vehest_can._roll import ffi, lib
+
+NX, NZ, NU, NS = lib.VH_ROLL_NX_, lib.VH_ROLL_NZ_, lib.VH_ROLL_NU_, lib.VH_ROLL_NS_
+ALL_VALID = (1 << NZ) - 1
+PRECISIONS = {"f32": np.float32, "f64": np.float64}
+_CTYPE = {"f32": "float", "f64": "double"}
+
+STATE_NAMES = ["vy", "r", "z", "vz", "phi", "p", "theta", "q",
+               "zu_fl", "zu_fr", "zu_rl", "zu_rr", "vzu_fl", "vzu_fr", "vzu_rl", "vzu_rr"]
+MEAS_NAMES = (["ay"] + [f"azu_{w}" for w in ("fl", "fr", "rl", "rr")]
+              + [f"dt_{w}" for w in ("fl", "fr", "rl", "rr")]
+              + [f"ds_{w}" for w in ("fl", "fr", "rl", "rr")] + ["r"])
+
+
+class RollError(Exception):
+    """A parameter set the C refuses."""
+
+
+def default_params():
+    """A fresh ``vh_roll_params_t`` with the defaults (the 14-DOF plant's car)."""
+    prm = ffi.new("vh_roll_params_t *")
+    lib.vh_roll_params_default(prm)
+    return prm
+
+
+def params_dict(prm) -> dict:
+    out = {}
+    for name, fld in ffi.typeof(prm[0]).fields:
+        v = getattr(prm, name)
+        out[name] = list(v) if fld.type.kind == "array" else v
+    return out
+
+
+def make_params(**over):
+    prm = default_params()
+    for k, v in over.items():
+        if isinstance(v, (list, tuple, np.ndarray)):
+            arr = getattr(prm, k)
+            for i, x in enumerate(v):
+                arr[i] = float(x)
+        else:
+            setattr(prm, k, v)
+    return prm
+
+
+def _fn(prec: str, name: str):
+    return getattr(lib, f"{name}_{prec}")
+
+
+def _ptr(prec: str, a: np.ndarray):
+    return ffi.cast(f"{_CTYPE[prec]} *", ffi.from_buffer(a))
+
+
+class Ukf:
+    """One C UKF instance of precision ``prec`` ("f32" ECU build, "f64" reference build)."""
+
+    def __init__(self, prm=None, prec: str = "f64"):
+        self.prec = prec
+        self.dtype = PRECISIONS[prec]
+        self.prm = prm if prm is not None else default_params()
+        self.c = ffi.new(f"vh_roll_ukf_{prec} *")
+        if _fn(prec, "vh_roll_ukf_init")(self.c, self.prm) != 0:
+            raise RollError("vh_roll_ukf_init refused the parameters")
+
+    def reset(self):
+        _fn(self.prec, "vh_roll_ukf_reset")(self.c)
+
+    @property
+    def x(self) -> np.ndarray:
+        return np.array(list(self.c.x), dtype=self.dtype)
+
+    @property
+    def P(self) -> np.ndarray:
+        return np.array(list(self.c.P), dtype=self.dtype).reshape(NX, NX)
+
+    def set_state(self, x=None, P=None):
+        if x is not None:
+            for i, v in enumerate(np.asarray(x, float)):
+                self.c.x[i] = v
+        if P is not None:
+            for i, v in enumerate(np.asarray(P, float).ravel()):
+                self.c.P[i] = v
+
+    def step(self, u, z, mask: int = ALL_VALID) -> int:
+        u = np.ascontiguousarray(u, self.dtype)
+        z = np.ascontiguousarray(z, self.dtype)
+        return _fn(self.prec, "vh_roll_ukf_step")(self.c, _ptr(self.prec, u), _ptr(self.prec, z), mask)
+
+    def f(self, x, u) -> np.ndarray:
+        x = np.ascontiguousarray(x, self.dtype)
+        u = np.ascontiguousarray(u, self.dtype)
+        out = np.zeros(NX, self.dtype)
+        _fn(self.prec, "vh_roll_model_f")(self.c, _ptr(self.prec, x), _ptr(self.prec, u), _ptr(self.prec, out))
+        return out
+
+    def h(self, x, u) -> np.ndarray:
+        x = np.ascontiguousarray(x, self.dtype)
+        u = np.ascontiguousarray(u, self.dtype)
+        out = np.zeros(NZ, self.dtype)
+        _fn(self.prec, "vh_roll_model_h")(self.c, _ptr(self.prec, x), _ptr(self.prec, u), _ptr(self.prec, out))
+        return out
+
+    def run(self, u: np.ndarray, z: np.ndarray, mask: np.ndarray | None = None):
+        """n steps over arrays u (n, NU), z (n, NZ), mask (n,) of valid bits. Returns
+        (x (n, NX), P diagonal (n, NX), health (n,))."""
+        u = np.ascontiguousarray(u, self.dtype)
+        z = np.ascontiguousarray(z, self.dtype)
+        n = len(u)
+        if u.shape != (n, NU) or z.shape != (n, NZ):
+            raise ValueError(f"u must be (n, {NU}) and z (n, {NZ})")
+        xo = np.zeros((n, NX), self.dtype)
+        po = np.zeros((n, NX), self.dtype)
+        ho = np.zeros(n, np.uint32)
+        mp = ffi.NULL
+        if mask is not None:
+            mask = np.ascontiguousarray(mask, np.uint32)
+            mp = ffi.cast("uint32_t *", ffi.from_buffer(mask))
+        _fn(self.prec, "vh_roll_ukf_run")(self.c, n, _ptr(self.prec, u), _ptr(self.prec, z), mp,
+                                         _ptr(self.prec, xo), _ptr(self.prec, po),
+                                         ffi.cast("uint32_t *", ffi.from_buffer(ho)))
+        return xo, po, ho
+
+
+def default_smc_params(prm=None):
+    c = ffi.new("vh_roll_smc_params_t *")
+    lib.vh_roll_smc_params_default(c, prm if prm is not None else default_params())
+    return c
+
+
+class Smc:
+    """One C sliding-mode roll controller."""
+
+    def __init__(self, sprm=None, prec: str = "f64"):
+        self.prec = prec
+        self.sprm = sprm if sprm is not None else default_smc_params()
+        self.c = ffi.new(f"vh_roll_smc_{prec} *")
+        if _fn(prec, "vh_roll_smc_init")(self.c, self.sprm) != 0:
+            raise RollError("vh_roll_smc_init refused the parameters")
+
+    def step(self, phi, p, ay, est_health, active=True) -> tuple[float, float, int]:
+        h = _fn(self.prec, "vh_roll_smc_step")(self.c, phi, p, ay, est_health, 1 if active else 0)
+        return self.c.m_f, self.c.m_r, h
+
+    def run(self, phi, p, ay, est_health, active=True):
+        """Arrays in, (m_f, m_r, health, s) arrays out."""
+        n = len(phi)
+        out = np.zeros((n, 2))
+        hs = np.zeros(n, np.uint32)
+        ss = np.zeros(n)
+        act = np.broadcast_to(np.asarray(active), (n,))
+        eh = np.broadcast_to(np.asarray(est_health), (n,))
+        fn = _fn(self.prec, "vh_roll_smc_step")
+        for k in range(n):
+            hs[k] = fn(self.c, float(phi[k]), float(p[k]), float(ay[k]), int(eh[k]), int(bool(act[k])))
+            out[k] = (self.c.m_f, self.c.m_r)
+            ss[k] = self.c.s
+        return out[:, 0], out[:, 1], hs, ss
