@@ -7,7 +7,7 @@ import shutil
 import numpy as np
 import pytest
 
-from vehest_can import bench
+from vehest_can.tools import bench
 
 needs_cc = pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc") is None, reason="no C compiler")
 

@@ -16,12 +16,14 @@ import can
 import numpy as np
 import pytest
 
-from vehest_can.bus import cli_args, open_bus, private_multicast
-from vehest_can.daemon import EcuDaemon
-from vehest_can.frames import database
-from vehest_can.replay import read_log, replay
-from vehest_can.scenario import load_scenario, scenario_dir
-from vehest_can.sim import SimMaster, drive_from_scenario, run_inprocess
+from vehest_can.systems.ecu import Ecu
+from vehest_can.bus.bus import cli_args, open_bus, private_multicast
+from vehest_can.service.daemon import EcuDaemon
+from vehest_can.bus.frames import database
+from vehest_can.bus.log import read_log
+from vehest_can.service.replay import replay
+from vehest_can.sim.scenario import load_scenario, scenario_dir
+from vehest_can.sim.session import SimMaster, drive_from_scenario, run_inprocess
 
 LAUNCH = load_scenario(scenario_dir() / "launch_2nd.toml")
 ECU_IDS = {m.frame_id for m in database("pt").messages if "VEHEST" in m.senders and m.name != "VEHEST_SyncAck"}
@@ -88,7 +90,7 @@ def test_lockstep_over_virtual_bus_equals_inprocess():
         t.join(10)
         ecu_bus.shutdown()
         sim_bus.shutdown()
-    local = run_inprocess(short_drive())
+    local = run_inprocess(short_drive(), Ecu())
     assert len(bus_session.frames) == len(local.frames) > 3000
     assert np.array_equal(bus_session.frames, local.frames)
     assert np.array_equal(bus_session.frame_tick, local.frame_tick)
@@ -112,7 +114,7 @@ def test_lockstep_over_multicast_two_processes_is_deterministic(tmp_path):
         rc, err = stop_daemon(proc)
     assert rc == 0, err
     assert "faults: none" in err
-    local = run_inprocess(short_drive())
+    local = run_inprocess(short_drive(), Ecu())
     a, b, c = (ecu_frames(s) for s in (*runs, local))
     assert len(a[0]) == len(c[0]) > 3000
     for x in (a, b):

@@ -15,7 +15,7 @@ from cantools.database import Database, Message, Signal
 from hypothesis import given
 from hypothesis import strategies as st
 
-from vehest_can.busload import FD_LENGTHS, bus_load, fd_length, frame_bits, stuff_bits_worst, wire_time_us
+from vehest_can.bus.busload import FD_LENGTHS, bus_load, fd_length, frame_bits, stuff_bits_worst, wire_time_us
 from vehest_can.cli import main
 from vehest_can.errors import ConfigError
 from vehest_can.paths import dbc_path

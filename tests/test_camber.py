@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize, root
 
-from vehest_can import camber
-from vehest_can import camber_ref as ref
-from vehest_can.camber import (CalibrationLimits, Calibration, CamberNode, CaptureError, MeasureConfig, Reason,
+from vehest_can.systems.camber import api as camber
+from vehest_can.systems.camber import reference as ref
+from vehest_can.systems.camber.api import (CalibrationLimits, Calibration, CamberNode, CaptureError, MeasureConfig, Reason,
                                calibrate, measure, measure_windows)
 from vehest_can.errors import ConfigError
 from vehest_can.native import ffi, lib

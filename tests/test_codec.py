@@ -8,7 +8,7 @@ import pytest
 from cantools.database.can.c_source import camel_to_snake_case
 from hypothesis import given, settings, strategies as st
 
-from vehest_can.frames import database
+from vehest_can.bus.frames import database
 from vehest_can.native import ffi, lib
 
 ROOT = Path(__file__).resolve().parent.parent

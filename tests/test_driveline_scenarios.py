@@ -2,17 +2,20 @@
 import numpy as np
 import pytest
 
-from vehest_can import dkf_ref, report
-from vehest_can.driveline import DkfConfig, DrivelineKF
-from vehest_can.scenario import load_scenario, scenario_dir
-from vehest_can.sim import drive_from_scenario, run_inprocess
+from vehest_can.sim.report import decode
+from vehest_can.systems.ecu import Ecu
+from vehest_can.systems.driveline import reference as dkf_ref
+from vehest_can.systems.driveline import report
+from vehest_can.systems.driveline.api import DkfConfig, DrivelineKF
+from vehest_can.sim.scenario import load_scenario, scenario_dir
+from vehest_can.sim.session import drive_from_scenario, run_inprocess
 
 DRIVELINE = [p for p in sorted(scenario_dir().glob("*.toml")) if load_scenario(p).camber is None]
 
 
 @pytest.fixture(scope="module", params=DRIVELINE, ids=lambda p: p.stem)
 def session(request):
-    return run_inprocess(drive_from_scenario(load_scenario(request.param)))
+    return run_inprocess(drive_from_scenario(load_scenario(request.param)), Ecu())
 
 
 def test_estimates_against_truth_meet_the_targets(session):
@@ -29,8 +32,8 @@ def test_estimates_against_truth_meet_the_targets(session):
 def test_c_filter_equals_numpy_reference_over_a_full_scenario(session):
     """The ECU's C filter (array API) against the independent numpy implementation on the
     scenario's measured data: 1e-9 relative (normwise per state)."""
-    sens = report.decode(session, "DLS_Sensors")
-    est = report.decode(session, "VEHEST_DrivelineEst")
+    sens = decode(session, "DLS_Sensors")
+    est = decode(session, "VEHEST_DrivelineEst")
     z = np.c_[sens["OutShaftSpeed"], 0.5 * (sens["WheelSpeedL"] + sens["WheelSpeedR"]), sens["ShaftTorque"]]
     u = est["TurbineTorque"]
     for meas in ("speeds+torque", "speeds"):
@@ -45,8 +48,8 @@ def test_ecu_estimates_match_the_array_api_to_frame_resolution(session):
     """The ECU tick and the Python array API share one C filter: fed the same decoded inputs,
     the array API reproduces the published T_o to within the frame's 0.25 Nm quantisation plus
     the effect of the 0.02 Nm quantisation of the published input."""
-    sens = report.decode(session, "DLS_Sensors")
-    est = report.decode(session, "VEHEST_DrivelineEst")
+    sens = decode(session, "DLS_Sensors")
+    est = decode(session, "VEHEST_DrivelineEst")
     z = np.c_[sens["OutShaftSpeed"], 0.5 * (sens["WheelSpeedL"] + sens["WheelSpeedR"]), sens["ShaftTorque"]]
     x = DrivelineKF(DkfConfig.default("speeds+torque")).run(est["TurbineTorque"], z).x
     assert np.max(np.abs(x[:, 2] - est["DkfT_ShaftTorque"])) < 1.0

@@ -7,20 +7,22 @@ import time
 
 import can
 
-from vehest_can.bus import open_bus, private_multicast
+from vehest_can.systems.ecu import Ecu
+from vehest_can.bus.bus import open_bus, private_multicast
 import numpy as np
 import pytest
 
-from vehest_can.busload import bus_load
+from vehest_can.bus.busload import bus_load
 from vehest_can.cli import main
 from vehest_can.errors import ConfigError
-from vehest_can.faultbus import FaultBus, WireModel, bus_run
-from vehest_can.faults import (CATALOGUE, KINDS, FaultInjector, FaultSpec, fault_table,
-                               faults_from_cli, load_faults, parse_fault, run_with_faults)
-from vehest_can.frames import E2ESender, database
+from vehest_can.faults.campaign import CATALOGUE, bus_run, fault_table, run_with_faults
+from vehest_can.faults.injector import FaultInjector
+from vehest_can.faults.spec import KINDS, FaultSpec, faults_from_cli, load_faults, parse_fault
+from vehest_can.faults.wire import FaultBus, WireModel
+from vehest_can.bus.frames import E2ESender, database
 from vehest_can.paths import dbc_path
-from vehest_can.scenario import load_scenario, scenario_dir
-from vehest_can.sim import drive_from_scenario, run_inprocess
+from vehest_can.sim.scenario import load_scenario, scenario_dir
+from vehest_can.sim.session import drive_from_scenario, run_inprocess
 
 DB = database("pt")
 DLS = DB.get_message_by_name("DLS_Sensors")
@@ -163,7 +165,7 @@ def test_flood_queue_policy_decides_how_stale_the_first_samples_are(drive35):
 def test_without_faults_the_wire_changes_nothing_and_carries_the_busload_figure():
     d = drive(1.5)
     run = run_with_faults(d)
-    ref = run_inprocess(drive(1.5))
+    ref = run_inprocess(drive(1.5), Ecu())
     sel = np.isin(ref.frames["id"], [0x180, 0x300])
     expected = [(int(k), bytes(f["data"][:f["len"]])) for f, k in zip(ref.frames[sel], ref.frame_tick[sel])]
     assert [(k, bytes(m.data)) for k, m in run.tx] == expected
@@ -241,7 +243,7 @@ def test_freeze_repeats_the_last_payload_and_wrong_dlc_shortens():
 
 
 def test_silence_a_node_spares_the_bench_sync_frames_unless_named():
-    from vehest_can import lockstep
+    from vehest_can.bus import lockstep
     sync = lockstep.sync_message(5)
     _, dls = stream(1)
     for target, sync_kept in (("DLS", True), ("SIM", True), ("*", True), ("SIM_Sync", False)):

@@ -20,16 +20,17 @@ import can
 import numpy as np
 import pytest
 
-from vehest_can import bus as busmod
-from vehest_can.busload import bus_load
+from vehest_can.systems.ecu import Ecu
+from vehest_can.bus import bus as busmod
+from vehest_can.bus.busload import bus_load
 from vehest_can.cli import main
 from vehest_can.errors import ConfigError
-from vehest_can.frames import TICK_S, database
-from vehest_can.hil import BUS_LOAD_LIMIT_PCT, ResidualBus, load_hil_config
+from vehest_can.bus.frames import TICK_S, database
+from vehest_can.service.hil import BUS_LOAD_LIMIT_PCT, ResidualBus, load_hil_config
 from vehest_can.paths import dbc_path
-from vehest_can.report import decode
-from vehest_can.scenario import load_scenario
-from vehest_can.sim import SimMaster, drive_from_scenario, run_inprocess
+from vehest_can.sim.report import decode
+from vehest_can.sim.scenario import load_scenario
+from vehest_can.sim.session import SimMaster, drive_from_scenario, run_inprocess
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = sorted((ROOT / "examples" / "hil").glob("*.toml"))
@@ -302,7 +303,7 @@ def test_lockstep_both_simulated_on_virtual_bus_equals_inprocess(tmp_path):
     cfg = load_hil_config(write(tmp_path, mutate(
         mode="lockstep", buses__pt__interface="virtual", buses__pt__channel=channel)))
     result = ResidualBus(cfg, duration_s=1.0).run()
-    local = run_inprocess(drive_from_scenario(load_scenario("launch_2nd"), 1.0))
+    local = run_inprocess(drive_from_scenario(load_scenario("launch_2nd"), 1.0), Ecu())
     assert result.ecu.mode == "lockstep" and result.ecu.ticks == len(local.truth) == 2000
     assert np.array_equal(result.session.frames, local.frames)
     assert np.array_equal(result.session.frame_tick, local.frame_tick)

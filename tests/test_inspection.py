@@ -5,12 +5,12 @@ from dataclasses import replace
 import can
 import pytest
 
-from vehest_can import inspection
-from vehest_can.camber import WHEELS, load_calibrations
+from vehest_can.systems.camber import inspection
+from vehest_can.systems.camber.api import WHEELS, load_calibrations
 from vehest_can.cli import main
-from vehest_can.ecu import Ecu
-from vehest_can.scenario import load_scenario, scenario_dir
-from vehest_can.sim import drive_from_scenario, run_inprocess
+from vehest_can.systems.ecu import Ecu
+from vehest_can.sim.scenario import load_scenario, scenario_dir
+from vehest_can.sim.session import drive_from_scenario, run_inprocess
 
 SC = load_scenario(scenario_dir() / "camber_inspection.toml")
 TRUTH = {w: SC.camber.theta_deg[i] for i, w in enumerate(WHEELS)}
@@ -28,7 +28,7 @@ def cal_file(tmp_path_factory):
     d = tmp_path_factory.mktemp("cal")
     logs = {}
     for pose in ("x_down", "z_down"):
-        s = run_inprocess(drive_from_scenario(replace(SC, camber=replace(SC.camber, pose=pose)), duration_s=4.0))
+        s = run_inprocess(drive_from_scenario(replace(SC, camber=replace(SC.camber, pose=pose)), duration_s=4.0), Ecu())
         logs[pose] = write_log(s, d / f"{pose}.log")
     out = d / "cal.json"
     assert main(["camber", "calibrate", "--x-down", str(logs["x_down"]), "--z-down", str(logs["z_down"]),
@@ -52,7 +52,7 @@ def test_calibrated_camber_is_within_the_eq22_bound_on_every_wheel(cal_file):
 
 
 def test_uncalibrated_chip_misalignment_shows_outside_the_bound(cal_file):
-    from vehest_can.camber import Calibration
+    from vehest_can.systems.camber.api import Calibration
 
     ecu = Ecu()
     ecu.set_camber_calibrations({w: Calibration.identity() for w in WHEELS})
@@ -62,7 +62,7 @@ def test_uncalibrated_chip_misalignment_shows_outside_the_bound(cal_file):
 
 
 def test_no_calibration_says_so():
-    res = inspection.ecu_results(run_inprocess(drive_from_scenario(SC)).messages())
+    res = inspection.ecu_results(run_inprocess(drive_from_scenario(SC), Ecu()).messages())
     assert {r["reason"] for r in res.values()} == {"NOT_CALIBRATED"}
 
 
@@ -84,13 +84,13 @@ def test_measure_verb_prints_the_ecus_results(cal_file, tmp_path, capsys):
 
 def test_bad_captures_are_rejected_with_the_reason(tmp_path, capsys):
     x = write_log(run_inprocess(drive_from_scenario(replace(SC, camber=replace(SC.camber, pose="x_down")),
-                                                    duration_s=2.0)), tmp_path / "x.log")
+                                                    duration_s=2.0), Ecu()), tmp_path / "x.log")
     # the same pose twice: the two axes are parallel, not orthogonal
     assert main(["camber", "calibrate", "--x-down", str(x), "--z-down", str(x), "-o", str(tmp_path / "c.json")]) == 1
     assert "orthogonal" in capsys.readouterr().err
     # too short a capture
     short = write_log(run_inprocess(drive_from_scenario(replace(SC, camber=replace(SC.camber, pose="z_down")),
-                                                        duration_s=0.3)), tmp_path / "short.log")
+                                                        duration_s=0.3), Ecu()), tmp_path / "short.log")
     assert main(["camber", "calibrate", "--x-down", str(x), "--z-down", str(short), "-o", str(tmp_path / "c.json")]) == 1
     assert "samples" in capsys.readouterr().err
     assert not (tmp_path / "c.json").exists()

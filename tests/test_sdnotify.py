@@ -18,9 +18,9 @@ from pathlib import Path
 
 import pytest
 
-from vehest_can import sdnotify
+from vehest_can.service import sdnotify
 from vehest_can.cli import build_parser
-from vehest_can.sdnotify import Notifier, Watchdog, socket_address, watchdog_interval
+from vehest_can.service.sdnotify import Notifier, Watchdog, socket_address, watchdog_interval
 
 
 def group() -> str:
@@ -88,9 +88,9 @@ def test_realtime_daemon_notifies_ready_watchdog_status_stopping_in_order(notify
     assert final.startswith(f"realtime stopping: {s['ticks']} ticks; faults: ")
     assert "input_invalid=" in final  # no car on this bus: every tick's input is invalid, and it says so
     # log lines on stderr, with levels
-    assert "INFO vehest_can.daemon: ECU daemon serving in realtime mode" in err
-    assert "WARNING vehest_can.daemon: realtime: faults rising: input_invalid" in err
-    assert "INFO vehest_can.daemon: ECU daemon stopped" in err
+    assert "INFO vehest_can.service.daemon: ECU daemon serving in realtime mode" in err
+    assert "WARNING vehest_can.service.daemon: realtime: faults rising: input_invalid" in err
+    assert "INFO vehest_can.service.daemon: ECU daemon stopped" in err
 
 
 @pytest.mark.multicast
@@ -151,7 +151,7 @@ def test_watchdog_rate_and_fault_logging(notify_socket, caplog):
     ticks = [0]
     w = Watchdog(Notifier(path), "realtime", lambda: ticks[0], lambda: counters, interval=0.25)
     assert w.interval == 0.25
-    with caplog.at_level(logging.INFO, logger="vehest_can.sdnotify"):
+    with caplog.at_level(logging.INFO, logger="vehest_can.service.sdnotify"):
         beat_at = []
         for i in range(0, 65):  # 1 s of loop iterations every 1/64 s (binary-exact times) on a given clock
             now = i / 64
@@ -188,20 +188,20 @@ def test_a_full_or_vanished_receiver_never_blocks_or_raises(notify_socket):
 def test_journal_level_prefixes_on_a_real_stderr_file(tmp_path):
     err_path = tmp_path / "stderr"
     code = ("import logging, sys\n"
-            "from vehest_can import sdnotify\n"
+            "from vehest_can.service import sdnotify\n"
             "logging.basicConfig(level=logging.INFO, stream=sys.stderr)\n"
             "print(sdnotify.use_journal_levels(), file=sys.stderr)\n"
-            "logging.getLogger('vehest_can.daemon').info('serving')\n"
-            "logging.getLogger('vehest_can.daemon').warning('faults rising')\n")
+            "logging.getLogger('vehest_can.service.daemon').info('serving')\n"
+            "logging.getLogger('vehest_can.service.daemon').warning('faults rising')\n")
     with open(err_path, "w") as fh:
         st = os.fstat(fh.fileno())
         env = {**os.environ, "JOURNAL_STREAM": f"{st.st_dev}:{st.st_ino}"}
         subprocess.run([sys.executable, "-c", code], stderr=fh, env=env, check=True, timeout=60)
     assert err_path.read_text().splitlines() == [
-        "True", "<6>vehest_can.daemon: serving", "<4>vehest_can.daemon: faults rising"]
+        "True", "<6>vehest_can.service.daemon: serving", "<4>vehest_can.service.daemon: faults rising"]
     # another stream than the one JOURNAL_STREAM names: no prefixes
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=60)
-    assert r.stderr.splitlines()[0] == "False" and "INFO:vehest_can.daemon:serving" in r.stderr
+    assert r.stderr.splitlines()[0] == "False" and "INFO:vehest_can.service.daemon:serving" in r.stderr
 
 
 UNIT = Path(__file__).resolve().parent.parent / "examples" / "systemd" / "vehest-ecu.service"

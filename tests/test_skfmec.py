@@ -21,8 +21,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vehest_can import skf_ref
-from vehest_can import tireforce as tf
+from vehest_can.systems.tireforce import reference as skf_ref
+from vehest_can.systems.tireforce import api as tf
 from vehest_can.errors import ConfigError, NativeError
 from vehest_can.native import ffi, lib
 
@@ -438,7 +438,7 @@ def run_bench(exe: Path) -> dict:
 def test_estimators_under_sanitizers_and_bit_exact_across_builds(tmp_path):
     """libfixmath practice: the fixed-point code (shifts of negative values, int64 products) and
     the double filters run clean under UBSan + ASan. The driver is the C-loop benchmark
-    (c_core/bench/vh_bench_skf.c, also what tireforce.bench_c_loop builds), so this also shows the
+    (c_core/bench/vh_bench_skf.c, also what tools.bench.bench_c_loop builds), so this also shows the
     benchmark entry works. The fixed filter's final state is the same, bit for bit, in the
     sanitized -O1 build and a plain -O3 build."""
     san = run_bench(build_bench(tmp_path, "skf_san", ["-O1", "-g", "-fsanitize=address,undefined",

@@ -1,4 +1,4 @@
-"""Tire-force report (vehest_can.tfreport): seed 000's estimators against the 14-DOF plant.
+"""Tire-force report (vehest_can.systems.tireforce.report): seed 000's estimators against the 14-DOF plant.
 
 * evaluate() on constructed runs with known answers (zero error, constant bias, axle scale, a split
   error the oracle must see, the settling window, the acceptance verdicts);
@@ -16,10 +16,10 @@ import json
 import numpy as np
 import pytest
 
-from vehest_can import tfreport as tr
-from vehest_can import tireforce as tf
+from vehest_can.systems.tireforce import report as tr
+from vehest_can.systems.tireforce import api as tf
 from vehest_can.errors import ConfigError
-from vehest_can.frames import E2ESender
+from vehest_can.bus.frames import E2ESender
 from vehest_can.native import lib
 
 DT = 5e-4
@@ -253,7 +253,7 @@ def test_decode_signals_matches_decode_inputs():
 
 def test_masked_rows_reach_the_filter_as_degraded_steps():
     """A decoded invalid sample is not used: the step is DEGRADED, never a number in the filter."""
-    from vehest_can.chassis import load_chassis_scenario
+    from vehest_can.systems.tireforce.scenario import load_chassis_scenario
     from vehest_can.native import ffi
 
     sc = load_chassis_scenario("chassis_paper_mu_drop")

@@ -11,14 +11,15 @@ import can
 import numpy as np
 import pytest
 
-from vehest_can import tireforce as tf
-from vehest_can.bus import open_bus, private_multicast
-from vehest_can.chassis import ChassisCar, load_chassis_scenario
-from vehest_can.ecu import Ecu
-from vehest_can.frames import E2ESender, database, frame_id
+from vehest_can.systems.tireforce import api as tf
+from vehest_can.bus.bus import open_bus, private_multicast
+from vehest_can.systems.tireforce.scenario import ChassisCar, load_chassis_scenario
+from vehest_can.systems.ecu import Ecu
+from vehest_can.bus.frames import E2ESender, database, frame_id
 from vehest_can.native import ffi, lib
-from vehest_can.replay import read_log, replay
-from vehest_can.sim import SimMaster, run_inprocess
+from vehest_can.bus.log import read_log
+from vehest_can.service.replay import replay
+from vehest_can.sim.session import SimMaster, run_inprocess
 
 from test_bus_modes import start_daemon, stop_daemon
 
@@ -46,7 +47,7 @@ def inputs_of(session) -> tf.Inputs:
 
 @pytest.fixture(scope="module")
 def paper_session():
-    return run_inprocess(ChassisCar(PAPER))
+    return run_inprocess(ChassisCar(PAPER), Ecu())
 
 
 def test_ecu_estimates_equal_the_array_api_bit_for_bit(paper_session):
@@ -184,7 +185,7 @@ def test_lockstep_over_multicast_equals_inprocess_and_replays(tmp_path):
     finally:
         rc, err = stop_daemon(proc)
     assert rc == 0, err
-    local = run_inprocess(ChassisCar(PAPER, 1.5))
+    local = run_inprocess(ChassisCar(PAPER, 1.5), Ecu())
     assert len(session.frames) == len(local.frames) > 6000
     assert np.array_equal(session.frames, local.frames)
     assert np.array_equal(session.truth, local.truth)
@@ -194,7 +195,7 @@ def test_lockstep_over_multicast_equals_inprocess_and_replays(tmp_path):
 
 def golden_inputs():
     """CHS_Sensors of the paper scenario from 3.0 s to 3.3 s (cornering, braking)."""
-    s = run_inprocess(ChassisCar(PAPER, 3.3))
+    s = run_inprocess(ChassisCar(PAPER, 3.3), Ecu())
     sel = (s.frames["id"] == CHS.frame_id) & (s.frame_tick >= 6000)
     return [can.Message(timestamp=float(k) * 5e-4, arbitration_id=CHS.frame_id, is_extended_id=False, is_fd=True,
                         bitrate_switch=True, data=bytes(f["data"][: f["len"]]), channel="vcan0")

@@ -15,7 +15,7 @@ from pathlib import Path
 import can
 import pytest
 
-from vehest_can import uml as vuml
+from vehest_can.tools import uml as vuml
 
 PY = shlex.quote(sys.executable)
 

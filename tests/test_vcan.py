@@ -34,12 +34,14 @@ import can
 import numpy as np
 import pytest
 
-from vehest_can.daemon import EcuDaemon
-from vehest_can.frames import TICK_S, database, e2e_data_id, to_message
+from vehest_can.systems.ecu import Ecu
+from vehest_can.service.daemon import EcuDaemon
+from vehest_can.bus.frames import TICK_S, database, e2e_data_id, to_message
 from vehest_can.native import lib
-from vehest_can.replay import read_log, replay
-from vehest_can.scenario import load_scenario, scenario_dir
-from vehest_can.sim import drive_from_scenario, run_inprocess
+from vehest_can.bus.log import read_log
+from vehest_can.service.replay import replay
+from vehest_can.sim.scenario import load_scenario, scenario_dir
+from vehest_can.sim.session import drive_from_scenario, run_inprocess
 
 GUEST = Path(__file__).resolve().parent / "vcan_guest"
 PY = shlex.quote(sys.executable)
@@ -110,7 +112,7 @@ def daemon_ok(d: dict) -> dict:
 
 @pytest.fixture(scope="module")
 def inprocess():
-    return {sc.name: run_inprocess(drive_from_scenario(sc)) for sc in SCENARIOS}
+    return {sc.name: run_inprocess(drive_from_scenario(sc), Ecu()) for sc in SCENARIOS}
 
 
 # --------------------------------------------------------------------------- no guest needed
@@ -147,7 +149,7 @@ def test_realtime_daemon_counts_bus_errors_and_keeps_ticking(caplog):
     assert daemon.ecu.tick > tick_at_failure + 100  # went on ticking through the outage
     assert stats.bus_outages == 1 and stats.send_failures > 100 and stats.recv_errors >= 1
     assert stats.frames_tx > 0 and stats.bus_down_s > 0.3
-    warnings = [r.getMessage() for r in caplog.records if r.name == "vehest_can.daemon"]
+    warnings = [r.getMessage() for r in caplog.records if r.name == "vehest_can.service.daemon"]
     assert sum("bus error" in w for w in warnings) == 1, warnings  # once per outage
     assert "bus errors: 1 outage(s)" in "\n".join(stats.lines())
 
@@ -355,7 +357,7 @@ def test_canplayer_sensor_log_into_realtime_daemon(faults_run):
     r = faults_run.result["canplayer"]
     out = faults_run.out
     sc = load_scenario("launch_2nd")
-    local = run_inprocess(drive_from_scenario(sc, 4.0))
+    local = run_inprocess(drive_from_scenario(sc, 4.0), Ecu())
     dls_local = [to_message(f) for f in local.frames if f["id"] == DLS.frame_id]
     start = int(round(1.0 / TICK_S))
 
@@ -503,7 +505,7 @@ def test_lockstep_daemon_survives_link_down_and_up(faults_run):
     stats = daemon_ok(r)
     assert (stats["bus_outages"], stats["recv_errors"], stats["send_failures"]) == (1, 1, 0)
     assert r["stderr"].count("bus error on receive") == 1 and r["stderr"].count("bus back after") == 1
-    local = run_inprocess(drive_from_scenario(load_scenario("launch_2nd"), 0.5))
+    local = run_inprocess(drive_from_scenario(load_scenario("launch_2nd"), 0.5), Ecu())
     frames, ticks, truth = _session(faults_run.out / "link_lockstep.session.npz")
     assert r["session_ticks"] == 1000 == stats["ticks"]
     assert np.array_equal(frames, local.frames) and np.array_equal(ticks, local.frame_tick)

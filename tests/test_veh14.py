@@ -23,13 +23,13 @@ from cantools.database.can.c_source import camel_to_snake_case
 from hypothesis import given, settings, strategies as st
 from scipy import optimize
 
-from vehest_can.busload import bus_load
-from vehest_can.chassis import (ChassisScenario, chassis_scenario_dir, list_chassis_scenarios,
+from vehest_can.bus.busload import bus_load
+from vehest_can.systems.tireforce.scenario import (ChassisScenario, chassis_scenario_dir, list_chassis_scenarios,
                                 load_chassis_scenario, truth_to_numpy)
 from vehest_can.cli import main as cli_main
 from vehest_can.errors import ScenarioError
 from vehest_can.native import ffi, lib
-from vehest_can.scenario import list_scenarios, load_scenario, scenario_dir
+from vehest_can.sim.scenario import list_scenarios, load_scenario, scenario_dir
 
 ROOT = Path(__file__).resolve().parent.parent
 DT = 0.0005
@@ -870,7 +870,7 @@ def test_split_mu_sensors_tyre_and_vehicle_keys(tmp_path):
 
 @pytest.mark.parametrize("text, key, fragment", [
     ('name = "x"\nduration_s = 1.0\n[driver]\nsteer_deg = [[0.0, 0.0]]\n', "kind", 'kind = "chassis"'),
-    ('kind = "driveline"\nname = "x"\nduration_s = 1.0\n', "kind", "must be \"chassis\""),
+    ('kind = "driveline"\nname = "x"\nduration_s = 1.0\n', "kind", 'must be "tireforce" (or its old name "chassis")'),
     ("speed = 3\n" + GOOD, "speed", "unknown key"),
     (GOOD.replace("duration_s = 1.0", ""), "duration_s", "missing"),
     (GOOD.replace("steer_deg", "steer"), "driver.steer", "unknown key"),
@@ -910,7 +910,7 @@ def test_loaders_keep_to_their_own_files(tmp_path):
 
 
 def test_command_line_summary_and_bench(capsys):
-    from vehest_can import chassis
+    from vehest_can.systems.tireforce import scenario as chassis
     assert chassis.main(["chassis_paper_mu_drop"]) == 0
     out = capsys.readouterr().out
     assert "fy_peak_FL_N" in out and "ay_peak_g" in out
