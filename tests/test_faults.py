@@ -15,10 +15,13 @@ import pytest
 from vehest_can.bus.busload import bus_load
 from vehest_can.cli import main
 from vehest_can.errors import ConfigError
-from vehest_can.faults.campaign import CATALOGUE, bus_run, fault_table, run_with_faults
+from vehest_can.faults.campaign import bus_run, fault_table, run_with_faults
 from vehest_can.faults.injector import FaultInjector
 from vehest_can.faults.spec import KINDS, FaultSpec, faults_from_cli, load_faults, parse_fault
 from vehest_can.faults.wire import FaultBus, WireModel
+from vehest_can.systems.driveline.faults import FAULTS
+
+CATALOGUE = FAULTS.catalogue
 from vehest_can.bus.frames import E2ESender, database
 from vehest_can.paths import dbc_path
 from vehest_can.sim.scenario import load_scenario, scenario_dir
@@ -145,7 +148,7 @@ def test_every_fault_row(case, drive35):
     assert row.recovery <= (settle + 1)
     assert run.valid("T")[b + settle:].all() and run.valid("S")[b + settle:].all()
     assert not any(run.counters[-1, :6] - run.counters[b + 10, :6])  # quiet again after the fault
-    assert np.isfinite(run.shaft_torque("T")).all()
+    assert np.isfinite(run.estimate("T")).all()
 
 
 def test_flood_queue_policy_decides_how_stale_the_first_samples_are(drive35):

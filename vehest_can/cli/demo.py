@@ -15,12 +15,11 @@ import can
 import numpy as np
 
 from ..bus import bus as busmod
-from ..errors import ScenarioError, VehestError
+from ..errors import VehestError
 from ..progress import Progress
 from ..sim.report import realtime_summary, write_metrics
-from ..sim.scenario import read_toml
 from ..sim.session import SimMaster, run_inprocess
-from ..systems import Setup, System, claiming, registered
+from ..systems import Setup, System, load_any_scenario, registered, shipped_scenarios
 from ..systems.ecu import Ecu
 
 
@@ -53,29 +52,10 @@ def _stop(proc: subprocess.Popen) -> str:
     return err
 
 
-def _load(path: Path, systems: list[System]):
-    """(system, scenario) of a file, or of a shipped scenario's name: the registered system that claims it."""
-    if not path.is_file() and path.suffix != ".toml" and len(path.parts) == 1:
-        path = next((d / f"{path}.toml" for d in _dirs(systems) if (d / f"{path}.toml").is_file()), path)
-    doc = read_toml(path) if path.suffix == ".toml" and path.is_file() else {}
-    system = claiming(doc, systems)
-    if system is None:
-        raise ScenarioError(f"{path}: no registered system reads this scenario (kind = {doc.get('kind')!r})")
-    return system, system.load(path)
-
-
-def _dirs(systems: list[System]) -> list[Path]:
-    return list(dict.fromkeys(s.scenario_dir() for s in systems))
-
-
-def _shipped(systems: list[System]) -> list[Path]:
-    return [p for d in _dirs(systems) for p in sorted(d.glob("*.toml")) if claiming(read_toml(p), systems)]
-
-
 def run(args, systems: list[System] | None = None) -> int:
     systems = registered() if systems is None else systems
-    paths = [Path(p) for p in args.scenarios] or _shipped(systems)
-    runs = [_load(p, systems) for p in paths]
+    paths = [Path(p) for p in args.scenarios] or shipped_scenarios(systems)
+    runs = [load_any_scenario(p, systems) for p in paths]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     config = busmod.bus_config(args)

@@ -9,12 +9,11 @@ from pathlib import Path
 from ..bus import bus as busmod
 from ..bus.busload import bus_load
 from ..errors import ConfigError
-from ..faults.campaign import CATALOGUE, analyse, bus_run, fault_table, format_table, run_with_faults
+from ..faults.campaign import analyse, bus_run, fault_table, format_table, run_with_faults
 from ..faults.spec import DESCRIPTIONS, FaultConfig, faults_from_cli, load_faults
 from ..paths import dbc_path
 from ..progress import Progress
-from ..sim.scenario import load_scenario
-from ..sim.session import drive_from_scenario
+from ..systems import load_any_scenario
 
 
 def add_subparser(subparsers) -> None:
@@ -23,7 +22,7 @@ def add_subparser(subparsers) -> None:
         "faults", help="inject bus faults; table of what the ECU detects, its health response and recovery",
         description="Run the launch scenario in simulated time with the sensor node's and the ECU's frames "
                     "through a fault injector and a bit-rate-limited wire model, once per fault, and tabulate "
-                    "the ECU's fault counters, the DkfT/DkfS health and valid flags during the fault and the "
+                    "the ECU's fault counters, the health and valid flags of the scenario's filters during the fault and the "
                     "ticks until the estimates are valid again. With --fault / --faults-file: those faults "
                     "instead of the built-in table. With --bus-run S: a real-time run of S seconds on a "
                     "python-can bus (default: virtual) through the wire model, measuring the bus load.",
@@ -72,15 +71,18 @@ def run(args) -> int:
         raise ConfigError(f"--duration {args.duration}: must be positive")
     if args.tx_queue < 1:
         raise ConfigError(f"--tx-queue {args.tx_queue}: must be at least 1")
-    scenario = load_scenario(args.scenario)
-    drive = drive_from_scenario(scenario, args.duration)
+    system, scenario = load_any_scenario(args.scenario)
+    study = system.faults
+    if study is None:
+        raise ConfigError(f"{args.scenario}: a {system.name} scenario; that system has no fault table")
+    drive = system.car(scenario, args.duration)
     # bit rates: the flags, else the DBC's
     dbc = bus_load(dbc_path("pt"), getattr(args, "bitrate", None), getattr(args, "data_bitrate", None))
     wire = dict(bitrate=dbc.bitrate, data_bitrate=dbc.data_bitrate, stuffing=args.stuffing)
     config = _config(args)
 
     if args.bus_run is not None:
-        return _bus_run(args, scenario, config, wire)
+        return _bus_run(args, system.car(scenario, args.bus_run), config, wire)
 
     seed = config.seed if config is not None else 1
     options = dict(tx_queue=args.tx_queue, tx_policy=args.tx_policy, **wire)
@@ -89,20 +91,20 @@ def run(args) -> int:
         late = [f.text() for f in config.faults if f.start_s >= args.duration]
         if late:
             raise ConfigError(f"{', '.join(late)}: starts after the run's {args.duration:g} s (see --duration)")
-        rows = fault_table(drive, CATALOGUE[:1], seed=seed, **options)
+        rows = fault_table(drive, study.catalogue[:1], seed=seed, study=study, **options)
         window = (min(f.start_s for f in config.faults), min(max(f.end_s for f in config.faults), args.duration))
-        row = analyse(run_with_faults(drive, config, **options), f"given faults ({window[0]:g}-{window[1]:g} s)",
+        row = analyse(run_with_faults(drive, config, study=study, **options), f"given faults ({window[0]:g}-{window[1]:g} s)",
                       " ".join(f.text() for f in config.faults), (), window)
         row.run = None
         rows.append(row)
     else:
-        rows = fault_table(drive, seed=seed, progress=progress, **options)
+        rows = fault_table(drive, seed=seed, progress=progress, study=study, **options)
     progress.done()
     print(f"{scenario.name}, {args.duration:g} s; wire {dbc.bitrate}/{dbc.data_bitrate} bit/s, "
           f"{args.stuffing}-case stuffing, transmit queue {args.tx_queue} ({args.tx_policy}); seed {seed}")
-    print("\n".join(format_table(rows)))
+    print("\n".join(format_table(rows, study=study)))
     if args.markdown:
-        text = "\n".join(format_table(rows, markdown=True)) + "\n"
+        text = "\n".join(format_table(rows, markdown=True, study=study)) + "\n"
         if args.markdown == "-":
             sys.stdout.write(text)
         else:
@@ -110,11 +112,11 @@ def run(args) -> int:
     return 0
 
 
-def _bus_run(args, scenario, config, wire) -> int:
+def _bus_run(args, car, config, wire) -> int:
     if not args.bus_run > 1.2:
         raise ConfigError(f"--bus-run {args.bus_run}: needs more than 1.2 s (0.5 s settle at each end)")
     bus_config = busmod.bus_config(args) if getattr(args, "interface", None) or args.bus_config else None
-    result = bus_run(drive_from_scenario(scenario, args.bus_run), config, bus_config=bus_config,
+    result = bus_run(car, config, bus_config=bus_config,
                      tx_queue=args.tx_queue, tx_policy=args.tx_policy, **wire)
     print("\n".join(result.lines()))
     return 0

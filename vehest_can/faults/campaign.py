@@ -8,7 +8,6 @@ import math
 import threading
 import time
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import can
 import numpy as np
@@ -19,7 +18,8 @@ from ..bus.frames import TICK_S, database, frame_id, to_message
 from ..errors import ConfigError
 from ..paths import dbc_path
 from ..service.daemon import EcuDaemon
-from ..sim.session import Car, SimMaster
+from ..sim.session import Car, Drive, SimMaster
+from ..systems import FaultCase, FaultStudy, fault_study
 from ..systems.ecu import COUNTERS, Ecu
 from .injector import FaultInjector
 from .spec import FaultConfig, faults_from_cli
@@ -32,38 +32,34 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class FaultRun:
-    """One drive with faults, tick by tick. ``est`` holds the raw VEHEST_DrivelineEst payload of every
-    tick; the methods decode its health and valid bits."""
+    """One drive with faults, tick by tick. ``est`` holds the raw payload of the study's estimate frame
+    every tick; the methods decode its health, valid bits and estimates (the study knows how)."""
 
     config: FaultConfig
     est: np.ndarray            # (n, 16) uint8
     counters: np.ndarray       # (n, len(ecu.COUNTERS)) after each step
     sample_age: np.ndarray     # (n,) s from the making of the newest sample the ECU accepted to its step
-    truth_to: np.ndarray       # (n,) plant output-shaft torque [Nm]
+    truth: np.ndarray          # (n,) the plant's value of the first filter's estimate
     rx: list                   # per tick: the frames the ECU received before its step
     tx: list                   # (tick, can.Message) of every ECU frame
     applied: list              # frames each fault changed
     overflow: dict             # transmit-queue overflows per node
     load: float                # bus load the wire carried over the run (0..1)
+    study: FaultStudy
 
     @property
     def n(self) -> int:
         return len(self.est)
 
     def health(self, which: str) -> np.ndarray:
-        """Health of filter "T" (speeds + torque) or "S" (speeds only) per tick: 0 INIT .. 3 FAULT."""
-        return (self.est[:, 1] >> (4 if which == "T" else 6)) & 3
+        """Health of one of the study's filters per tick: 0 INIT .. 3 FAULT."""
+        return self.study.health(self.est, which)
 
     def valid(self, which: str) -> np.ndarray:
-        return ((self.est[:, 14] >> (0 if which == "T" else 1)) & 1).astype(bool)
+        return self.study.valid(self.est, which)
 
-    @property
-    def turbine_valid(self) -> np.ndarray:
-        return ((self.est[:, 14] >> 2) & 1).astype(bool)
-
-    def shaft_torque(self, which: str) -> np.ndarray:
-        col = 2 if which == "T" else 6
-        return self.est[:, col:col + 2].copy().view("<i2")[:, 0] * 0.25
+    def estimate(self, which: str) -> np.ndarray:
+        return self.study.estimate(self.est, which)
 
     def counter(self, name: str) -> np.ndarray:
         return self.counters[:, COUNTERS.index(name)]
@@ -71,42 +67,44 @@ class FaultRun:
 
 def run_with_faults(drive, config: FaultConfig | None = None, *, bitrate: int = 500_000,
                     data_bitrate: int | None = 4_000_000, stuffing: str = "worst", tx_queue: int = 10,
-                    tx_policy: str = "fifo") -> FaultRun:
+                    tx_policy: str = "fifo", study: FaultStudy | None = None) -> FaultRun:
     """The drive in simulated time with the car's and the ECU's frames through injectors and one wire.
 
     Tick k: the car's frames (and the ECU's frames of step k-1) are ready at k * 500 µs plus their
     delay; what the wire completes by (k + 1) * 500 µs reaches the ECU before its step k. Without
     faults this equals ``run_inprocess`` frame for frame (a load of 47 % leaves every frame inside
-    its tick). Floods come from a node of their own.
+    its tick). Floods come from a node of their own. `study`: whose response is recorded (default: the
+    first registered system's that has one).
     """
 
     config = config or FaultConfig()
+    study = study or fault_study()
     wire = WireModel(bitrate, data_bitrate, stuffing=stuffing, tx_queue=tx_queue, tx_policy=tx_policy)
     for spec in config.floods:
         wire.add_flood(spec, "FLOOD")
-    car, ecu = Car(drive), Ecu()
+    car, ecu = (Car(drive) if isinstance(drive, Drive) else drive), Ecu()
     sensors, vehest = FaultInjector(config, stream=0), FaultInjector(config, stream=1)
-    est_id, dls_id = frame_id("VEHEST_DrivelineEst"), frame_id("DLS_Sensors")
+    est_id, sensor_id = frame_id(study.estimate_message), frame_id(study.sensor_message)
     cnt = ecu.c.cnt
     n = drive.n
     est = np.zeros((n, 16), dtype=np.uint8)
     counters = np.zeros((n, len(COUNTERS)), dtype=np.int64)
     sample_age = np.full(n, np.nan)
-    truth_to = np.zeros(n)
+    truth = np.zeros(n)
     rx, tx = [], []
     out: list[can.Message] = []
     sample_t = math.nan
     for k in range(n):
         t = k * TICK_S
         for msg, delay in sensors.apply([to_message(f, timestamp=t) for f in car.tick(k)], t):
-            wire.submit(msg, t + delay, "DLS")
+            wire.submit(msg, t + delay, study.sensor_node)
         for msg, delay in vehest.apply(out, t):
             wire.submit(msg, t + delay, "VEHEST")
         got = [tr.msg for tr in wire.advance(t + TICK_S) if tr.node != "VEHEST"]
         for msg in got:
             refused = cnt.crc_error + cnt.counter_repeat + cnt.dlc_error
             ecu.rx(msg)
-            if msg.arbitration_id == dls_id and not msg.is_extended_id and \
+            if msg.arbitration_id == sensor_id and not msg.is_extended_id and \
                     cnt.crc_error + cnt.counter_repeat + cnt.dlc_error == refused:
                 sample_t = msg.timestamp   # when the sensor node made it
         out = ecu.step(timestamp=t + TICK_S)
@@ -117,45 +115,17 @@ def run_with_faults(drive, config: FaultConfig | None = None, *, bitrate: int = 
                 est[k] = np.frombuffer(bytes(msg.data), dtype=np.uint8)
         counters[k] = [getattr(cnt, name) for name in COUNTERS]
         sample_age[k] = t + TICK_S - sample_t
-        truth_to[k] = car.c.plant.truth.to
+        truth[k] = study.truth(car)
     for msg, delay in vehest.apply(out, n * TICK_S):   # the last step's frames, sent as the run ends
         wire.submit(msg, n * TICK_S + delay, "VEHEST")
     wire.advance((n + 1) * TICK_S)
     load = sum(wire.busy_s.values()) / (n * TICK_S)    # the frames of the run's n ticks, over n ticks
     applied = [a + b for a, b in zip(sensors.applied, vehest.applied)]
-    return FaultRun(config, est, counters, sample_age, truth_to, rx, tx, applied, dict(wire.overflow), load)
+    return FaultRun(config, est, counters, sample_age, truth, rx, tx, applied, dict(wire.overflow), load, study)
 
 
 # ---- the fault table: each fault run, what the ECU detects, its health response, recovery -----------
 
-class Case(NamedTuple):
-    """One row of the fault table: a fault (command-line form), the counters it must raise, wire options."""
-
-    label: str
-    fault: str
-    expect: tuple[str, ...] = ()
-    wire: dict = {}
-
-
-#: The rows of ``vehest-can faults``. Windows are 2.0-2.5 s of the launch scenario: both filters are OK
-#: well before.
-CATALOGUE: tuple[Case, ...] = (
-    Case("none (reference)", ""),
-    Case("random frame loss", "drop:DLS_Sensors:p=0.2:2-2.5", ("counter_skip",)),
-    Case("bit errors, some frames", "corrupt_crc:DLS_Sensors:p=0.2:2-2.5", ("crc_error",)),
-    Case("bit errors, every frame", "corrupt_crc:DLS_Sensors:2-2.5", ("crc_error", "timeout")),
-    Case("frozen sender (repeats its frame)", "freeze_counter:DLS_Sensors:2-2.5", ("counter_repeat", "timeout")),
-    Case("counter jumps", "skip_counter:DLS_Sensors:p=0.1:2-2.5", ("counter_skip",)),
-    Case("wrong length", "wrong_dlc:DLS_Sensors:p=0.2:2-2.5", ("dlc_error",)),
-    Case("sensor node silent", "silence:DLS:2-2.5", ("timeout",)),
-    Case("flood at ID 0x001, whole bus", "flood:2-2.5", ("unknown_id", "timeout")),
-    Case("same, sender keeps only its newest frame", "flood:2-2.5", ("unknown_id", "timeout"),
-         {"tx_policy": "latest"}),
-    Case("flood at ID 0x001, half the bus", "flood:load=0.5:2-2.5", ("unknown_id",)),
-    Case("constant latency 1.5 ms", "latency:DLS_Sensors:us=1500:2-2.5"),
-    Case("jitter 0..1 ms", "jitter:DLS_Sensors:max_us=1000:2-2.5"),
-    Case("jitter 0..2.5 ms", "jitter:DLS_Sensors:max_us=2500:2-2.5", ("timeout",)),
-)
 _HEALTH = ("INIT", "OK", "DEGRADED", "FAULT")
 
 
@@ -167,11 +137,11 @@ class FaultRow:
     window: tuple[int, int]       # ticks [first, end) of the fault
     detected: dict                # counter -> rise from the fault's start to the end of the run
     first_detect: int | None      # ticks from the fault's start to the first rise of an expected counter
-    health: dict                  # "T"/"S" -> health states during the fault, in order of appearance
-    valid_pct: dict               # "T"/"S" -> % of the fault's ticks with the estimate marked valid
-    recovery: int | None          # ticks after the fault until both valid; 0: never lost; None: not again
+    health: dict                  # filter -> health states during the fault, in order of appearance
+    valid_pct: dict               # filter -> % of the fault's ticks with the estimate marked valid
+    recovery: int | None          # ticks after the fault until all valid; 0: never lost; None: not again
     oldest_ms: float              # oldest sample behind an estimate marked valid, fault to run end [ms]
-    rms_nm: float                 # DkfT torque error vs the plant while valid during the fault [Nm]; nan: < 10 ticks
+    rms_error: float              # first filter's error vs the plant while valid during the fault; nan: < 10 ticks
     applied: int                  # frames the fault changed
     run: FaultRun | None = None
 
@@ -184,11 +154,11 @@ class FaultRow:
         return ", ".join(items) + after
 
     def health_text(self) -> str:
-        t, s = ("→".join(self.health[w]) for w in "TS")
-        vt, vs = self.valid_pct["T"], self.valid_pct["S"]
-        if t == s and abs(vt - vs) < 0.05:
-            return f"T, S: {t}; valid {vt:.1f} %"
-        return f"T: {t}, valid {vt:.1f} %; S: {s}, valid {vs:.1f} %"
+        states = {w: "→".join(h) for w, h in self.health.items()}
+        valid = list(self.valid_pct.values())
+        if len(set(states.values())) == 1 and max(valid) - min(valid) < 0.05:
+            return f"{', '.join(states)}: {next(iter(states.values()))}; valid {valid[0]:.1f} %"
+        return "; ".join(f"{w}: {t}, valid {self.valid_pct[w]:.1f} %" for w, t in states.items())
 
     def recovery_text(self) -> str:
         if self.recovery == 0:
@@ -213,39 +183,43 @@ def analyse(run: FaultRun, label: str, fault: str, expect: tuple[str, ...],
         hits = np.flatnonzero(col > 0)
         if hits.size and (first is None or hits[0] < first):
             first = int(hits[0])
+    filters = run.study.filters
     health, valid_pct = {}, {}
-    for w in "TS":
+    for w in filters:
         states = []
         for h in run.health(w)[a:b]:
             if _HEALTH[h] not in states:
                 states.append(_HEALTH[h])
         health[w] = states
         valid_pct[w] = 100.0 * float(run.valid(w)[a:b].mean()) if b > a else 100.0
-    both = run.valid("T") & run.valid("S")
-    if both[a:b].all():
+    every = np.logical_and.reduce([run.valid(w) for w in filters])
+    if every[a:b].all():
         recovery = 0
     else:
-        again = np.flatnonzero(both[b:])
+        again = np.flatnonzero(every[b:])
         recovery = int(again[0]) + 1 if again.size else None
-    vt = run.valid("T")
+    vt = run.valid(filters[0])
     ages = run.sample_age[a:][vt[a:]]
     oldest = 1e3 * float(np.nanmax(ages)) if ages.size else math.nan
     sel = np.flatnonzero(vt[a:b]) + a
-    err = run.shaft_torque("T")[sel] - run.truth_to[sel]
+    err = run.estimate(filters[0])[sel] - run.truth[sel]
     rms = float(np.sqrt(np.mean(err ** 2))) if sel.size >= 10 else math.nan   # too few valid ticks to say
     applied = sum(run.applied)
     return FaultRow(label, fault, expect, (a, b), detected, first, health, valid_pct, recovery, oldest, rms,
                     applied, run)
 
 
-def fault_table(drive, catalogue=CATALOGUE, *, seed: int = 1, keep_runs: bool = False, progress=None,
-                **wire) -> list[FaultRow]:
-    """Run every case on the drive and analyse it (``wire``: bit rates, stuffing, queue for every case)."""
+def fault_table(drive, catalogue: tuple[FaultCase, ...] | None = None, *, seed: int = 1, keep_runs: bool = False,
+                progress=None, study: FaultStudy | None = None, **wire) -> list[FaultRow]:
+    """Run every case (default: the study's catalogue) on the drive and analyse it (``wire``: bit rates,
+    stuffing, queue for every case)."""
+    study = study or fault_study()
+    catalogue = study.catalogue if catalogue is None else catalogue
     rows = []
     for i, case in enumerate(catalogue):
         config = faults_from_cli([case.fault] if case.fault else [], seed=seed)
         window = (config.faults[0].start_s, config.faults[0].end_s) if config.faults else (2.0, 2.5)
-        run = run_with_faults(drive, config, **{**wire, **case.wire})
+        run = run_with_faults(drive, config, study=study, **{**wire, **case.wire})
         text = " ".join([case.fault, *(f"{k}={v}" for k, v in case.wire.items())])
         row = analyse(run, case.label, text, case.expect, window)
         if not keep_runs:
@@ -256,11 +230,12 @@ def fault_table(drive, catalogue=CATALOGUE, *, seed: int = 1, keep_runs: bool = 
     return rows
 
 
-def format_table(rows: list[FaultRow], *, markdown: bool = False) -> list[str]:
+def format_table(rows: list[FaultRow], *, markdown: bool = False, study: FaultStudy | None = None) -> list[str]:
+    study = study or fault_study()
     head = ("fault", "injected as", "ECU detects (counter rise)", "health during the fault", "recovery",
-            "oldest sample, valid est.", "DkfT error while valid")
-    body = [(r.label, r.fault or "-", r.detect_text(), r.health_text(), r.recovery_text(),
-             f"{r.oldest_ms:.1f} ms", "-" if math.isnan(r.rms_nm) else f"{r.rms_nm:.1f} Nm RMS") for r in rows]
+            "oldest sample, valid est.", study.error_label)
+    body = [(r.label, r.fault or "-", r.detect_text(), r.health_text(), r.recovery_text(), f"{r.oldest_ms:.1f} ms",
+             "-" if math.isnan(r.rms_error) else f"{r.rms_error:.1f} {study.error_unit} RMS") for r in rows]
     if markdown:
         def cell(x):
             return x.replace("|", "\\|")
@@ -393,8 +368,8 @@ def bus_run(drive, config=None, *, bus_config: dict | None = None, bitrate: int 
     load["total"] = b.load_since(a)
     worst = {f.name: f.worst_pct / 100 for f in expected.frames if not f.event}
     nominal = {f.name: f.nominal_pct / 100 for f in expected.frames if not f.event}
-    # total: the cyclic frames this run put on the wire (the camber inspection frames, for one,
-    # are in the DBC but on the bus only while the devices are clamped on)
+    # total: the cyclic frames this run put on the wire (some are in the DBC but on the bus only
+    # at times, e.g. while a device is clamped on)
     seen = [n for n in load if n != "total" and n in worst]
     worst["total"], nominal["total"] = sum(worst[n] for n in seen), sum(nominal[n] for n in seen)
     return BusRun(b.t - a.t, load, worst, nominal, rate, per_frame, stuffing, session.stats,

@@ -13,7 +13,12 @@ import importlib.util
 import pkgutil
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Protocol
+from typing import Any, Callable, NamedTuple, Protocol
+
+import numpy as np
+
+from ..errors import ScenarioError
+from ..sim.scenario import read_toml
 
 
 @dataclass
@@ -25,6 +30,33 @@ class Setup:
     configure: Callable[[Any], None] = lambda ecu: None
 
 
+class FaultCase(NamedTuple):
+    """One row of a fault table: a fault (command-line form), the counters it must raise, wire options."""
+
+    label: str
+    fault: str
+    expect: tuple[str, ...] = ()
+    wire: dict = {}
+
+
+class FaultStudy(Protocol):
+    """How ``vehest-can faults`` reads a system's response: which node the faults hit, which frame holds
+    its estimates and how to decode health, validity and the estimate from that frame's payload."""
+
+    sensor_node: str            # the car's node whose frames the faults hit
+    sensor_message: str         # its sample frame (the age of the newest sample accepted)
+    estimate_message: str       # the ECU frame kept per tick
+    filters: tuple[str, ...]    # the estimators in that frame, by short name
+    error_label: str            # the table's column of the first filter's error against the plant
+    error_unit: str
+    catalogue: tuple[FaultCase, ...]
+
+    def health(self, est: np.ndarray, which: str) -> np.ndarray: ...    # (n,) 0 INIT .. 3 FAULT
+    def valid(self, est: np.ndarray, which: str) -> np.ndarray: ...     # (n,) bool
+    def estimate(self, est: np.ndarray, which: str) -> np.ndarray: ...  # (n,) in the unit of truth()
+    def truth(self, car: Any) -> float: ...                             # the plant's value this tick
+
+
 class System(Protocol):
     #: the one name: folder, docs page, tests folder, plot folder
     name: str
@@ -32,6 +64,8 @@ class System(Protocol):
     kinds: tuple[str, ...]
     #: its car runs on the wall clock (``demo --realtime``)
     realtime: bool
+    #: its fault table (``vehest-can faults``); None: it has none
+    faults: FaultStudy | None
 
     def scenario_dir(self) -> Path:
         """Where its shipped scenarios are (the demo runs every file there that it claims)."""
@@ -84,6 +118,39 @@ def registered() -> list[System]:
     return found + _extra
 
 
+def fault_study(scenario_doc: dict | None = None) -> FaultStudy:
+    """The fault study of the system a scenario belongs to (None: the first system that has one)."""
+    systems = [s for s in registered() if s.faults is not None]
+    if scenario_doc is not None:
+        systems = [s for s in systems if s.claims(scenario_doc)] or systems
+    if not systems:
+        raise LookupError("no registered system has a fault study")
+    return systems[0].faults
+
+
 def claiming(doc: dict, systems: list[System] | None = None) -> System | None:
     """The system whose scenario a parsed file is."""
     return next((s for s in (systems or registered()) if s.claims(doc)), None)
+
+
+def _dirs(systems: list[System]) -> list[Path]:
+    return list(dict.fromkeys(s.scenario_dir() for s in systems))
+
+
+def shipped_scenarios(systems: list[System] | None = None) -> list[Path]:
+    """Every shipped scenario file some system claims, folder by folder, by name."""
+    systems = registered() if systems is None else systems
+    return [p for d in _dirs(systems) for p in sorted(d.glob("*.toml")) if claiming(read_toml(p), systems)]
+
+
+def load_any_scenario(name_or_path: str | Path, systems: list[System] | None = None) -> tuple[System, Any]:
+    """(system, scenario) of a file, or of a shipped scenario's name: the registered system that claims it."""
+    systems = registered() if systems is None else systems
+    path = Path(name_or_path)
+    if not path.is_file() and path.suffix != ".toml" and len(path.parts) == 1:
+        path = next((d / f"{path}.toml" for d in _dirs(systems) if (d / f"{path}.toml").is_file()), path)
+    doc = read_toml(path) if path.suffix == ".toml" and path.is_file() else {}
+    system = claiming(doc, systems)
+    if system is None:
+        raise ScenarioError(f"{path}: no registered system reads this scenario (kind = {doc.get('kind')!r})")
+    return system, system.load(path)

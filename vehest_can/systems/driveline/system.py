@@ -7,12 +7,14 @@ from .. import Setup
 from ...sim.scenario import load_scenario, scenario_dir
 from ...sim.session import drive_from_scenario
 from . import report
+from .faults import FAULTS
 
 
 class Driveline:
     name = "driveline"
     kinds: tuple[str, ...] = ()   # driveline scenario files carry no `kind`
     realtime = True
+    faults = FAULTS
 
     def scenario_dir(self) -> Path:
         return scenario_dir()

@@ -17,6 +17,7 @@ class TireForce:
     name = "tireforce"
     kinds = KINDS
     realtime = False
+    faults = None
 
     def scenario_dir(self) -> Path:
         return chassis_scenario_dir()
