@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import math
 import re
-import tomllib
 from dataclasses import dataclass, fields
 from pathlib import Path
 
@@ -26,6 +25,7 @@ from pathlib import Path
 from ..bus.busload import FD_LENGTHS
 from ..bus.frames import database, e2e_data_id
 from ..errors import ConfigError
+from ..schema import Checker, read_toml
 
 #: Fault kinds and the amounts each takes (besides target, start_s, end_s).
 KINDS: dict[str, tuple[str, ...]] = {
@@ -122,8 +122,7 @@ def _names(bus: str = "pt") -> tuple[set[str], set[str]]:
 
 def _validate(spec: FaultSpec, where: str, bus: str = "pt") -> None:
     """ConfigError naming `where` and the key for anything a run could not use."""
-    def fail(key, problem):
-        raise ConfigError(f"{where}: {key}: {problem}")
+    fail = Checker(where, ConfigError).fail
 
     if spec.kind not in KINDS:
         fail("kind", f"unknown fault kind {spec.kind!r} (expected one of: {', '.join(KINDS)})")
@@ -247,8 +246,7 @@ def faults_from_dict(table: dict, where: str = "<faults>") -> FaultConfig:
         start_s = 2.0
         end_s = 3.0
     """
-    def fail(key, problem):
-        raise ConfigError(f"{where}: {key}: {problem}")
+    fail = Checker(where, ConfigError).fail
 
     if not isinstance(table, dict):
         fail("faults", "must be a table ([faults])")
@@ -294,13 +292,7 @@ def faults_from_dict(table: dict, where: str = "<faults>") -> FaultConfig:
 def load_faults(path: str | Path) -> FaultConfig:
     """The ``[faults]`` table of a TOML file (a scenario file or a file of its own)."""
     path = Path(path)
-    try:
-        with open(path, "rb") as fh:
-            doc = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: (TOML syntax): {exc}") from None
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    doc = read_toml(path, ConfigError)
     if "faults" not in doc:
         raise ConfigError(f"{path}: faults: missing (the file has no [faults] table)")
     return faults_from_dict(doc["faults"], str(path))

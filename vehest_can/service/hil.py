@@ -14,7 +14,6 @@ from __future__ import annotations
 import difflib
 import logging
 import threading
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,7 +23,8 @@ import can
 from ..bus.busload import bus_load, load_dbc
 from ..errors import ConfigError, ScenarioError, VehestError
 from ..paths import dbc_dir
-from ..sim.scenario import Scenario, _Checker as _ScenarioChecker, _Num, _type_name, list_scenarios, load_scenario, scenario_path
+from ..schema import Checker, Num, read_toml, type_name
+from ..sim.scenario import Scenario, list_scenarios, load_scenario, scenario_path
 
 log = logging.getLogger(__name__)
 
@@ -48,7 +48,7 @@ _TIMING_FD = ("f_clock", "nom_brp", "nom_tseg1", "nom_tseg2", "nom_sjw",
 _TIMING = ("f_clock", "brp", "tseg1", "tseg2", "sjw", "nof_samples")  # nof_samples optional (1)
 _NOMINAL_RATE = (5_000, 1_000_000)   # bit/s: ISO 11898 nominal rates end at 1 Mbit/s
 _DATA_RATE = (5_000, 16_000_000)     # bit/s: CAN FD data phase; transceivers go to 5..12 Mbit/s
-_DURATION = _Num(0.0, 86_400.0, lo_open=True)
+_DURATION = Num(0.0, 86_400.0, lo_open=True)
 # python-can interfaces where several handles on one channel all see each other's frames.
 SHAREABLE_INTERFACES = ("virtual", "udp_multicast", "socketcan")
 
@@ -170,21 +170,16 @@ def _table(head, rows, right=()) -> list[str]:
 
 # ---- loading -------------------------------------------------------------------------------
 
-class _Checker(_ScenarioChecker):
-    """The scenario loader's checks, raising ConfigError: ``FILE: dotted.key: problem``."""
+class _Checker(Checker):
+    """The schema reader's checks, raising ConfigError (``FILE: dotted.key: problem``), and a HIL file's own."""
 
-    def fail(self, key: str, problem: str):
-        raise ConfigError(f"{self.path}: {key}: {problem}")
-
-    def boolean(self, value, key: str) -> bool:
-        if not isinstance(value, bool):
-            self.fail(key, f"must be true or false, not {_type_name(value)}")
-        return value
+    def __init__(self, path: Path):
+        super().__init__(path, ConfigError)
 
     def rate(self, value, key: str, limits: tuple[int, int]) -> int:
         lo, hi = limits
         if isinstance(value, bool) or not isinstance(value, int):
-            self.fail(key, f"must be a whole number of bit/s (e.g. 500_000), not {_type_name(value)}")
+            self.fail(key, f"must be a whole number of bit/s (e.g. 500_000), not {type_name(value)}")
         if not lo <= value <= hi:
             self.fail(key, f"{value} bit/s is out of range: must be in {lo}..{hi}")
         return value
@@ -198,14 +193,7 @@ class _Checker(_ScenarioChecker):
 def load_hil_config(path: str | Path) -> HilConfig:
     """Load and validate a HIL configuration file."""
     path = Path(path)
-    try:
-        with open(path, "rb") as fh:
-            doc = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: (TOML syntax): {exc}") from None
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    return hil_config_from_dict(doc, path)
+    return hil_config_from_dict(read_toml(path, ConfigError), path)
 
 
 def hil_config_from_dict(doc: dict, path: str | Path = "<hil config>") -> HilConfig:
@@ -322,7 +310,7 @@ def _bus(c: _Checker, name: str, doc, base: Path, databases: dict) -> HilBus:
                                    f"{', '.join(sorted(can.VALID_INTERFACES))})")
     channel = doc["channel"]
     if isinstance(channel, bool) or not isinstance(channel, (str, int)) or channel == "":
-        c.fail(f"{key}.channel", f"must be a non-empty string or an integer, not {_type_name(channel)}")
+        c.fail(f"{key}.channel", f"must be a non-empty string or an integer, not {type_name(channel)}")
     fd = c.boolean(doc.get("fd", False), f"{key}.fd")
     bitrate = c.rate(doc["bitrate"], f"{key}.bitrate", _NOMINAL_RATE) if "bitrate" in doc else None
     data_bitrate = c.rate(doc["data_bitrate"], f"{key}.data_bitrate", _DATA_RATE) if "data_bitrate" in doc else None
@@ -421,7 +409,7 @@ def _kwargs(c: _Checker, doc, key: str) -> dict:
             c.fail(f"{key}.{k}", f"set {k} in {where}, not among the extra python-can arguments")
         values = v if isinstance(v, list) else [v]
         if not all(isinstance(x, (str, int, float, bool)) for x in values):
-            c.fail(f"{key}.{k}", f"must be a string, number, boolean or a list of them, not {_type_name(v)}")
+            c.fail(f"{key}.{k}", f"must be a string, number, boolean or a list of them, not {type_name(v)}")
     return dict(doc)
 
 

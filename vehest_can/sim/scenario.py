@@ -8,8 +8,6 @@ ready-to-step instances (``make_plant``, ``make_node``).
 """
 from __future__ import annotations
 
-import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -17,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ScenarioError
+from ..schema import Checker, Num, read_toml
 from ..paths import shipped_dir, shipped_file
 
 #: Plant and sensor-node step [s]: one ECU tick (VH_TICK_US).
@@ -39,71 +38,56 @@ def scenario_path(name_or_path: str | Path) -> Path:
 
 # ---- schema --------------------------------------------------------------------------------
 
-@dataclass(frozen=True)
-class _Num:
-    """A number in [lo, hi] (lo excluded when lo_open); integer=True accepts only integers."""
-
-    lo: float
-    hi: float
-    integer: bool = False
-    lo_open: bool = False
-
-    def describe(self) -> str:
-        kind = "an integer" if self.integer else "a number"
-        left = "(" if self.lo_open else "["
-        return f"{kind} in {left}{self.lo:g}, {self.hi:g}]"
-
-
 _TOP = {
     "name": "string",
     "description": "string",
-    "duration_s": _Num(0.0, 3600.0, lo_open=True),
-    "seed": _Num(0, 2**64 - 1, integer=True),
-    "initial_speed_kmh": _Num(0.0, 250.0),
+    "duration_s": Num(0.0, 3600.0, lo_open=True),
+    "seed": Num(0, 2**64 - 1, integer=True),
+    "initial_speed_kmh": Num(0.0, 250.0),
 }
 _TOP_REQUIRED = ("name", "duration_s")
 _TABLES = ("driver", "road", "vehicle", "sensors", "camber")
 
-_DRIVER = {"gear": _Num(0, 5, integer=True)}  # plus "throttle", a profile
+_DRIVER = {"gear": Num(0, 5, integer=True)}  # plus "throttle", a profile
 _ROAD = {
     # TOML key -> (vh_dlp_params_t field, range)
-    "roughness_std_nm": ("road_std", _Num(0.0, 2000.0)),
-    "roughness_bandwidth_hz": ("road_bw", _Num(0.0, 500.0, lo_open=True)),
+    "roughness_std_nm": ("road_std", Num(0.0, 2000.0)),
+    "roughness_bandwidth_hz": ("road_bw", Num(0.0, 500.0, lo_open=True)),
 }
 # [vehicle] overrides: TOML key -> (vh_dlp_params_t field, range). The ranges are physical
 # plausibility; the plant itself then refuses combinations its fixed step cannot resolve.
 _VEHICLE = {
-    "output_inertia_kgm2": ("jo", _Num(0.008, 1.0)),
-    "vehicle_inertia_kgm2": ("jv", _Num(10.0, 5000.0)),
-    "final_drive_ratio": ("rd", _Num(0.1, 1.0)),
-    "shaft_stiffness_nm_per_rad": ("ks", _Num(100.0, 100000.0)),
-    "shaft_damping_nms_per_rad": ("cs", _Num(0.0, 100.0)),
-    "wheel_radius_m": ("rt", _Num(0.15, 0.6)),
-    "rolling_resistance": ("mu_r", _Num(0.0, 0.1)),
-    "air_density_kg_m3": ("rho", _Num(0.0, 2.0)),
-    "drag_coefficient": ("ca", _Num(0.0, 2.0)),
-    "frontal_area_m2": ("area", _Num(0.0, 10.0)),
-    "engine_inertia_kgm2": ("je", _Num(0.02, 2.0)),
-    "engine_peak_torque_nm": ("te_peak", _Num(10.0, 1000.0)),
-    "idle_speed_rad_s": ("w_idle", _Num(40.0, 150.0)),
+    "output_inertia_kgm2": ("jo", Num(0.008, 1.0)),
+    "vehicle_inertia_kgm2": ("jv", Num(10.0, 5000.0)),
+    "final_drive_ratio": ("rd", Num(0.1, 1.0)),
+    "shaft_stiffness_nm_per_rad": ("ks", Num(100.0, 100000.0)),
+    "shaft_damping_nms_per_rad": ("cs", Num(0.0, 100.0)),
+    "wheel_radius_m": ("rt", Num(0.15, 0.6)),
+    "rolling_resistance": ("mu_r", Num(0.0, 0.1)),
+    "air_density_kg_m3": ("rho", Num(0.0, 2.0)),
+    "drag_coefficient": ("ca", Num(0.0, 2.0)),
+    "frontal_area_m2": ("area", Num(0.0, 10.0)),
+    "engine_inertia_kgm2": ("je", Num(0.02, 2.0)),
+    "engine_peak_torque_nm": ("te_peak", Num(10.0, 1000.0)),
+    "idle_speed_rad_s": ("w_idle", Num(40.0, 150.0)),
 }
-_GEAR_RATIO = _Num(0.2, 3.0)  # each of vehicle.gear_ratios, w_o = R_i w_t
+_GEAR_RATIO = Num(0.2, 3.0)  # each of vehicle.gear_ratios, w_o = R_i w_t
 # [sensors] noise standard deviations: TOML key -> (vh_dls_config_t noise_std indices, range)
 _SENSORS = {
-    "out_shaft_speed_std_rad_s": ((0,), _Num(0.0, 100.0)),
-    "wheel_speed_std_rad_s": ((1, 2), _Num(0.0, 100.0)),
-    "shaft_torque_std_nm": ((3,), _Num(0.0, 1000.0)),
-    "engine_speed_std_rad_s": ((4,), _Num(0.0, 100.0)),
-    "turbine_speed_std_rad_s": ((5,), _Num(0.0, 100.0)),
+    "out_shaft_speed_std_rad_s": ((0,), Num(0.0, 100.0)),
+    "wheel_speed_std_rad_s": ((1, 2), Num(0.0, 100.0)),
+    "shaft_torque_std_nm": ((3,), Num(0.0, 1000.0)),
+    "engine_speed_std_rad_s": ((4,), Num(0.0, 100.0)),
+    "turbine_speed_std_rad_s": ((5,), Num(0.0, 100.0)),
 }
 # [camber]: the four wheel-mounted inspection devices of seed 002 (FL, FR, RL, RR)
 _CAMBER_POSES = {"wheel": 0, "x_down": 1, "z_down": 2}
 _CAMBER = {
-    "theta_deg": _Num(-15.0, 15.0),    # true camber per wheel
-    "psi_deg": _Num(-45.0, 45.0),      # device misalignment yaw per wheel
-    "chip_deg": _Num(-10.0, 10.0),     # chip rotation in the device about x, y, z, per wheel
-    "lsb_mg": _Num(0.1, 100.0, lo_open=False),
-    "noise_mg": _Num(0.0, 100.0),
+    "theta_deg": Num(-15.0, 15.0),    # true camber per wheel
+    "psi_deg": Num(-45.0, 45.0),      # device misalignment yaw per wheel
+    "chip_deg": Num(-10.0, 10.0),     # chip rotation in the device about x, y, z, per wheel
+    "lsb_mg": Num(0.1, 100.0, lo_open=False),
+    "noise_mg": Num(0.0, 100.0),
 }
 
 
@@ -239,79 +223,9 @@ def truth_to_numpy(ffi, truth_array, n: int) -> np.ndarray:
 
 # ---- loading -------------------------------------------------------------------------------
 
-class _Checker:
-    """Validates values and raises ScenarioError naming the file and the dotted key."""
-
-    def __init__(self, path: Path):
-        self.path = path
-
-    def fail(self, key: str, problem: str):
-        raise ScenarioError(f"{self.path}: {key}: {problem}")
-
-    def table(self, value, key: str, allowed) -> dict:
-        if not isinstance(value, dict):
-            self.fail(key, f"must be a table ([{key}]), not {_type_name(value)}")
-        for k in value:
-            if k not in allowed:
-                self.fail(_join(key, k), f"unknown key (expected one of: {', '.join(sorted(allowed))})")
-        return value
-
-    def string(self, value, key: str) -> str:
-        if not isinstance(value, str):
-            self.fail(key, f"must be a string, not {_type_name(value)}")
-        return value
-
-    def number(self, value, key: str, spec: _Num):
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or (
-                spec.integer and not isinstance(value, int)):
-            self.fail(key, f"must be {spec.describe()}, not {_type_name(value)}")
-        if not math.isfinite(value):
-            self.fail(key, f"must be {spec.describe()}, not {value}")
-        below = value <= spec.lo if spec.lo_open else value < spec.lo
-        if below or value > spec.hi:
-            self.fail(key, f"{value!r} is out of range: must be {spec.describe()}")
-        return int(value) if spec.integer else float(value)
-
-    def profile(self, value, key: str, spec: _Num) -> tuple[tuple[float, float], ...]:
-        if not isinstance(value, list) or not value:
-            self.fail(key, "must be a non-empty list of [time_s, value] points")
-        points = []
-        for i, pt in enumerate(value):
-            k = f"{key}[{i}]"
-            if not isinstance(pt, list) or len(pt) != 2:
-                self.fail(k, f"must be a [time_s, value] pair, not {pt!r}")
-            t = self.number(pt[0], f"{k}[0]", _Num(0.0, 1e6))
-            v = self.number(pt[1], f"{k}[1]", spec)
-            if points and not t > points[-1][0]:
-                self.fail(k, f"time {t:g} s does not come after the previous point's "
-                             f"{points[-1][0]:g} s: times must increase strictly")
-            points.append((t, v))
-        return tuple(points)
-
-
-def _join(prefix: str, key: str) -> str:
-    return f"{prefix}.{key}" if prefix else key
-
-
-def _type_name(value) -> str:
-    return {bool: "a boolean", int: "an integer", float: "a number", str: "a string", list: "a list",
-            dict: "a table"}.get(type(value), type(value).__name__)
-
-
 def _native():
     from ..native import ffi, lib  # the compiled core; imported late so the schema helpers need none
     return ffi, lib
-
-
-def read_toml(path: Path) -> dict:
-    """A scenario file's TOML document; ScenarioError naming the file when it cannot be had."""
-    try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{path}: (TOML syntax): {exc}") from None
-    except OSError as exc:
-        raise ScenarioError(f"{path}: cannot read: {exc.strerror or exc}") from None
 
 
 def load_scenario(path: str | Path) -> Scenario:
@@ -323,7 +237,7 @@ def load_scenario(path: str | Path) -> Scenario:
 def scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> Scenario:
     """Validate an already parsed TOML document (``path`` only names it in errors)."""
     ffi, lib = _native()
-    c = _Checker(Path(path))
+    c = Checker(Path(path))
     c.table(doc, "", set(_TOP) | set(_TABLES))
     for key in _TOP_REQUIRED:
         if key not in doc:
@@ -342,7 +256,7 @@ def scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> Scenario:
     for key in ("throttle", "gear"):
         if key not in driver:
             c.fail(f"driver.{key}", "missing (required)")
-    throttle = c.profile(driver["throttle"], "driver.throttle", _Num(0.0, 1.0))
+    throttle = c.profile(driver["throttle"], "driver.throttle", Num(0.0, 1.0))
     gear = c.number(driver["gear"], "driver.gear", _DRIVER["gear"])
 
     prm = ffi.new("vh_dlp_params_t *")

@@ -18,7 +18,7 @@ from typing import Any, Callable, NamedTuple, Protocol
 import numpy as np
 
 from ..errors import ScenarioError
-from ..sim.scenario import read_toml
+from ..schema import read_toml
 
 
 @dataclass

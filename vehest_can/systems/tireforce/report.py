@@ -224,7 +224,7 @@ def scenario(name: str, *, mass_delta_kg: float | None = None):
     """A chassis scenario by name or path; ``mass_delta_kg`` overrides ``[vehicle] mass_delta_kg``
     (e.g. 0 for the nominal car: the estimator's model is then the true mass)."""
     from .scenario import chassis_scenario_from_dict, chassis_scenario_path, load_chassis_scenario
-    from ...sim.scenario import read_toml
+    from ...schema import read_toml
 
     if mass_delta_kg is None:
         return load_chassis_scenario(name)

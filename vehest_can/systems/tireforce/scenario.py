@@ -29,7 +29,8 @@ import numpy as np
 
 from ...errors import ScenarioError
 from ...paths import shipped_dir, shipped_file
-from ...sim.scenario import DT, _Checker, _native, _Num, _type_name, read_toml
+from ...schema import Checker, Num, read_toml, type_name
+from ...sim.scenario import DT, _native
 
 #: The scenario kind, then its old name (files that say kind = "chassis" keep loading).
 KINDS = ("tireforce", "chassis")
@@ -57,70 +58,70 @@ _TOP = {
     "kind": "string",
     "name": "string",
     "description": "string",
-    "duration_s": _Num(0.0, 3600.0, lo_open=True),
-    "seed": _Num(0, 2**64 - 1, integer=True),
-    "initial_speed_kmh": _Num(0.0, 250.0),
+    "duration_s": Num(0.0, 3600.0, lo_open=True),
+    "seed": Num(0, 2**64 - 1, integer=True),
+    "initial_speed_kmh": Num(0.0, 250.0),
 }
 _TOP_REQUIRED = ("kind", "name", "duration_s")
 _TABLES = ("driver", "road", "vehicle", "tyre", "sensors")
 
-_STEER_DEG = _Num(-30.0, 30.0)     # road-wheel angle; the plant clamps at 0.6 rad (34 deg)
-_DRIVE_NM = _Num(-5000.0, 5000.0)  # per wheel; negative is engine braking
-_BRAKE_NM = _Num(0.0, 10000.0)     # per wheel, a magnitude
-_MU = _Num(0.0, 2.0)
+_STEER_DEG = Num(-30.0, 30.0)     # road-wheel angle; the plant clamps at 0.6 rad (34 deg)
+_DRIVE_NM = Num(-5000.0, 5000.0)  # per wheel; negative is engine braking
+_BRAKE_NM = Num(0.0, 10000.0)     # per wheel, a magnitude
+_MU = Num(0.0, 2.0)
 
 # [vehicle] overrides: TOML key -> (vh_v14_params_t field, range). Plausibility ranges; the plant then
 # checks the combination (a roll stiffness the tyres can carry, springs softer in roll than k_phi, ...).
 _VEHICLE = {
-    "sprung_mass_kg": ("ms", _Num(200.0, 5000.0)),
-    "roll_inertia_kgm2": ("ix", _Num(50.0, 5000.0)),
-    "pitch_inertia_kgm2": ("iy", _Num(200.0, 20000.0)),
-    "yaw_inertia_kgm2": ("iz", _Num(200.0, 20000.0)),
-    "cg_to_front_axle_m": ("lf", _Num(0.3, 3.0)),
-    "cg_to_rear_axle_m": ("lr", _Num(0.3, 3.0)),
-    "cg_height_m": ("h", _Num(0.2, 1.5)),
-    "half_track_front_m": ("tf", _Num(0.4, 1.2)),
-    "half_track_rear_m": ("tr", _Num(0.4, 1.2)),
-    "roll_centre_height_front_m": ("hf", _Num(0.0, 0.4)),
-    "roll_centre_height_rear_m": ("hr", _Num(0.0, 0.4)),
-    "roll_stiffness_front_nm_per_rad": ("kphi_f", _Num(1e3, 1e6)),
-    "roll_stiffness_rear_nm_per_rad": ("kphi_r", _Num(1e3, 1e6)),
-    "roll_damping_front_nms_per_rad": ("cphi_f", _Num(0.0, 1e5)),
-    "roll_damping_rear_nms_per_rad": ("cphi_r", _Num(0.0, 1e5)),
-    "wheel_radius_m": ("rw", _Num(0.15, 0.6)),
-    "wheel_inertia_kgm2": ("iw", _Num(0.3, 20.0)),
-    "unsprung_mass_front_kg": ("m_uf", _Num(10.0, 200.0)),
-    "unsprung_mass_rear_kg": ("m_ur", _Num(10.0, 200.0)),
-    "spring_rate_front_n_per_m": ("k_f", _Num(5e3, 3e5)),
-    "spring_rate_rear_n_per_m": ("k_r", _Num(5e3, 3e5)),
-    "tyre_stiffness_n_per_m": ("kt", _Num(5e4, 2e6)),
-    "tyre_damping_ns_per_m": ("ct", _Num(0.0, 5e3)),
-    "air_density_kg_m3": ("rho", _Num(0.0, 2.0)),
-    "drag_area_m2": ("cda", _Num(0.0, 5.0)),
+    "sprung_mass_kg": ("ms", Num(200.0, 5000.0)),
+    "roll_inertia_kgm2": ("ix", Num(50.0, 5000.0)),
+    "pitch_inertia_kgm2": ("iy", Num(200.0, 20000.0)),
+    "yaw_inertia_kgm2": ("iz", Num(200.0, 20000.0)),
+    "cg_to_front_axle_m": ("lf", Num(0.3, 3.0)),
+    "cg_to_rear_axle_m": ("lr", Num(0.3, 3.0)),
+    "cg_height_m": ("h", Num(0.2, 1.5)),
+    "half_track_front_m": ("tf", Num(0.4, 1.2)),
+    "half_track_rear_m": ("tr", Num(0.4, 1.2)),
+    "roll_centre_height_front_m": ("hf", Num(0.0, 0.4)),
+    "roll_centre_height_rear_m": ("hr", Num(0.0, 0.4)),
+    "roll_stiffness_front_nm_per_rad": ("kphi_f", Num(1e3, 1e6)),
+    "roll_stiffness_rear_nm_per_rad": ("kphi_r", Num(1e3, 1e6)),
+    "roll_damping_front_nms_per_rad": ("cphi_f", Num(0.0, 1e5)),
+    "roll_damping_rear_nms_per_rad": ("cphi_r", Num(0.0, 1e5)),
+    "wheel_radius_m": ("rw", Num(0.15, 0.6)),
+    "wheel_inertia_kgm2": ("iw", Num(0.3, 20.0)),
+    "unsprung_mass_front_kg": ("m_uf", Num(10.0, 200.0)),
+    "unsprung_mass_rear_kg": ("m_ur", Num(10.0, 200.0)),
+    "spring_rate_front_n_per_m": ("k_f", Num(5e3, 3e5)),
+    "spring_rate_rear_n_per_m": ("k_r", Num(5e3, 3e5)),
+    "tyre_stiffness_n_per_m": ("kt", Num(5e4, 2e6)),
+    "tyre_damping_ns_per_m": ("ct", Num(0.0, 5e3)),
+    "air_density_kg_m3": ("rho", Num(0.0, 2.0)),
+    "drag_area_m2": ("cda", Num(0.0, 5.0)),
 }
 #: The true car is this much heavier than the paper's (the estimator's model): payload at the sprung CG.
-_MASS_DELTA = _Num(-500.0, 2000.0)
+_MASS_DELTA = Num(-500.0, 2000.0)
 _TYRE = {
-    "relaxation_length_x_m": ("relax_x", _Num(0.0, 2.0)),
-    "relaxation_length_y_m": ("relax_y", _Num(0.0, 2.0)),
+    "relaxation_length_x_m": ("relax_x", Num(0.0, 2.0)),
+    "relaxation_length_y_m": ("relax_y", Num(0.0, 2.0)),
 }
 _TYRE_COEF = {"lateral_coefficients": "a", "longitudinal_coefficients": "b"}  # 9 numbers each
 # [sensors]: TOML key -> (vh_chs_config_t array, channel indices, range)
 _SENSORS = {
-    "ax_std_m_s2": ("noise_std", (0,), _Num(0.0, 10.0)),
-    "ay_std_m_s2": ("noise_std", (1,), _Num(0.0, 10.0)),
-    "yaw_rate_std_rad_s": ("noise_std", (2,), _Num(0.0, 1.0)),
-    "roll_rate_std_rad_s": ("noise_std", (3,), _Num(0.0, 1.0)),
-    "steer_std_rad": ("noise_std", (4,), _Num(0.0, 0.1)),
-    "wheel_speed_std_rad_s": ("noise_std", (5, 6, 7, 8), _Num(0.0, 10.0)),
-    "wheel_torque_std_nm": ("noise_std", (9, 10, 11, 12), _Num(0.0, 1000.0)),
-    "ax_bias_m_s2": ("bias", (0,), _Num(-10.0, 10.0)),
-    "ay_bias_m_s2": ("bias", (1,), _Num(-10.0, 10.0)),
-    "yaw_rate_bias_rad_s": ("bias", (2,), _Num(-1.0, 1.0)),
-    "roll_rate_bias_rad_s": ("bias", (3,), _Num(-1.0, 1.0)),
-    "steer_bias_rad": ("bias", (4,), _Num(-0.1, 0.1)),
-    "wheel_speed_bias_rad_s": ("bias", (5, 6, 7, 8), _Num(-10.0, 10.0)),
-    "wheel_torque_bias_nm": ("bias", (9, 10, 11, 12), _Num(-1000.0, 1000.0)),
+    "ax_std_m_s2": ("noise_std", (0,), Num(0.0, 10.0)),
+    "ay_std_m_s2": ("noise_std", (1,), Num(0.0, 10.0)),
+    "yaw_rate_std_rad_s": ("noise_std", (2,), Num(0.0, 1.0)),
+    "roll_rate_std_rad_s": ("noise_std", (3,), Num(0.0, 1.0)),
+    "steer_std_rad": ("noise_std", (4,), Num(0.0, 0.1)),
+    "wheel_speed_std_rad_s": ("noise_std", (5, 6, 7, 8), Num(0.0, 10.0)),
+    "wheel_torque_std_nm": ("noise_std", (9, 10, 11, 12), Num(0.0, 1000.0)),
+    "ax_bias_m_s2": ("bias", (0,), Num(-10.0, 10.0)),
+    "ay_bias_m_s2": ("bias", (1,), Num(-10.0, 10.0)),
+    "yaw_rate_bias_rad_s": ("bias", (2,), Num(-1.0, 1.0)),
+    "roll_rate_bias_rad_s": ("bias", (3,), Num(-1.0, 1.0)),
+    "steer_bias_rad": ("bias", (4,), Num(-0.1, 0.1)),
+    "wheel_speed_bias_rad_s": ("bias", (5, 6, 7, 8), Num(-10.0, 10.0)),
+    "wheel_torque_bias_nm": ("bias", (9, 10, 11, 12), Num(-1000.0, 1000.0)),
 }
 
 
@@ -315,7 +316,7 @@ def truth_to_numpy(ffi, truth_array, n: int) -> np.ndarray:
 
 # ---- loading -------------------------------------------------------------------------------
 
-def _vector_profile(c: _Checker, value, key: str, spec: _Num) -> tuple[tuple[float, ...], ...]:
+def _vector_profile(c: Checker, value, key: str, spec: Num) -> tuple[tuple[float, ...], ...]:
     """[[t, FL, FR, RL, RR], ...] with t strictly increasing."""
     if not isinstance(value, list) or not value:
         c.fail(key, "must be a non-empty list of [time_s, FL, FR, RL, RR] points")
@@ -324,7 +325,7 @@ def _vector_profile(c: _Checker, value, key: str, spec: _Num) -> tuple[tuple[flo
         k = f"{key}[{i}]"
         if not isinstance(pt, list) or len(pt) != 5:
             c.fail(k, f"must be a [time_s, FL, FR, RL, RR] point (5 numbers), not {pt!r}")
-        t = c.number(pt[0], f"{k}[0]", _Num(0.0, 1e6))
+        t = c.number(pt[0], f"{k}[0]", Num(0.0, 1e6))
         vals = tuple(c.number(v, f"{k}[{j + 1}]", spec) for j, v in enumerate(pt[1:]))
         if points and not t > points[-1][0]:
             c.fail(k, f"time {t:g} s does not come after the previous point's {points[-1][0]:g} s: "
@@ -342,9 +343,9 @@ def load_chassis_scenario(path: str | Path) -> ChassisScenario:
 def chassis_scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> ChassisScenario:
     """Validate an already parsed TOML document (``path`` only names it in errors)."""
     ffi, lib = _native()
-    c = _Checker(Path(path))
+    c = Checker(Path(path))
     if not isinstance(doc, dict):
-        c.fail("", f"must be a TOML document (a table), not {_type_name(doc)}")
+        c.fail("", f"must be a TOML document (a table), not {type_name(doc)}")
     if doc.get("kind") not in KINDS:
         if "kind" not in doc:
             c.fail("kind", 'missing: a tireforce scenario starts with kind = "tireforce" (or its old name, '
@@ -400,7 +401,7 @@ def chassis_scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> Ch
         if k in _TYRE_COEF:
             if not isinstance(v, list) or len(v) != 9:
                 c.fail(f"tyre.{k}", "must be a list of 9 Magic Formula coefficients (C, then 1..8 as published)")
-            tyre.append((k, tuple(c.number(x, f"tyre.{k}[{i}]", _Num(-1e6, 1e6)) for i, x in enumerate(v))))
+            tyre.append((k, tuple(c.number(x, f"tyre.{k}[{i}]", Num(-1e6, 1e6)) for i, x in enumerate(v))))
         else:
             tyre.append((k, c.number(v, f"tyre.{k}", _TYRE[k][1])))
 
@@ -410,7 +411,7 @@ def chassis_scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> Ch
     for k, v in sensors_doc.items():
         if k == "accel_gravity":
             if not isinstance(v, bool):
-                c.fail("sensors.accel_gravity", f"must be true or false, not {_type_name(v)}")
+                c.fail("sensors.accel_gravity", f"must be true or false, not {type_name(v)}")
             accel_gravity = v
         else:
             sensors.append((k, c.number(v, f"sensors.{k}", _SENSORS[k][2])))
