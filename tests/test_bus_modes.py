@@ -16,14 +16,14 @@ import can
 import numpy as np
 import pytest
 
-from vehest_can.systems.ecu import Ecu
 from vehest_can.bus.bus import cli_args, open_bus, private_multicast
-from vehest_can.service.daemon import EcuDaemon
 from vehest_can.bus.frames import database
 from vehest_can.bus.log import read_log
+from vehest_can.service.daemon import EcuDaemon
 from vehest_can.service.replay import replay
 from vehest_can.sim.scenario import load_scenario, scenario_dir
 from vehest_can.sim.session import SimMaster, drive_from_scenario, run_inprocess
+from vehest_can.systems.ecu import Ecu
 
 LAUNCH = load_scenario(scenario_dir() / "launch_2nd.toml")
 ECU_IDS = {m.frame_id for m in database("pt").messages if "VEHEST" in m.senders and m.name != "VEHEST_SyncAck"}

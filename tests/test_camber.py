@@ -17,12 +17,21 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize, root
 
-from vehest_can.systems.camber import api as camber
-from vehest_can.systems.camber import reference as ref
-from vehest_can.systems.camber.api import (CalibrationLimits, Calibration, CamberNode, CaptureError, MeasureConfig, Reason,
-                               calibrate, measure, measure_windows)
 from vehest_can.errors import ConfigError
 from vehest_can.native import ffi, lib
+from vehest_can.systems.camber import api as camber
+from vehest_can.systems.camber import reference as ref
+from vehest_can.systems.camber.api import (
+    Calibration,
+    CalibrationLimits,
+    CamberNode,
+    CaptureError,
+    MeasureConfig,
+    Reason,
+    calibrate,
+    measure,
+    measure_windows,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 LSB = 0.004  # 4 mg
@@ -510,7 +519,7 @@ def test_node_truth_noise_and_determinism():
     np.testing.assert_array_equal(quiet.capture(3), np.tile(np.floor(ref.gravity_s(th, ps) / LSB + 0.5), (3, 1)))
     big = CamberNode(noise_std_g=0.0, lsb_g=1e-5)  # 1 g = 100000 counts: saturates
     assert big.capture(1, "z_down")[0, 2] == 32767
-    with pytest.raises(Exception):
+    with pytest.raises(ConfigError):
         CamberNode(lsb_g=0.0)
     with pytest.raises(ConfigError, match="pose"):
         node.capture(1, "upside_down")

@@ -6,7 +6,8 @@ from pathlib import Path
 import cantools
 import pytest
 from cantools.database.can.c_source import camel_to_snake_case
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from vehest_can.bus.frames import database
 from vehest_can.native import ffi, lib

@@ -3,10 +3,10 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from vehest_can.systems.driveline import reference as dkf_ref
-from vehest_can.systems.driveline.api import DkfConfig, DrivelineKF, turbine_torque
 from vehest_can.errors import ConfigError, NativeError
 from vehest_can.native import lib
+from vehest_can.systems.driveline import reference as dkf_ref
+from vehest_can.systems.driveline.api import DkfConfig, DrivelineKF, turbine_torque
 
 
 def synthetic(n=8000, seed=1):

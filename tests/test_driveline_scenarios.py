@@ -3,12 +3,12 @@ import numpy as np
 import pytest
 
 from vehest_can.sim.report import decode
-from vehest_can.systems.ecu import Ecu
+from vehest_can.sim.scenario import load_scenario, scenario_dir
+from vehest_can.sim.session import drive_from_scenario, run_inprocess
 from vehest_can.systems.driveline import reference as dkf_ref
 from vehest_can.systems.driveline import report
 from vehest_can.systems.driveline.api import DkfConfig, DrivelineKF
-from vehest_can.sim.scenario import load_scenario, scenario_dir
-from vehest_can.sim.session import drive_from_scenario, run_inprocess
+from vehest_can.systems.ecu import Ecu
 
 DRIVELINE = [p for p in sorted(scenario_dir().glob("*.toml")) if load_scenario(p).camber is None]
 

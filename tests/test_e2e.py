@@ -1,6 +1,7 @@
 """E2E P01 protection in C against an independent bitwise CRC written here from the spec."""
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 
 from vehest_can.native import ffi, lib
 

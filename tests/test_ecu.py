@@ -6,9 +6,9 @@ import can
 import numpy as np
 import pytest
 
-from vehest_can.systems.ecu import Ecu, EcuConfig
-from vehest_can.errors import ConfigError
 from vehest_can.bus.frames import E2ESender, database
+from vehest_can.errors import ConfigError
+from vehest_can.systems.ecu import Ecu, EcuConfig
 
 DB = database("pt")
 EST = DB.get_message_by_name("VEHEST_DrivelineEst")

@@ -6,27 +6,25 @@ import random
 import time
 
 import can
-
-from vehest_can.systems.ecu import Ecu
-from vehest_can.bus.bus import open_bus, private_multicast
 import numpy as np
 import pytest
 
+from vehest_can.bus.bus import open_bus, private_multicast
 from vehest_can.bus.busload import bus_load
+from vehest_can.bus.frames import E2ESender, database
 from vehest_can.cli import main
 from vehest_can.errors import ConfigError
 from vehest_can.faults.campaign import bus_run, fault_table, run_with_faults
 from vehest_can.faults.injector import FaultInjector
 from vehest_can.faults.spec import KINDS, FaultSpec, faults_from_cli, load_faults, parse_fault
 from vehest_can.faults.wire import FaultBus, WireModel
-from vehest_can.systems.driveline.faults import FAULTS
-
-CATALOGUE = FAULTS.catalogue
-from vehest_can.bus.frames import E2ESender, database
 from vehest_can.paths import dbc_path
 from vehest_can.sim.scenario import load_scenario, scenario_dir
 from vehest_can.sim.session import drive_from_scenario, run_inprocess
+from vehest_can.systems.driveline.faults import FAULTS
+from vehest_can.systems.ecu import Ecu
 
+CATALOGUE = FAULTS.catalogue
 DB = database("pt")
 DLS = DB.get_message_by_name("DLS_Sensors")
 LAUNCH = load_scenario(scenario_dir() / "launch_2nd.toml")

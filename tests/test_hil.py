@@ -20,17 +20,17 @@ import can
 import numpy as np
 import pytest
 
-from vehest_can.systems.ecu import Ecu
 from vehest_can.bus import bus as busmod
 from vehest_can.bus.busload import bus_load
+from vehest_can.bus.frames import TICK_S, database
 from vehest_can.cli import main
 from vehest_can.errors import ConfigError
-from vehest_can.bus.frames import TICK_S, database
-from vehest_can.service.hil import BUS_LOAD_LIMIT_PCT, ResidualBus, load_hil_config
 from vehest_can.paths import dbc_path
+from vehest_can.service.hil import BUS_LOAD_LIMIT_PCT, ResidualBus, load_hil_config
 from vehest_can.sim.report import decode
 from vehest_can.sim.scenario import load_scenario
 from vehest_can.sim.session import SimMaster, drive_from_scenario, run_inprocess
+from vehest_can.systems.ecu import Ecu
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = sorted((ROOT / "examples" / "hil").glob("*.toml"))

@@ -18,12 +18,12 @@ import can
 import numpy as np
 import pytest
 
-from vehest_can.systems.ecu import Ecu
 from vehest_can.bus import bus as busmod
-from vehest_can.cli import main
 from vehest_can.bus.frames import database
+from vehest_can.cli import main
 from vehest_can.sim.scenario import load_scenario
 from vehest_can.sim.session import drive_from_scenario, run_inprocess
+from vehest_can.systems.ecu import Ecu
 
 CI = os.environ.get("CI", "").lower() in ("true", "1")
 HERE = Path(__file__).parent

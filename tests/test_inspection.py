@@ -5,12 +5,12 @@ from dataclasses import replace
 import can
 import pytest
 
-from vehest_can.systems.camber import inspection
-from vehest_can.systems.camber.api import WHEELS, load_calibrations
 from vehest_can.cli import main
-from vehest_can.systems.ecu import Ecu
 from vehest_can.sim.scenario import load_scenario, scenario_dir
 from vehest_can.sim.session import drive_from_scenario, run_inprocess
+from vehest_can.systems.camber import inspection
+from vehest_can.systems.camber.api import WHEELS, load_calibrations
+from vehest_can.systems.ecu import Ecu
 
 SC = load_scenario(scenario_dir() / "camber_inspection.toml")
 TRUTH = {w: SC.camber.theta_deg[i] for i, w in enumerate(WHEELS)}

@@ -10,8 +10,7 @@ import pytest
 
 from vehest_can.errors import ConfigError, ScenarioError
 from vehest_can.native import ffi, lib
-from vehest_can.sim.scenario import (DT, Scenario, list_scenarios, load_scenario, scenario_dir,
-                                 scenario_from_dict)
+from vehest_can.sim.scenario import DT, Scenario, list_scenarios, load_scenario, scenario_dir, scenario_from_dict
 
 GOOD = """\
 name = "mine"

@@ -18,8 +18,8 @@ from pathlib import Path
 
 import pytest
 
-from vehest_can.service import sdnotify
 from vehest_can.cli import build_parser
+from vehest_can.service import sdnotify
 from vehest_can.service.sdnotify import Notifier, Watchdog, socket_address, watchdog_interval
 
 

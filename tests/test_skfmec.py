@@ -21,10 +21,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vehest_can.systems.tireforce import reference as skf_ref
-from vehest_can.systems.tireforce import api as tf
 from vehest_can.errors import ConfigError, NativeError
 from vehest_can.native import ffi, lib
+from vehest_can.systems.tireforce import api as tf
+from vehest_can.systems.tireforce import reference as skf_ref
 
 ROOT = Path(__file__).resolve().parent.parent
 INCLUDE = ROOT / "c_core" / "include"

@@ -16,11 +16,11 @@ import json
 import numpy as np
 import pytest
 
-from vehest_can.systems.tireforce import report as tr
-from vehest_can.systems.tireforce import api as tf
-from vehest_can.errors import ConfigError
 from vehest_can.bus.frames import E2ESender
+from vehest_can.errors import ConfigError
 from vehest_can.native import lib
+from vehest_can.systems.tireforce import api as tf
+from vehest_can.systems.tireforce import report as tr
 
 DT = 5e-4
 FIXED_TARGET = tr.TARGET_FIXED_PCT
@@ -253,8 +253,8 @@ def test_decode_signals_matches_decode_inputs():
 
 def test_masked_rows_reach_the_filter_as_degraded_steps():
     """A decoded invalid sample is not used: the step is DEGRADED, never a number in the filter."""
-    from vehest_can.systems.tireforce.scenario import load_chassis_scenario
     from vehest_can.native import ffi
+    from vehest_can.systems.tireforce.scenario import load_chassis_scenario
 
     sc = load_chassis_scenario("chassis_paper_mu_drop")
     truth, payloads = sc.run_with_frames(ffi, lib)

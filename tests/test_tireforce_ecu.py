@@ -10,18 +10,16 @@ from pathlib import Path
 import can
 import numpy as np
 import pytest
+from test_bus_modes import start_daemon, stop_daemon
 
-from vehest_can.systems.tireforce import api as tf
 from vehest_can.bus.bus import open_bus, private_multicast
-from vehest_can.systems.tireforce.scenario import ChassisCar, load_chassis_scenario
-from vehest_can.systems.ecu import Ecu
-from vehest_can.bus.frames import E2ESender, database, frame_id
-from vehest_can.native import ffi, lib
+from vehest_can.bus.frames import E2ESender, database
 from vehest_can.bus.log import read_log
 from vehest_can.service.replay import replay
 from vehest_can.sim.session import SimMaster, run_inprocess
-
-from test_bus_modes import start_daemon, stop_daemon
+from vehest_can.systems.ecu import Ecu
+from vehest_can.systems.tireforce import api as tf
+from vehest_can.systems.tireforce.scenario import ChassisCar, load_chassis_scenario
 
 DB = database("ch")
 CHS = DB.get_message_by_name("CHS_Sensors")
@@ -128,7 +126,8 @@ def test_nothing_on_the_chassis_bus_until_it_is_heard():
 def test_chassis_rx_faults_are_counted_flagged_and_survived(warm_chassis):
     ecu, tx = warm_chassis
     f = good(tx)
-    bad_crc = can.Message(arbitration_id=f.arbitration_id, is_extended_id=False, is_fd=True, data=bytes([f.data[0] ^ 1]) + f.data[1:])
+    bad_crc = can.Message(arbitration_id=f.arbitration_id, is_extended_id=False, is_fd=True,
+                          data=bytes([f.data[0] ^ 1]) + f.data[1:])
     short = can.Message(arbitration_id=f.arbitration_id, is_extended_id=False, is_fd=True, data=f.data[:24])
     est, st = run(ecu, [[f], [f], [bad_crc], [short], [good(tx, YawRate=-3.2768)], [good(tx, Qf_LatAccel=0)]]
                   + [[good(tx)] for _ in range(40)])

@@ -34,14 +34,14 @@ import can
 import numpy as np
 import pytest
 
-from vehest_can.systems.ecu import Ecu
-from vehest_can.service.daemon import EcuDaemon
 from vehest_can.bus.frames import TICK_S, database, e2e_data_id, to_message
-from vehest_can.native import lib
 from vehest_can.bus.log import read_log
+from vehest_can.native import lib
+from vehest_can.service.daemon import EcuDaemon
 from vehest_can.service.replay import replay
 from vehest_can.sim.scenario import load_scenario, scenario_dir
 from vehest_can.sim.session import drive_from_scenario, run_inprocess
+from vehest_can.systems.ecu import Ecu
 
 GUEST = Path(__file__).resolve().parent / "vcan_guest"
 PY = shlex.quote(sys.executable)

@@ -20,16 +20,22 @@ import cantools
 import numpy as np
 import pytest
 from cantools.database.can.c_source import camel_to_snake_case
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import optimize
 
 from vehest_can.bus.busload import bus_load
-from vehest_can.systems.tireforce.scenario import (ChassisScenario, chassis_scenario_dir, list_chassis_scenarios,
-                                load_chassis_scenario, truth_to_numpy)
 from vehest_can.cli import main as cli_main
 from vehest_can.errors import ScenarioError
 from vehest_can.native import ffi, lib
 from vehest_can.sim.scenario import list_scenarios, load_scenario, scenario_dir
+from vehest_can.systems.tireforce.scenario import (
+    ChassisScenario,
+    chassis_scenario_dir,
+    list_chassis_scenarios,
+    load_chassis_scenario,
+    truth_to_numpy,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
 DT = 0.0005

@@ -10,6 +10,7 @@ import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NoReturn
 
 from .errors import ScenarioError, VehestError
 
@@ -36,7 +37,7 @@ class Checker:
         self.path = path
         self.error = error
 
-    def fail(self, key: str, problem: str):
+    def fail(self, key: str, problem: str) -> NoReturn:
         raise self.error(f"{self.path}: {key}: {problem}")
 
     def table(self, value, key: str, allowed) -> dict:
@@ -71,7 +72,7 @@ class Checker:
     def profile(self, value, key: str, spec: Num) -> tuple[tuple[float, float], ...]:
         if not isinstance(value, list) or not value:
             self.fail(key, "must be a non-empty list of [time_s, value] points")
-        points = []
+        points: list[tuple[float, float]] = []
         for i, pt in enumerate(value):
             k = f"{key}[{i}]"
             if not isinstance(pt, list) or len(pt) != 2:

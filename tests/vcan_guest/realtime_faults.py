@@ -36,10 +36,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import guestlib  # noqa: E402
 from guestlib import STATUS_ID, cansend, cansend_frame  # noqa: E402
 
-from vehest_can.systems.ecu import Ecu
 from vehest_can.bus.frames import frame_id, to_message  # noqa: E402
 from vehest_can.sim.scenario import load_scenario  # noqa: E402
 from vehest_can.sim.session import SimMaster, drive_from_scenario, run_inprocess  # noqa: E402
+from vehest_can.systems.ecu import Ecu
 
 DLS_ID = frame_id("DLS_Sensors")
 SCENARIO = "launch_2nd"

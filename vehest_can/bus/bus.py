@@ -202,6 +202,7 @@ class HostMulticastBus(UdpMulticastBus):
 
 def open_bus(config: dict) -> can.BusABC:
     """A python-can bus; ``udp_multicast`` is :class:`HostMulticastBus` (this host only by default)."""
+    bus: can.BusABC
     try:
         if config.get("interface") == "udp_multicast":
             bus = HostMulticastBus(**{k: v for k, v in config.items() if k != "interface"})

@@ -112,7 +112,7 @@ def wire_time_us(bits: tuple[int, int], bitrate: float, data_bitrate: float | No
         raise ConfigError(f"bit rate must be positive, not {bitrate}")
     if data_bits and (data_bitrate is None or data_bitrate <= 0):
         raise ConfigError("data-phase bits need a positive data bit rate")
-    return 1e6 * (nominal_bits / bitrate + (data_bits / data_bitrate if data_bits else 0.0))
+    return 1e6 * (nominal_bits / bitrate + (data_bits / data_bitrate if data_bits and data_bitrate else 0.0))
 
 
 @dataclass(frozen=True)

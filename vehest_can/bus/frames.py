@@ -1,7 +1,9 @@
 """Frames across the firmware boundary: ``vh_frame_t`` <-> ``can.Message``, and the DBC helpers."""
 from __future__ import annotations
 
-from functools import lru_cache
+from collections.abc import Set as AbstractSet
+from functools import cache
+from typing import cast
 
 import can
 import cantools
@@ -16,16 +18,16 @@ TICK_S = lib.VH_TICK_US * 1e-6
 FRAME_DTYPE = struct_dtype("vh_frame_t")
 
 
-@lru_cache(maxsize=None)
+@cache
 def database(bus: str = "pt") -> cantools.database.can.Database:
-    return cantools.database.load_file(str(dbc_path(bus)), strict=True)
+    return cast(cantools.database.can.Database, cantools.database.load_file(str(dbc_path(bus)), strict=True))
 
 
 #: the ECU's buses: powertrain (driveline, camber) and chassis (tyre force); IDs are unique across both
 BUSES = ("pt", "ch")
 
 
-def sent_by(nodes: set[str], bus: str | None = None) -> frozenset[int]:
+def sent_by(nodes: AbstractSet[str], bus: str | None = None) -> frozenset[int]:
     """Standard IDs the given DBC nodes transmit (on one bus, or on every bus). A node ignores its
     own IDs on receive: some buses (python-can's udp_multicast) echo a sender's frames back to it."""
     return frozenset(m.frame_id for b in ((bus,) if bus else BUSES) for m in database(b).messages

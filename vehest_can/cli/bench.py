@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import json
 
-from ..tools import bench
 from ..sim.scenario import load_scenario, scenario_dir
 from ..sim.session import drive_from_scenario
+from ..tools import bench
 
 
 def add_subparser(subparsers) -> None:

@@ -5,10 +5,10 @@ import json
 import sys
 
 from ..bus import bus as busmod
+from ..bus.log import read_log
+from ..errors import ConfigError
 from ..systems.camber import inspection
 from ..systems.camber.api import WHEELS, save_calibrations
-from ..errors import ConfigError
-from ..bus.log import read_log
 
 
 def add_subparser(subparsers) -> None:

@@ -9,11 +9,11 @@ from pathlib import Path
 import can
 
 from ..bus import bus as busmod
-from ..service import sdnotify
-from ..systems.camber.api import load_calibrations
-from ..service.daemon import EcuDaemon
-from ..systems.ecu import Ecu, EcuConfig
 from ..errors import ConfigError
+from ..service import sdnotify
+from ..service.daemon import EcuDaemon
+from ..systems.camber.api import load_calibrations
+from ..systems.ecu import Ecu, EcuConfig
 
 
 def add_subparser(subparsers) -> None:

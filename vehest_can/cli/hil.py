@@ -6,13 +6,13 @@ from dataclasses import asdict
 import numpy as np
 
 from ..bus import bus as busmod
+from ..bus.frames import TICK_S, database
+from ..errors import ConfigError, VehestError
+from ..progress import Progress
+from ..service import sdnotify
+from ..service.hil import ResidualBus, load_hil_config
 from ..sim.report import realtime_summary
 from ..systems.driveline import report
-from ..service import sdnotify
-from ..errors import ConfigError, VehestError
-from ..bus.frames import TICK_S, database
-from ..service.hil import ResidualBus, load_hil_config
-from ..progress import Progress
 
 
 def add_subparser(subparsers) -> None:
@@ -42,8 +42,9 @@ def run(args) -> int:
 
     sdnotify.apply_log_level(args.log_level)
     notifier = sdnotify.Notifier.from_env()
-    progress = Progress(f"{config.scenario.name} (real time)" if config.mode == "realtime"
-                        else f"{config.scenario.name} (lockstep)") if config.car_simulated else None
+    name = config.scenario.name if config.scenario is not None else ""
+    progress = Progress(f"{name} (real time)" if config.mode == "realtime"
+                        else f"{name} (lockstep)") if config.car_simulated else None
     runner = ResidualBus(config, duration_s=args.duration, notifier=notifier, progress=progress)
     try:
         with busmod.stop_on_signals(runner.stop):

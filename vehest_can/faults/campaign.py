@@ -8,6 +8,7 @@ import math
 import threading
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import can
 import numpy as np
@@ -194,7 +195,7 @@ def analyse(run: FaultRun, label: str, fault: str, expect: tuple[str, ...],
         valid_pct[w] = 100.0 * float(run.valid(w)[a:b].mean()) if b > a else 100.0
     every = np.logical_and.reduce([run.valid(w) for w in filters])
     if every[a:b].all():
-        recovery = 0
+        recovery: int | None = 0
     else:
         again = np.flatnonzero(every[b:])
         recovery = int(again[0]) + 1 if again.size else None
@@ -263,7 +264,7 @@ class BusRun:
     wire_us: dict                 # frame name -> measured busy time per frame [µs]
     stuffing: str
     sim: dict                     # SimMaster.run_realtime statistics
-    daemon: object                # DaemonStats of the ECU
+    daemon: Any                   # DaemonStats of the ECU
     late_ms: float                # worst lateness of a delivery behind its modelled wire end
     overflow: int
     send_errors: int
@@ -323,7 +324,11 @@ def bus_run(drive, config=None, *, bus_config: dict | None = None, bitrate: int 
     if switch_interval is not None:
         sys.setswitchinterval(switch_interval)
     wire = Wire(bitrate, data_bitrate, stuffing=stuffing, tx_queue=tx_queue, tx_policy=tx_policy)
-    buses, daemon, thread, result, snaps = [], None, None, {}, []
+    buses: list = []
+    daemon: EcuDaemon | None = None
+    thread: threading.Thread | None = None
+    result: dict = {}
+    snaps: list = []
     try:
         ecu_bus = FaultBus(open_bus(bus_config), FaultInjector(no_flood, stream=1), wire=wire)
         buses.append(ecu_bus)
@@ -347,7 +352,7 @@ def bus_run(drive, config=None, *, bus_config: dict | None = None, bitrate: int 
         session = sim.run_realtime(settle_s=0.1)
         meter.join()
     finally:
-        if daemon is not None:
+        if daemon is not None and thread is not None:
             daemon.stop_event.set()
             thread.join(5)
         for b in buses:

@@ -12,7 +12,7 @@ import numpy as np
 from ..bus.busload import FD_LENGTHS
 from ..bus.frames import database, e2e_data_id
 from ..native import ffi, lib
-from .spec import FaultConfig, FaultSpec, _SYNC, _target_ids
+from .spec import _SYNC, FaultConfig, FaultSpec, _target_ids
 
 
 class Injected(NamedTuple):

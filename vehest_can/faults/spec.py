@@ -20,7 +20,7 @@ import math
 import re
 from dataclasses import dataclass, fields
 from pathlib import Path
-
+from typing import cast
 
 from ..bus.busload import FD_LENGTHS
 from ..bus.frames import database, e2e_data_id
@@ -163,7 +163,7 @@ def _validate(spec: FaultSpec, where: str, bus: str = "pt") -> None:
         if spec.kind == "flood" and spec.length > 8:
             fail("length", f"a flood frame is classic CAN: 0..8 bytes, not {spec.length}")
     if spec.kind == "skip_counter" and spec.target != "*":
-        ids = _target_ids(spec.target, bus)
+        ids = _target_ids(cast(str, spec.target), bus)   # _validate: every kind but flood has one
         if not any(e2e_data_id(database(bus).get_message_by_frame_id(i)) for i in ids):
             fail("target", f"{spec.target} sends no E2E-protected frame: there is no counter to skip")
 

@@ -27,8 +27,9 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections.abc import Hashable
 from dataclasses import dataclass
-from typing import Hashable, NamedTuple
+from typing import Any, NamedTuple
 
 import can
 
@@ -56,7 +57,7 @@ def arbitration_key(msg: can.Message) -> tuple[int, int, int]:
 class Transmission(NamedTuple):
     start: float
     end: float
-    node: Hashable
+    node: Any                     # the sender: a node name, or the FaultBus that delivers it
     msg: can.Message
 
 
@@ -182,7 +183,7 @@ class WireModel:
             if start >= t:
                 break
             best = None  # (arbitration key, ready, seq, where)
-            for i, (ready, seq, node, msg) in enumerate(self._pending):
+            for i, (ready, seq, _node, msg) in enumerate(self._pending):
                 if ready <= start:
                     cand = (arbitration_key(msg), ready, seq, ("q", i))
                     best = cand if best is None or cand[:3] < best[:3] else best
@@ -190,6 +191,7 @@ class WireModel:
                 if fl[3] <= start and fl[3] < fl[2]:
                     cand = (arbitration_key(flood_message(fl[0], fl[4])), fl[3], -1, ("f", j))
                     best = cand if best is None or cand[:3] < best[:3] else best
+            assert best is not None  # the loop above ran while something was ready
             kind, idx = best[3]
             if kind == "q":
                 _, _, node, msg = self._pending.pop(idx)
@@ -211,13 +213,13 @@ class WireSnapshot:
     busy_s: dict
     frames: dict
 
-    def load_since(self, earlier: "WireSnapshot", keys=None) -> float:
+    def load_since(self, earlier: WireSnapshot, keys=None) -> float:
         """Bus load between two snapshots (0..1), of the frame keys given (default: everything)."""
         keys = self.busy_s.keys() if keys is None else keys
         busy = sum(self.busy_s.get(k, 0.0) - earlier.busy_s.get(k, 0.0) for k in keys)
         return busy / (self.t - earlier.t)
 
-    def frames_since(self, earlier: "WireSnapshot", key: int) -> int:
+    def frames_since(self, earlier: WireSnapshot, key: int) -> int:
         return self.frames.get(key, 0) - earlier.frames.get(key, 0)
 
 

@@ -23,10 +23,10 @@ from dataclasses import dataclass, field
 import can
 
 from ..bus import lockstep
-from . import sdnotify
-from ..systems.ecu import Ecu
 from ..bus.frames import TICK_S, frame_id, is_own, sent_by
 from ..bus.rt import Ticker, percentiles_us
+from ..systems.ecu import Ecu
+from . import sdnotify
 
 log = logging.getLogger(__name__)
 
@@ -76,7 +76,7 @@ def _fmt(p: dict) -> str:
 
 class EcuDaemon:
     def __init__(self, bus: can.BusABC, ecu: Ecu | None = None, *, log_writer: can.Listener | None = None,
-                 log_channel: str = "vcan0", notifier: sdnotify.Notifier | None = None):
+                 log_channel: str | None = "vcan0", notifier: sdnotify.Notifier | None = None):
         self.bus = bus
         self.notifier = notifier or sdnotify.Notifier()  # systemd's sd_notify; a no-op by default
         self.ecu = ecu or Ecu()

@@ -20,11 +20,14 @@ from typing import Any
 
 import can
 
+from ..bus import bus as busmod
 from ..bus.busload import bus_load, load_dbc
 from ..errors import ConfigError, ScenarioError, VehestError
 from ..paths import dbc_dir
 from ..schema import Checker, Num, read_toml, type_name
 from ..sim.scenario import Scenario, list_scenarios, load_scenario, scenario_path
+from ..sim.session import SimMaster, drive_from_scenario
+from .daemon import EcuDaemon
 
 log = logging.getLogger(__name__)
 
@@ -143,6 +146,7 @@ class HilConfig:
             lines.append(f"ECU (VEHEST): simulated here on bus {self.bus_of(ECU_NODE).name}")
         if self.car_simulated:
             sc = self.scenario
+            assert sc is not None  # a simulated car has its scenario
             length = f"{self.duration_s:g} s" if self.duration_s else f"{sc.duration_s:g} s (the scenario's)"
             lines.append(f"car (DLS, SIM): simulated here on bus {self.bus_of(CAR_NODES[0]).name}, "
                          f"scenario {sc.name} ({sc.path}), {length}")
@@ -317,6 +321,7 @@ def _bus(c: _Checker, name: str, doc, base: Path, databases: dict) -> HilBus:
     if data_bitrate is not None and not fd:
         c.fail(f"{key}.data_bitrate", "a data bit rate needs CAN FD: set fd = true (or remove data_bitrate)")
     timing = _timing(c, doc["timing"], f"{key}.timing", fd) if "timing" in doc else None
+    nominal: int | None
     if timing is not None:
         nominal = timing.nom_bitrate if isinstance(timing, can.BitTimingFd) else timing.bitrate
         if bitrate is not None and bitrate != nominal:
@@ -496,9 +501,7 @@ class ResidualBus:
         self.stop_event.set()
 
     def run(self) -> HilResult:
-        from ..bus import bus as busmod
-        from .daemon import EcuDaemon
-        from ..sim.session import SimMaster, drive_from_scenario
+        # late: validating a configuration needs no compiled core
 
         cfg = self.config
         result = HilResult()
@@ -522,6 +525,7 @@ class ResidualBus:
                 master = SimMaster(opened[-1], drive, progress=self.progress)
                 master.stop_event = self.stop_event
             if master is None:
+                assert daemon is not None  # a configuration simulates the ECU, the car or both
                 result.ecu = daemon.serve_realtime(duration=self.duration_s)
             elif daemon is None:
                 result.session = master.run_realtime()

@@ -11,8 +11,8 @@ from dataclasses import dataclass
 import can
 
 from ..bus import lockstep
-from ..systems.ecu import Ecu
 from ..bus.frames import TICK_S, same_frame, sent_by
+from ..systems.ecu import Ecu
 
 # What the ECU core transmits (the lockstep acknowledge is the daemon's, not the core's)
 ECU_TX = sent_by({"VEHEST"}) - {lockstep.ACK.frame_id}

@@ -18,6 +18,7 @@ import socket
 import sys
 import time
 from collections.abc import Callable, Mapping
+from typing import cast
 
 log = logging.getLogger(__name__)
 
@@ -70,7 +71,7 @@ class Notifier:
         self.dropped = 0  # messages dropped because the receiver's queue was full
 
     @classmethod
-    def from_env(cls, env: Mapping[str, str] | None = None) -> "Notifier":
+    def from_env(cls, env: Mapping[str, str] | None = None) -> Notifier:
         env = os.environ if env is None else env
         raw = env.get("NOTIFY_SOCKET")
         address = socket_address(raw)
@@ -91,7 +92,7 @@ class Notifier:
             if self._sock is None:
                 self._sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM | socket.SOCK_CLOEXEC)
             # Never block the caller's loop: a full receive queue (systemd busy) drops this message.
-            self._sock.sendto(payload, socket.MSG_DONTWAIT | socket.MSG_NOSIGNAL, self.address)
+            self._sock.sendto(payload, socket.MSG_DONTWAIT | socket.MSG_NOSIGNAL, cast("str | bytes", self.address))
         except BlockingIOError:
             self.dropped += 1
             return False

@@ -73,5 +73,6 @@ def realtime_summary(session: Session, daemon: dict) -> dict:
                    f"{out['ecu_frames_received_by_car']} ECU frames received -> {lost_out} missing in their "
                    f"E2E counters; deadline misses ECU {out['ecu_deadline_misses']} car {out['car_deadline_misses']}; "
                    f"ECU tick lateness p50 {late.get('p50', float('nan')):.0f} µs p99 {late.get('p99', float('nan')):.0f} µs; "
-                   f"frame-to-estimate latency p50 {lat.get('p50', float('nan')):.0f} µs p99 {lat.get('p99', float('nan')):.0f} µs")
+                   f"frame-to-estimate latency p50 {lat.get('p50', float('nan')):.0f} µs "
+                   f"p99 {lat.get('p99', float('nan')):.0f} µs")
     return out

@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import ScenarioError
-from ..schema import Checker, Num, read_toml
 from ..paths import shipped_dir, shipped_file
+from ..schema import Checker, Num, read_toml
 
 #: Plant and sensor-node step [s]: one ECU tick (VH_TICK_US).
 DT = 0.0005
@@ -38,7 +38,7 @@ def scenario_path(name_or_path: str | Path) -> Path:
 
 # ---- schema --------------------------------------------------------------------------------
 
-_TOP = {
+_TOP: dict[str, Any] = {
     "name": "string",
     "description": "string",
     "duration_s": Num(0.0, 3600.0, lo_open=True),

@@ -20,10 +20,10 @@ import can
 import numpy as np
 
 from ..bus import lockstep
-from ..errors import BusError, VehestError
 from ..bus.frames import FRAME_DTYPE, TICK_S, is_own, sent_by, to_frame, to_message
-from ..native import check, ffi, lib, struct_dtype
 from ..bus.rt import Ticker, percentiles_us
+from ..errors import BusError, VehestError
+from ..native import check, ffi, lib, struct_dtype
 
 log = logging.getLogger(__name__)
 
@@ -206,7 +206,7 @@ class SimMaster:
 
     def _await_ack(self, tick: int, deadline_s: float) -> list[can.Message]:
         """ECU frames of this tick, up to and excluding its ack."""
-        got = []
+        got: list[can.Message] = []
         end = time.monotonic() + deadline_s
         while True:
             msg = self.bus.recv(timeout=max(0.0, end - time.monotonic()))

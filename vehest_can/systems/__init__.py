@@ -11,9 +11,10 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import pkgutil
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, NamedTuple, Protocol
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 
@@ -80,8 +81,9 @@ class System(Protocol):
         ...
 
     def car(self, scenario: Any, duration_s: float | None = None) -> Any:
-        """A fresh car for the scenario (its whole duration unless `duration_s` is given) (a :class:`~vehest_can.sim.session.Drive` or any object with
-        the car interface), for :func:`~vehest_can.sim.session.run_inprocess` and ``SimMaster``."""
+        """A fresh car for the scenario, its whole duration unless `duration_s` is given: a
+        :class:`~vehest_can.sim.session.Drive` or any object with the car interface, for
+        :func:`~vehest_can.sim.session.run_inprocess` and ``SimMaster``."""
         ...
 
     def setup(self, scenarios: list, out: Path) -> Setup:
@@ -120,12 +122,12 @@ def registered() -> list[System]:
 
 def fault_study(scenario_doc: dict | None = None) -> FaultStudy:
     """The fault study of the system a scenario belongs to (None: the first system that has one)."""
-    systems = [s for s in registered() if s.faults is not None]
+    studies = [(s, s.faults) for s in registered() if s.faults is not None]
     if scenario_doc is not None:
-        systems = [s for s in systems if s.claims(scenario_doc)] or systems
-    if not systems:
+        studies = [(s, f) for s, f in studies if s.claims(scenario_doc)] or studies
+    if not studies:
         raise LookupError("no registered system has a fault study")
-    return systems[0].faults
+    return studies[0][1]
 
 
 def claiming(doc: dict, systems: list[System] | None = None) -> System | None:

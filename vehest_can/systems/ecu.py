@@ -5,10 +5,10 @@ from dataclasses import dataclass
 
 import can
 
-from .driveline.api import DkfConfig
-from ..errors import ConfigError
 from ..bus.frames import to_frame, to_message
+from ..errors import ConfigError
 from ..native import check, ffi, lib
+from .driveline.api import DkfConfig
 from .tireforce.api import SkfConfig
 
 COUNTERS = (
@@ -34,7 +34,7 @@ class EcuConfig:
     skf: SkfConfig | None = None
 
     @classmethod
-    def default(cls) -> "EcuConfig":
+    def default(cls) -> EcuConfig:
         return cls(DkfConfig.default("speeds+torque"), DkfConfig.default("speeds"))
 
     def to_c(self):

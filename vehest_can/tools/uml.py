@@ -344,7 +344,7 @@ def run(cmd: str, *, timeout: float = 120.0, env: dict[str, str] | None = None,
     guest_env["PATH"] = guest_env.get("PATH", "/usr/bin:/bin") + ":/usr/sbin:/sbin"
 
     keep = workdir is not None
-    work = Path(workdir) if keep else Path(tempfile.mkdtemp(prefix="vehest-uml-"))
+    work = Path(workdir) if workdir is not None else Path(tempfile.mkdtemp(prefix="vehest-uml-"))
     work = work.resolve()
     work.mkdir(parents=True, exist_ok=True)
     for stale in ("ready", "rc", "stdout", "stderr", "setup.log", "console.log"):

@@ -17,10 +17,11 @@ import json
 import math
 import os
 import tempfile
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -121,7 +122,7 @@ def _check_lsb(lsb_g, where: str) -> tuple[float, float, float]:
         raise ConfigError(f"{where}: lsb_g must be a number or 3 numbers (g per count), got {lsb_g!r}") from None
     if len(vals) != 3 or not all(math.isfinite(v) and 0 < v < 1 for v in vals):
         raise ConfigError(f"{where}: lsb_g must be 3 finite numbers in (0, 1) g per count, got {lsb_g!r}")
-    return vals  # type: ignore[return-value]
+    return vals
 
 
 def _as_counts(samples, what: str, error=ConfigError, max_n: int | None = N_MAX) -> np.ndarray:
@@ -212,7 +213,7 @@ class Calibration:
         _check_axes(self.x_axis, self.z_axis, "calibration")
 
     @classmethod
-    def identity(cls, lsb_g=DEFAULT_LSB_G) -> "Calibration":
+    def identity(cls, lsb_g=DEFAULT_LSB_G) -> Calibration:
         """No calibration: assumes the chip is perfectly square in the device (M = I)."""
         return cls((1.0, 0.0, 0.0), (0.0, 0.0, 1.0), lsb_g, capture={"identity": True})
 
@@ -275,7 +276,7 @@ class Calibration:
         return d
 
     @classmethod
-    def from_dict(cls, d: Any, where: str = "calibration") -> "Calibration":
+    def from_dict(cls, d: Any, where: str = "calibration") -> Calibration:
         if not isinstance(d, dict):
             raise ConfigError(f"{where}: expected an object, got {type(d).__name__}")
         allowed = {"x_axis", "y_axis", "z_axis", "lsb_g", "capture", "created"}
@@ -316,7 +317,7 @@ class Calibration:
         save_calibrations(path, wheels)
 
     @classmethod
-    def load(cls, path, wheel: str) -> "Calibration":
+    def load(cls, path, wheel: str) -> Calibration:
         """This wheel's calibration from a file (validated; ConfigError says what is wrong)."""
         _check_wheel(wheel, "load")
         wheels = load_calibrations(path)
@@ -417,8 +418,8 @@ def calibrate(x_down, z_down, lsb_g=DEFAULT_LSB_G, limits: CalibrationLimits | N
         "x_dot_z": float(rep.x_dot_z),
     }
     return Calibration(
-        tuple(cal.x_axis), tuple(cal.z_axis), lsb, capture=capture,  # type: ignore[arg-type]
-        created=datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        tuple(cal.x_axis), tuple(cal.z_axis), lsb, capture=capture,
+        created=datetime.now(UTC).isoformat(timespec="seconds"),
     )
 
 

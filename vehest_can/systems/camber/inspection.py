@@ -11,14 +11,15 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import can
 import numpy as np
 
-from .api import WHEELS, Calibration, CaptureError, calibrate
-from ...errors import ConfigError
 from ...bus.frames import database, e2e_data_id
+from ...errors import ConfigError
 from ...native import ffi, lib
+from .api import WHEELS, Calibration, CaptureError, calibrate
 
 CIS = database("pt").get_message_by_name("CIS_Accel")
 CAMBER = database("pt").get_message_by_name("VEHEST_Camber")
@@ -43,7 +44,7 @@ class Capture:
                 lib.VH_E2E_OK, lib.VH_E2E_INITIAL, lib.VH_E2E_SKIPPED):
             self.refused += 1
             return
-        d = CIS.decode(data, decode_choices=False)
+        d: Any = CIS.decode(data, decode_choices=False)
         self.frames += 1
         self.lsb_g = d["CIS_LsbMicroG"] * 1e-6
         for i, w in enumerate(WHEELS):
@@ -101,7 +102,7 @@ def ecu_results(messages) -> dict[str, dict] | None:
     """The last VEHEST_Camber frame with a good E2E check, per wheel; None if there was none."""
     e2e = ffi.new("vh_e2e_rx_t *")
     lib.vh_e2e_rx_init(e2e)
-    last = None
+    last: Any = None
     for m in messages:
         if m.arbitration_id != CAMBER.frame_id or m.is_extended_id or len(m.data) != CAMBER.length:
             continue

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 
-
 # ---- Frames (eq. 1-3) ------------------------------------------------------------------
 
 def rot_v_w(theta: float) -> np.ndarray:

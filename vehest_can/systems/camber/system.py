@@ -6,11 +6,11 @@ from pathlib import Path
 
 import can
 
-from .. import Setup
-from ..ecu import Ecu
 from ...bus.log import read_log
 from ...sim.scenario import load_scenario, scenario_dir
 from ...sim.session import drive_from_scenario, run_inprocess
+from .. import Setup
+from ..ecu import Ecu
 from . import inspection
 from .api import WHEELS, Calibration, load_calibrations, save_calibrations
 
@@ -51,6 +51,7 @@ class Camber:
         uncal_ecu = Ecu()
         uncal_ecu.set_camber_calibrations({w: Calibration.identity(sc.camber.lsb_mg * 1e-3) for w in WHEELS})
         uncal = inspection.ecu_results(run_inprocess(drive_from_scenario(sc), uncal_ecu).messages())
+        assert results is not None and uncal is not None, "the ECU published no camber"
         print(inspection.results_table(results, truth))
         for w in WHEELS:
             if uncal[w]["reason"] == "OK":

@@ -39,7 +39,7 @@ class DkfConfig:
     use_input: bool = True
 
     @classmethod
-    def default(cls, meas: str = SPEEDS_TORQUE, **overrides) -> "DkfConfig":
+    def default(cls, meas: str = SPEEDS_TORQUE, **overrides) -> DkfConfig:
         if meas not in _MEAS:
             raise ConfigError(f"measurement set {meas!r}: expected one of {sorted(_MEAS)}")
         c = ffi.new("vh_dkf_config_t *")
@@ -52,7 +52,7 @@ class DkfConfig:
         return cfg
 
     @classmethod
-    def from_c(cls, c) -> "DkfConfig":
+    def from_c(cls, c) -> DkfConfig:
         meas = {v: k for k, v in _MEAS.items()}[c.meas]
         disc = {v: k for k, v in _DISC.items()}[c.disc]
         return cls(

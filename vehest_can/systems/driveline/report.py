@@ -8,17 +8,23 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from .api import DkfConfig, DrivelineKF
 from ...bus.frames import TICK_S
 from ...sim.report import decode
 from ...sim.session import Session
+from .api import DkfConfig, DrivelineKF
 
-PAPER = {"speeds+torque": {"rms_meas_est": 6.7, "gain_steps": 20},
+PAPER: dict[str, dict[str, Any]] = {"speeds+torque": {"rms_meas_est": 6.7, "gain_steps": 20},
          "speeds": {"rms_meas_est": 28.5, "gain_steps": 1000}}
 SETTLE_S = 0.5  # excluded from RMS figures: the speeds-only gain needs ~1000 steps (paper)
+
+
+def _gains(run) -> np.ndarray:
+    assert run.k is not None, "run with gains=True"
+    return run.k
 
 
 def settling_step(k_row: np.ndarray, tol: float = 0.01) -> int:
@@ -71,7 +77,7 @@ def driveline_metrics(session: Session) -> dict:
             paper_rms_meas_minus_est_nm=PAPER[meas]["rms_meas_est"],
             rms_est_minus_truth_nm=_rms((to_est - truth["to"])[skip:]),
             sensor_noise_rms_nm=_rms((meas_to - truth["to"])[skip:]),
-            gain_settling_steps=settling_step(with_input.k[:, 2, :]),
+            gain_settling_steps=settling_step(_gains(with_input)[:, 2, :]),
             paper_gain_settling_steps=PAPER[meas]["gain_steps"],
             no_input_rms_est_minus_truth_nm=_rms(err_noinput),
             no_input_mean_bias_nm=float(np.mean(err_noinput)),
@@ -150,6 +156,7 @@ def plots(session: Session, out_dir: Path) -> list[Path]:
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for ax, meas in zip(axes, ("speeds+torque", "speeds")):
         k = DrivelineKF(DkfConfig.default(meas)).run(u[ok][:20000], z[ok][:20000], gains=True).k
+        assert k is not None  # asked for
         steps = np.arange(1, len(k) + 1)
         for j, label in enumerate(("w_o", "w_w", "T_o")):
             if np.any(k[:, 2, j]):

@@ -3,9 +3,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .. import Setup
 from ...sim.scenario import load_scenario, scenario_dir
 from ...sim.session import drive_from_scenario
+from .. import Setup
 from . import report
 from .faults import FAULTS
 

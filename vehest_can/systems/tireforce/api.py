@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
+from typing import Any
 
 import numpy as np
 
@@ -66,7 +67,7 @@ class SkfConfig:
     mec: bool = True
 
     @classmethod
-    def default(cls, variant: str = SKFMEC, **overrides) -> "SkfConfig":
+    def default(cls, variant: str = SKFMEC, **overrides) -> SkfConfig:
         if variant not in _VARIANT_C:
             raise ConfigError(f"estimator {variant!r}: expected one of {list(VARIANTS)}")
         c = ffi.new("vh_skf_config_t *")
@@ -80,8 +81,8 @@ class SkfConfig:
         return cfg
 
     @classmethod
-    def from_c(cls, c) -> "SkfConfig":
-        kw = {}
+    def from_c(cls, c) -> SkfConfig:
+        kw: dict[str, Any] = {}
         for f in fields(cls):
             v = getattr(c, f.name)
             kw[f.name] = tuple(v) if f.name in _VEC else (bool(v) if f.name in ("scaled", "mec") else float(v))
@@ -134,7 +135,7 @@ class Inputs:
             cols.append(a)
         return np.ascontiguousarray(np.hstack(cols))
 
-    def slice(self, a: int, b: int) -> "Inputs":
+    def slice(self, a: int, b: int) -> Inputs:
         return Inputs(**{f.name: np.asarray(getattr(self, f.name))[a:b] for f in fields(self)})
 
 

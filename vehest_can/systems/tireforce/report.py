@@ -16,12 +16,13 @@ import argparse
 import sys
 from dataclasses import dataclass, fields
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from . import api as tf
 from ...errors import ConfigError, ScenarioError
 from ...sim.report import write_metrics
+from . import api as tf
 
 WHEELS = tf.WHEELS
 AXLES = ("front", "rear")
@@ -223,8 +224,8 @@ def run_estimators(decoded: DecodedInputs, variants=tf.VARIANTS) -> dict[str, tf
 def scenario(name: str, *, mass_delta_kg: float | None = None):
     """A chassis scenario by name or path; ``mass_delta_kg`` overrides ``[vehicle] mass_delta_kg``
     (e.g. 0 for the nominal car: the estimator's model is then the true mass)."""
-    from .scenario import chassis_scenario_from_dict, chassis_scenario_path, load_chassis_scenario
     from ...schema import read_toml
+    from .scenario import chassis_scenario_from_dict, chassis_scenario_path, load_chassis_scenario
 
     if mass_delta_kg is None:
         return load_chassis_scenario(name)
@@ -279,7 +280,7 @@ def _true_split(axle: np.ndarray, fz: np.ndarray) -> np.ndarray:
     return np.c_[2 * axle[:, :1] * fz[:, :2] / ff, 2 * axle[:, 1:] * fz[:, 2:] / fr]
 
 
-def _pct_errors(est: np.ndarray, ref: np.ndarray, peak: np.ndarray, names) -> dict[str, float]:
+def _pct_errors(est: np.ndarray, ref: np.ndarray | float, peak: np.ndarray, names) -> dict[str, float]:
     return _per(names, 100.0 * _rms(est - ref) / peak)
 
 
@@ -460,7 +461,7 @@ def table(metrics: dict, name: str | None = None) -> str:
 
 # ---- plots -----------------------------------------------------------------------------------
 
-_STYLE = {tf.SKFMEC: dict(color="tab:blue", lw=1.0, label="SKFMEC (double)"),
+_STYLE: dict[str, dict[str, Any]] = {tf.SKFMEC: dict(color="tab:blue", lw=1.0, label="SKFMEC (double)"),
           tf.FIXED: dict(color="tab:cyan", lw=1.0, ls="--", label="SKFMEC (fixed point, ECU)"),
           tf.EKF: dict(color="tab:orange", lw=1.0, label="plain EKF")}
 
@@ -599,8 +600,8 @@ def report(sc, out_dir: Path | None = None, progress=None, max_ay_g: float | Non
 
 
 def main(argv: list[str] | None = None) -> int:
-    from .scenario import list_chassis_scenarios
     from ...progress import Progress
+    from .scenario import list_chassis_scenarios
 
     ap = argparse.ArgumentParser(prog="python -m vehest_can.systems.tireforce.report", description=__doc__.split("\n")[0])
     ap.add_argument("scenarios", nargs="*", help="chassis scenario files or shipped names (default: all shipped)")

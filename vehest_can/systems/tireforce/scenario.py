@@ -54,7 +54,7 @@ def chassis_scenario_path(name_or_path: str | Path) -> Path:
 
 # ---- schema --------------------------------------------------------------------------------
 
-_TOP = {
+_TOP: dict[str, Any] = {
     "kind": "string",
     "name": "string",
     "description": "string",
@@ -320,7 +320,7 @@ def _vector_profile(c: Checker, value, key: str, spec: Num) -> tuple[tuple[float
     """[[t, FL, FR, RL, RR], ...] with t strictly increasing."""
     if not isinstance(value, list) or not value:
         c.fail(key, "must be a non-empty list of [time_s, FL, FR, RL, RR] points")
-    points = []
+    points: list[tuple[float, ...]] = []
     for i, pt in enumerate(value):
         k = f"{key}[{i}]"
         if not isinstance(pt, list) or len(pt) != 5:
@@ -440,7 +440,7 @@ def chassis_scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> Ch
 def summary(sc: ChassisScenario, tr: np.ndarray) -> dict[str, float]:
     """Figures of a run: peaks of the lateral forces per tyre, a_y, roll; friction use."""
     use = np.hypot(tr["fx"], tr["fy"]) / np.maximum(tr["mu"] * tr["fz"], 1e-9)
-    out = {"duration_s": sc.duration_s, "vx_end_kmh": float(tr["vx"][-1] * 3.6),
+    out: dict[str, Any] = {"duration_s": sc.duration_s, "vx_end_kmh": float(tr["vx"][-1] * 3.6),
            "ay_peak_m_s2": float(np.abs(tr["ay"]).max()), "ay_peak_g": float(np.abs(tr["ay"]).max() / 9.81),
            "roll_peak_deg": float(np.degrees(np.abs(tr["phi"]).max())),
            "yaw_rate_peak_deg_s": float(np.degrees(np.abs(tr["r"]).max())),

@@ -5,9 +5,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import Setup
 from ...bus.frames import database
 from ...sim.report import decode
+from .. import Setup
 from . import api as tf
 from . import report
 from .scenario import KINDS, ChassisCar, chassis_scenario_dir, load_chassis_scenario
