@@ -1,4 +1,4 @@
-"""Run inside a network namespace that has only loopback (see tests/test_host_only.py).
+"""Run inside a network namespace that has only loopback (see tests/bus/test_host_only.py).
 
 The ECU daemon (its own process) and the simulator, in lockstep over the *default* bus: no
 ``-i``/``-c`` given, no CAN_* environment. Writes the ECU's frames and the daemon's stderr to OUT.

@@ -2,7 +2,7 @@
 
 These scripts run inside user-mode Linux (``vehest_can.tools.uml``), as root, with the host's venv.
 They orchestrate can-utils and the ``vehest-can daemon`` as separate processes and write what
-they saw to files and one JSON document on stdout; the host-side tests (tests/test_vcan.py)
+they saw to files and one JSON document on stdout; the host-side tests (tests/service/test_vcan.py)
 judge it. Nothing here asserts on time: the guest's clock is not a real-time one.
 """
 from __future__ import annotations

@@ -204,7 +204,7 @@ def test_journal_level_prefixes_on_a_real_stderr_file(tmp_path):
     assert r.stderr.splitlines()[0] == "False" and "INFO:vehest_can.service.daemon:serving" in r.stderr
 
 
-UNIT = Path(__file__).resolve().parent.parent / "examples" / "systemd" / "vehest-ecu.service"
+UNIT = Path(__file__).resolve().parents[2] / "examples" / "systemd" / "vehest-ecu.service"
 
 
 def test_systemd_unit_example_is_a_notify_service_with_a_valid_command(tmp_path):

@@ -1,7 +1,7 @@
 """Tire lateral force estimators (seed 000): SKFMEC double / fixed point and the plain EKF.
 
 * the C double filter against the independent numpy reference (skf_ref.py);
-* the fixed-point filter against the double one on synthetic manoeuvres (until the 14-DOF plant);
+* the fixed-point filter against the double one on synthetic manoeuvres (tests/tireforce/manoeuvres.py);
 * saturation counting under a wheel-speed sensor stuck at its maximum; bit-exact determinism;
 * the fixed-point helpers against Python integer arithmetic (hypothesis);
 * "integer only": the fixed-point translation units compile with FP registers forbidden (host gcc
@@ -20,13 +20,14 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from manoeuvres import synthetic_manoeuvre
 
 from vehest_can.errors import ConfigError, NativeError
 from vehest_can.native import ffi, lib
 from vehest_can.systems.tireforce import api as tf
 from vehest_can.systems.tireforce import reference as skf_ref
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 INCLUDE = ROOT / "c_core" / "include"
 FIXED_SOURCES = [ROOT / "c_core" / "src" / "vh_skfq.c", ROOT / "c_core" / "src" / "vh_fix.c"]
 I32_MIN, I32_MAX = -(2**31), 2**31 - 1
@@ -40,15 +41,15 @@ def short_profile(t):
 
 @pytest.fixture(scope="module")
 def short_drive():
-    return tf.synthetic_manoeuvre(short_profile, duration=1.0, dm=200.0, seed=4)
+    return synthetic_manoeuvre(short_profile, duration=1.0, dm=200.0, seed=4)
 
 
 @pytest.fixture(scope="module")
 def drives():
     return {
-        "paper": tf.synthetic_manoeuvre("paper", duration=8.0, dm=200.0, seed=1),
-        "ramp": tf.synthetic_manoeuvre("ramp", duration=5.0, dm=0.0, seed=2),
-        "sine": tf.synthetic_manoeuvre("sine", duration=4.0, dm=0.0, seed=3),
+        "paper": synthetic_manoeuvre("paper", duration=8.0, dm=200.0, seed=1),
+        "ramp": synthetic_manoeuvre("ramp", duration=5.0, dm=0.0, seed=2),
+        "sine": synthetic_manoeuvre("sine", duration=4.0, dm=0.0, seed=3),
     }
 
 

@@ -33,7 +33,7 @@ from vehest_can.systems.camber.api import (
     measure_windows,
 )
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 LSB = 0.004  # 4 mg
 CHIP = tuple(np.radians([2.0, -1.5, 2.5]))  # chip rotation inside the device (~2-3 deg)
 DEG = math.pi / 180

@@ -3,10 +3,7 @@
 Multicast tests use a fresh multicast group each, so parallel runs never hear each other.
 """
 import json
-import os
 import random
-import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -15,8 +12,9 @@ import time
 import can
 import numpy as np
 import pytest
+from daemonproc import start_daemon, stop_daemon
 
-from vehest_can.bus.bus import cli_args, open_bus, private_multicast
+from vehest_can.bus.bus import open_bus, private_multicast
 from vehest_can.bus.frames import database
 from vehest_can.bus.log import read_log
 from vehest_can.service.daemon import EcuDaemon
@@ -45,36 +43,6 @@ def mc_bus(config):
 def ecu_frames(session):
     sel = np.isin(session.frames["id"], list(ECU_IDS))
     return session.frames[sel], session.frame_tick[sel]
-
-
-def start_daemon(config, *extra, tmp_path=None):
-    """The daemon as its own process; with tmp_path, wait for its sd_notify READY=1 (bus open,
-    loop starting) instead of guessing how long start-up takes on a loaded machine."""
-    env = dict(os.environ)
-    sock = None
-    if tmp_path is not None:
-        sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
-        sock.bind(str(tmp_path / "notify.sock"))
-        sock.settimeout(60)
-        env["NOTIFY_SOCKET"] = str(tmp_path / "notify.sock")
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "vehest_can.cli", "daemon", *cli_args(config), *extra],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
-    )
-    if sock is not None:
-        try:
-            while b"READY=1" not in sock.recv(4096):
-                pass
-        finally:
-            sock.close()
-    return proc
-
-
-def stop_daemon(proc, sig=signal.SIGTERM):
-    if proc.poll() is None:
-        proc.send_signal(sig)
-    out, err = proc.communicate(timeout=20)
-    return proc.returncode, err
 
 
 def test_lockstep_over_virtual_bus_equals_inprocess():

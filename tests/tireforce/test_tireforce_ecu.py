@@ -10,7 +10,7 @@ from pathlib import Path
 import can
 import numpy as np
 import pytest
-from test_bus_modes import start_daemon, stop_daemon
+from daemonproc import start_daemon, stop_daemon
 
 from vehest_can.bus.bus import open_bus, private_multicast
 from vehest_can.bus.frames import E2ESender, database
@@ -204,7 +204,7 @@ def golden_inputs():
 def test_golden_log_gives_the_golden_estimates():
     """A small candump log of sensor frames and the ECU's expected tyre-force frames: the
     fixed-point path is bit-exact across builds and machines. Regenerate both with
-    `python tests/test_tireforce_ecu.py` only when the filter is meant to change."""
+    `python tests/tireforce/test_tireforce_ecu.py` only when the filter is meant to change."""
     r = replay(read_log(GOLDEN / "chassis_golden.log"))
     got = [f"{m.arbitration_id:03X}#{bytes(m.data).hex().upper()}" for m in r.produced
            if m.arbitration_id in (TFE.frame_id, CST.frame_id)]

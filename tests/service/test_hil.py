@@ -32,7 +32,7 @@ from vehest_can.sim.scenario import load_scenario
 from vehest_can.sim.session import SimMaster, drive_from_scenario, run_inprocess
 from vehest_can.systems.ecu import Ecu
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = sorted((ROOT / "examples" / "hil").glob("*.toml"))
 PT_DBC = dbc_path("pt")
 EST_ID = database("pt").get_message_by_name("VEHEST_DrivelineEst").frame_id

@@ -43,9 +43,9 @@ from vehest_can.sim.scenario import load_scenario, scenario_dir
 from vehest_can.sim.session import drive_from_scenario, run_inprocess
 from vehest_can.systems.ecu import Ecu
 
-GUEST = Path(__file__).resolve().parent / "vcan_guest"
+GUEST = Path(__file__).resolve().parents[1] / "vcan_guest"
 PY = shlex.quote(sys.executable)
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 # the driveline (seed 001) scenarios, full length; the camber inspection has its own bus tests
 SCENARIOS = [sc for sc in (load_scenario(p) for p in sorted(scenario_dir().glob("*.toml"))) if sc.camber is None]
 

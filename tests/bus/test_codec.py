@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from vehest_can.bus.frames import database
 from vehest_can.native import ffi, lib
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 DB = database("pt")
 MESSAGES = DB.messages
 

@@ -37,7 +37,7 @@ from vehest_can.systems.tireforce.scenario import (
     truth_to_numpy,
 )
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 DT = 0.0005
 G = 9.81
 DEG = math.pi / 180
