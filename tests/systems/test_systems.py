@@ -105,3 +105,16 @@ def test_a_registered_toy_system_runs_through_the_demo(tmp_path, capsys):
     assert "bus lockstep == in-process lockstep: identical" in out
     assert re.search(r"toy table: toy_one \d+ frames", out)
     assert (tmp_path / "out" / "toy_one" / "session.log").is_file()
+
+
+def test_a_tireforce_file_loads_under_its_name_and_its_old_name(tmp_path):
+    from dataclasses import replace
+
+    from vehest_can.systems.tireforce.scenario import chassis_scenario_dir, load_chassis_scenario
+
+    shipped = chassis_scenario_dir() / "chassis_paper_mu_drop.toml"
+    text = shipped.read_text()
+    assert 'kind = "chassis"' in text
+    (tmp_path / "new.toml").write_text(text.replace('kind = "chassis"', 'kind = "tireforce"'))
+    old, new = load_chassis_scenario(shipped), load_chassis_scenario(tmp_path / "new.toml")
+    assert replace(old, path=None) == replace(new, path=None)
