@@ -22,6 +22,7 @@ import can
 
 from ..bus import bus as busmod
 from ..bus.busload import bus_load, load_dbc
+from ..bus.frames import database
 from ..errors import ConfigError, ScenarioError, VehestError
 from ..paths import dbc_dir
 from ..schema import Checker, Num, read_toml, type_name
@@ -441,8 +442,6 @@ def _dbc_nodes(db) -> set[str]:
 def _check_firmware_frames(c: _Checker, b: HilBus, db, node: str) -> None:
     """A simulated node sends the frames its firmware was built with (the bundled PT DBC): the bus's
     DBC must describe them the same way (name, ID, length), or the bench would decode garbage."""
-    from ..bus.frames import database  # the compiled codec's DBC; needs the native module
-
     def sends(d):
         return {(m.name, m.frame_id, m.is_extended_frame, m.length) for m in d.messages if node in m.senders}
 
@@ -501,8 +500,6 @@ class ResidualBus:
         self.stop_event.set()
 
     def run(self) -> HilResult:
-        # late: validating a configuration needs no compiled core
-
         cfg = self.config
         result = HilResult()
         opened: list[can.BusABC] = []

@@ -1,4 +1,7 @@
-"""The ECU firmware (``vh_ecu_t``) seen from Python: frames in, a tick, frames out."""
+"""The ECU firmware (``vh_ecu_t``) seen from Python: frames in, a tick, frames out.
+
+It holds every system's app, so it sits with the systems and takes their configurations; the
+sessions below it (``sim.session.run_inprocess``) are handed an ECU rather than making one."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -8,6 +11,7 @@ import can
 from ..bus.frames import to_frame, to_message
 from ..errors import ConfigError
 from ..native import check, ffi, lib
+from .camber.api import WHEELS
 from .driveline.api import DkfConfig
 from .tireforce.api import SkfConfig
 
@@ -84,8 +88,6 @@ class Ecu:
     def set_camber_calibrations(self, calibrations: dict) -> None:
         """Load inspection-device calibrations ({wheel: camber.Calibration}, e.g. from
         camber.load_calibrations); they persist across ECU resets."""
-        from .camber.api import WHEELS
-
         for wheel, cal in calibrations.items():
             check(lib.vh_ecu_set_camber_calibration(self.c, WHEELS.index(wheel), cal._to_c()),
                   f"camber calibration of {wheel}")
