@@ -110,11 +110,11 @@ def test_a_registered_toy_system_runs_through_the_demo(tmp_path, capsys):
 def test_a_tireforce_file_loads_under_its_name_and_its_old_name(tmp_path):
     from dataclasses import replace
 
-    from vehest_can.systems.tireforce.scenario import chassis_scenario_dir, load_chassis_scenario
+    from vehest_can.systems.tireforce.scenario import load_tireforce_scenario, tireforce_scenario_dir
 
-    shipped = chassis_scenario_dir() / "chassis_paper_mu_drop.toml"
+    shipped = tireforce_scenario_dir() / "chassis_paper_mu_drop.toml"
     text = shipped.read_text()
     assert 'kind = "chassis"' in text
     (tmp_path / "new.toml").write_text(text.replace('kind = "chassis"', 'kind = "tireforce"'))
-    old, new = load_chassis_scenario(shipped), load_chassis_scenario(tmp_path / "new.toml")
+    old, new = load_tireforce_scenario(shipped), load_tireforce_scenario(tmp_path / "new.toml")
     assert replace(old, path=None) == replace(new, path=None)

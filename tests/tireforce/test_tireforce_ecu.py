@@ -19,13 +19,13 @@ from vehest_can.service.replay import replay
 from vehest_can.sim.session import SimMaster, run_inprocess
 from vehest_can.systems.ecu import Ecu
 from vehest_can.systems.tireforce import api as tf
-from vehest_can.systems.tireforce.scenario import ChassisCar, load_chassis_scenario
+from vehest_can.systems.tireforce.scenario import ChassisCar, load_tireforce_scenario
 
 DB = database("ch")
 CHS = DB.get_message_by_name("CHS_Sensors")
 TFE = DB.get_message_by_name("VEHEST_TireForceEst")
 CST = DB.get_message_by_name("VEHEST_ChassisStatus")
-PAPER = load_chassis_scenario("chassis_paper_mu_drop")
+PAPER = load_tireforce_scenario("chassis_paper_mu_drop")
 GOLDEN = Path(__file__).parent / "data"
 
 

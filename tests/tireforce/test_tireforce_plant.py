@@ -30,10 +30,10 @@ from vehest_can.errors import ScenarioError
 from vehest_can.native import ffi, lib
 from vehest_can.sim.scenario import list_scenarios, load_scenario, scenario_dir
 from vehest_can.systems.tireforce.scenario import (
-    ChassisScenario,
-    chassis_scenario_dir,
-    list_chassis_scenarios,
-    load_chassis_scenario,
+    TireForceScenario,
+    list_tireforce_scenarios,
+    load_tireforce_scenario,
+    tireforce_scenario_dir,
     truth_to_numpy,
 )
 
@@ -478,7 +478,7 @@ def test_relaxation_delays_the_lateral_force():
 
 
 def test_integration_error_against_finer_sub_steps():
-    sc = load_chassis_scenario("chassis_paper_mu_drop")
+    sc = load_tireforce_scenario("chassis_paper_mu_drop")
     runs = []
     for nsub in (1, 8):
         prm = sc.plant_params(ffi, lib)
@@ -551,13 +551,13 @@ def test_init_rejects_unphysical_parameters(field, value):
 
 @pytest.fixture(scope="module")
 def relation_run():
-    sc = load_chassis_scenario("chassis_relation_70kph")
+    sc = load_tireforce_scenario("chassis_relation_70kph")
     return sc, sc.run_truth(ffi, lib)
 
 
 @pytest.fixture(scope="module")
 def mu_drop_run():
-    sc = load_chassis_scenario("chassis_paper_mu_drop")
+    sc = load_tireforce_scenario("chassis_paper_mu_drop")
     return sc, sc.run_truth(ffi, lib)
 
 
@@ -819,12 +819,12 @@ def write(tmp_path, text, name="c.toml"):
 
 
 def test_shipped_chassis_scenarios_load_and_follow_the_paper():
-    assert set(list_chassis_scenarios()) == {"chassis_relation_70kph", "chassis_paper_mu_drop"}
-    assert chassis_scenario_dir().name == "chassis"
-    rel = load_chassis_scenario("chassis_relation_70kph")
+    assert set(list_tireforce_scenarios()) == {"chassis_relation_70kph", "chassis_paper_mu_drop"}
+    assert tireforce_scenario_dir().name == "chassis"
+    rel = load_tireforce_scenario("chassis_relation_70kph")
     assert rel.initial_speed_kmh == 70.0 and rel.duration_s == 10.0
     np.testing.assert_allclose(rel.steer_rad_at([0.0, 5.0, 10.0]), np.radians([0.0, 2.0, 4.0]))
-    drop = load_chassis_scenario("chassis_paper_mu_drop")
+    drop = load_tireforce_scenario("chassis_paper_mu_drop")
     t = np.array([0.0, 2.0, 5.0, 9.0])
     np.testing.assert_allclose(np.degrees(drop.steer_rad_at(t)), [0.0, 1.0, 2.0, 2.0])
     np.testing.assert_allclose(drop.brake_at([5.0])[0], [60.0, 60.0, 40.0, 40.0])
@@ -833,12 +833,12 @@ def test_shipped_chassis_scenarios_load_and_follow_the_paper():
     prm = drop.plant_params(ffi, lib)
     assert prm.ms == 1661.0 + 200.0
     # the driveline side does not see them
-    assert not set(list_scenarios()) & set(list_chassis_scenarios())
+    assert not set(list_scenarios()) & set(list_tireforce_scenarios())
     assert not list(scenario_dir().glob("chassis_*.toml"))
 
 
 def test_good_file_defaults_and_input_layout(tmp_path):
-    sc = load_chassis_scenario(write(tmp_path, GOOD))
+    sc = load_tireforce_scenario(write(tmp_path, GOOD))
     assert (sc.name, sc.seed, sc.initial_speed_kmh, sc.mass_delta_kg, sc.accel_gravity) == ("mine", 1, 0.0, 0.0, False)
     arr = sc.input_array()
     assert arr.shape == (2000, 13)
@@ -849,7 +849,7 @@ def test_good_file_defaults_and_input_layout(tmp_path):
 
 
 def test_split_mu_sensors_tyre_and_vehicle_keys(tmp_path):
-    sc = load_chassis_scenario(write(tmp_path, GOOD + """
+    sc = load_tireforce_scenario(write(tmp_path, GOOD + """
         [road]
         mu_left = [[0.0, 1.0]]
         mu_right = [[0.0, 0.3], [0.5, 0.2]]
@@ -899,7 +899,7 @@ def test_split_mu_sensors_tyre_and_vehicle_keys(tmp_path):
 def test_chassis_loader_errors_name_file_and_key(tmp_path, text, key, fragment):
     path = write(tmp_path, text)
     with pytest.raises(ScenarioError) as exc:
-        load_chassis_scenario(path)
+        load_tireforce_scenario(path)
     msg = str(exc.value)
     assert msg.startswith(f"{path}: {key}"), msg
     assert fragment in msg
@@ -907,12 +907,12 @@ def test_chassis_loader_errors_name_file_and_key(tmp_path, text, key, fragment):
 
 def test_loaders_keep_to_their_own_files(tmp_path):
     with pytest.raises(ScenarioError, match="kind: unknown key"):
-        load_scenario(chassis_scenario_dir() / "chassis_paper_mu_drop.toml")
+        load_scenario(tireforce_scenario_dir() / "chassis_paper_mu_drop.toml")
     with pytest.raises(ScenarioError, match="kind: missing"):
-        load_chassis_scenario(scenario_dir() / "launch_2nd.toml")
+        load_tireforce_scenario(scenario_dir() / "launch_2nd.toml")
     with pytest.raises(ScenarioError, match="cannot read"):
-        load_chassis_scenario(tmp_path / "nope.toml")
-    assert isinstance(load_chassis_scenario("chassis_paper_mu_drop"), ChassisScenario)
+        load_tireforce_scenario(tmp_path / "nope.toml")
+    assert isinstance(load_tireforce_scenario("chassis_paper_mu_drop"), TireForceScenario)
 
 
 def test_command_line_summary_and_bench(capsys):

@@ -254,9 +254,9 @@ def test_decode_signals_matches_decode_inputs():
 def test_masked_rows_reach_the_filter_as_degraded_steps():
     """A decoded invalid sample is not used: the step is DEGRADED, never a number in the filter."""
     from vehest_can.native import ffi
-    from vehest_can.systems.tireforce.scenario import load_chassis_scenario
+    from vehest_can.systems.tireforce.scenario import load_tireforce_scenario
 
-    sc = load_chassis_scenario("chassis_paper_mu_drop")
+    sc = load_tireforce_scenario("chassis_paper_mu_drop")
     truth, payloads = sc.run_with_frames(ffi, lib)
     payloads = payloads[:2000]
     k = 1500

@@ -1,7 +1,7 @@
 """Tire-force report (seed 000): the three estimators against the 14-DOF plant's truth.
 
-The chassis scenario runs offline (plant and sensor node tick by tick,
-:meth:`~vehest_can.systems.tireforce.scenario.ChassisScenario.run_with_frames`); the ``CHS_Sensors`` frames are decoded
+The tyre-force scenario runs offline (plant and sensor node tick by tick,
+:meth:`~vehest_can.systems.tireforce.scenario.TireForceScenario.run_with_frames`); the ``CHS_Sensors`` frames are decoded
 with cantools (the DBC is the only description of the bytes, SNA and qualifiers included) and fed to
 SKFMEC (double), SKFMEC (fixed point, the ECU's) and the plain EKF (:mod:`vehest_can.systems.tireforce.api`).
 What comes out: a metrics dict (JSON), the paper's figures as PNGs (Fig. 3-4 relation check,
@@ -222,18 +222,18 @@ def run_estimators(decoded: DecodedInputs, variants=tf.VARIANTS) -> dict[str, tf
 
 
 def scenario(name: str, *, mass_delta_kg: float | None = None):
-    """A chassis scenario by name or path; ``mass_delta_kg`` overrides ``[vehicle] mass_delta_kg``
+    """A tyre-force scenario by name or path; ``mass_delta_kg`` overrides ``[vehicle] mass_delta_kg``
     (e.g. 0 for the nominal car: the estimator's model is then the true mass)."""
     from ...schema import read_toml
-    from .scenario import chassis_scenario_from_dict, chassis_scenario_path, load_chassis_scenario
+    from .scenario import load_tireforce_scenario, tireforce_scenario_from_dict, tireforce_scenario_path
 
     if mass_delta_kg is None:
-        return load_chassis_scenario(name)
-    path = chassis_scenario_path(name)
+        return load_tireforce_scenario(name)
+    path = tireforce_scenario_path(name)
     doc = read_toml(path)
     doc.setdefault("vehicle", {})["mass_delta_kg"] = float(mass_delta_kg)
     doc["name"] = f"{doc.get('name', path.stem)}_mass{mass_delta_kg:+g}kg"
-    return chassis_scenario_from_dict(doc, path)
+    return tireforce_scenario_from_dict(doc, path)
 
 
 def simulate(sc, variants=tf.VARIANTS, progress=None):
@@ -601,10 +601,10 @@ def report(sc, out_dir: Path | None = None, progress=None, max_ay_g: float | Non
 
 def main(argv: list[str] | None = None) -> int:
     from ...progress import Progress
-    from .scenario import list_chassis_scenarios
+    from .scenario import list_tireforce_scenarios
 
     ap = argparse.ArgumentParser(prog="python -m vehest_can.systems.tireforce.report", description=__doc__.split("\n")[0])
-    ap.add_argument("scenarios", nargs="*", help="chassis scenario files or shipped names (default: all shipped)")
+    ap.add_argument("scenarios", nargs="*", help="tyre-force scenario files or shipped names (default: all shipped)")
     ap.add_argument("-o", "--out", type=Path, default=Path("out/tfreport"), help="output directory")
     ap.add_argument("--mass-delta", type=float, default=None, metavar="KG",
                     help="override [vehicle] mass_delta_kg (0: the nominal car, the estimator's mass)")
@@ -614,7 +614,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     all_metrics = []
     try:
-        for name in args.scenarios or list_chassis_scenarios():
+        for name in args.scenarios or list_tireforce_scenarios():
             sc = scenario(name, mass_delta_kg=args.mass_delta)
             prog = Progress(sc.name)
             m = report(sc, args.out, progress=prog, max_ay_g=args.max_ay_g)

@@ -3,13 +3,13 @@
 
 A tyre-force scenario says ``kind = "tireforce"`` at the top (``kind = "chassis"``, its old name, still
 loads); the schema is in ``docs/chassis_plant.md``.
-:func:`load_chassis_scenario` checks every key (unknown keys, types, ranges, time profiles, split-μ
+:func:`load_tireforce_scenario` checks every key (unknown keys, types, ranges, time profiles, split-μ
 consistency, and finally whether the plant accepts the vehicle) and raises
 :class:`~vehest_can.errors.ScenarioError` naming the file, the dotted key and the problem. The driveline
 loader (:mod:`vehest_can.sim.scenario`) is untouched: it rejects ``kind`` as an unknown key, and this loader
 rejects a file without one of these kinds.
 
-Chassis scenarios live in ``firmware_sim/scenarios/chassis/`` (the driveline demo and tests iterate over
+Tyre-force scenarios live in ``firmware_sim/scenarios/chassis/`` (the driveline loader and tests iterate over
 ``firmware_sim/scenarios/*.toml``, so they do not see them).
 
 ``python -m vehest_can.systems.tireforce.scenario [SCENARIO ...]`` runs scenarios and prints a summary;
@@ -38,18 +38,18 @@ KINDS = ("tireforce", "chassis")
 #: Wheels in the order of every per-wheel quantity: the paper's 1..4 in a left turn.
 WHEELS = ("FL", "FR", "RL", "RR")
 
-def chassis_scenario_dir() -> Path:
-    """The shipped chassis scenarios: inside the installed package, or firmware_sim/scenarios/chassis/."""
+def tireforce_scenario_dir() -> Path:
+    """The shipped tyre-force scenarios: inside the installed package, or firmware_sim/scenarios/chassis/."""
     return shipped_dir("scenarios/chassis", "firmware_sim/scenarios/chassis", "*.toml")
 
 
-def list_chassis_scenarios() -> list[str]:
-    return sorted(p.stem for p in chassis_scenario_dir().glob("*.toml"))
+def list_tireforce_scenarios() -> list[str]:
+    return sorted(p.stem for p in tireforce_scenario_dir().glob("*.toml"))
 
 
-def chassis_scenario_path(name_or_path: str | Path) -> Path:
-    """An existing path as given, else a shipped chassis scenario's name."""
-    return shipped_file(name_or_path, chassis_scenario_dir())
+def tireforce_scenario_path(name_or_path: str | Path) -> Path:
+    """An existing path as given, else a shipped tyre-force scenario's name."""
+    return shipped_file(name_or_path, tireforce_scenario_dir())
 
 
 # ---- schema --------------------------------------------------------------------------------
@@ -126,8 +126,8 @@ _SENSORS = {
 
 
 @dataclass(frozen=True)
-class ChassisScenario:
-    """One validated chassis scenario. Profiles are (t, value...) points, piecewise linear in time."""
+class TireForceScenario:
+    """One validated tyre-force scenario. Profiles are (t, value...) points, piecewise linear in time."""
 
     name: str
     description: str
@@ -274,7 +274,7 @@ class ChassisCar:
     interface of :class:`vehest_can.sim.session.Car` (``name``, ``n``, ``truth_dtype``, ``reset``, ``tick``,
     ``truth``), so the simulator drives it in every mode."""
 
-    def __init__(self, sc: ChassisScenario, duration_s: float | None = None):
+    def __init__(self, sc: TireForceScenario, duration_s: float | None = None):
         from ...native import ffi, lib
 
         self._ffi, self._lib = ffi, lib
@@ -334,13 +334,13 @@ def _vector_profile(c: Checker, value, key: str, spec: Num) -> tuple[tuple[float
     return tuple(points)
 
 
-def load_chassis_scenario(path: str | Path) -> ChassisScenario:
-    """Load and validate one chassis scenario (a path, or the name of a shipped one)."""
-    path = chassis_scenario_path(path)
-    return chassis_scenario_from_dict(read_toml(path), path)
+def load_tireforce_scenario(path: str | Path) -> TireForceScenario:
+    """Load and validate one tyre-force scenario (a path, or the name of a shipped one)."""
+    path = tireforce_scenario_path(path)
+    return tireforce_scenario_from_dict(read_toml(path), path)
 
 
-def chassis_scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> ChassisScenario:
+def tireforce_scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> TireForceScenario:
     """Validate an already parsed TOML document (``path`` only names it in errors)."""
     ffi, lib = _native()
     c = Checker(Path(path))
@@ -416,7 +416,7 @@ def chassis_scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> Ch
         else:
             sensors.append((k, c.number(v, f"sensors.{k}", _SENSORS[k][2])))
 
-    sc = ChassisScenario(name=name, description=description, duration_s=duration, seed=seed,
+    sc = TireForceScenario(name=name, description=description, duration_s=duration, seed=seed,
                          initial_speed_kmh=v0, steer_deg=steer, drive_nm=drive, brake_nm=brake,
                          mu_left=mu_l, mu_right=mu_r, mass_delta_kg=mass_delta, vehicle=tuple(sorted(vehicle)),
                          tyre=tuple(sorted(tyre)), sensors=tuple(sorted(sensors)),
@@ -437,7 +437,7 @@ def chassis_scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> Ch
 
 # ---- command line: run scenarios, benchmark the plant ----------------------------------------
 
-def summary(sc: ChassisScenario, tr: np.ndarray) -> dict[str, float]:
+def summary(sc: TireForceScenario, tr: np.ndarray) -> dict[str, float]:
     """Figures of a run: peaks of the lateral forces per tyre, a_y, roll; friction use."""
     use = np.hypot(tr["fx"], tr["fy"]) / np.maximum(tr["mu"] * tr["fz"], 1e-9)
     out: dict[str, Any] = {"duration_s": sc.duration_s, "vx_end_kmh": float(tr["vx"][-1] * 3.6),
@@ -457,7 +457,7 @@ def bench(seconds: float = 10.0, repeats: int = 9) -> dict[str, float]:
     On a shared machine the best of several runs is the figure of the code; the median shows the load.
     """
     ffi, lib = _native()
-    sc = load_chassis_scenario("chassis_paper_mu_drop")
+    sc = load_tireforce_scenario("chassis_paper_mu_drop")
     n = int(round(seconds / DT))
     reps = int(math.ceil(n / sc.n_steps))
     inputs = np.tile(sc.input_array(), (reps, 1))[:n]
@@ -479,7 +479,7 @@ def bench(seconds: float = 10.0, repeats: int = 9) -> dict[str, float]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m vehest_can.systems.tireforce.scenario", description=__doc__.split("\n")[0])
-    ap.add_argument("scenarios", nargs="*", help="chassis scenario files or shipped names (default: all shipped)")
+    ap.add_argument("scenarios", nargs="*", help="tyre-force scenario files or shipped names (default: all shipped)")
     ap.add_argument("--bench", action="store_true", help="time the plant alone instead")
     args = ap.parse_args(argv)
     ffi, lib = _native()
@@ -488,8 +488,8 @@ def main(argv: list[str] | None = None) -> int:
             for k, v in bench().items():
                 print(f"{k:26s} {v:.4g}")
             return 0
-        for name in args.scenarios or list_chassis_scenarios():
-            sc = load_chassis_scenario(name)
+        for name in args.scenarios or list_tireforce_scenarios():
+            sc = load_tireforce_scenario(name)
             tr = sc.run_truth(ffi, lib)
             print(f"== {sc.name}: {sc.description}")
             for k, v in summary(sc, tr).items():
@@ -500,8 +500,8 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-__all__ = ["DT", "WHEELS", "ChassisScenario", "load_chassis_scenario", "chassis_scenario_from_dict",
-           "chassis_scenario_dir", "chassis_scenario_path", "list_chassis_scenarios", "truth_dtype",
+__all__ = ["DT", "WHEELS", "TireForceScenario", "load_tireforce_scenario", "tireforce_scenario_from_dict",
+           "tireforce_scenario_dir", "tireforce_scenario_path", "list_tireforce_scenarios", "truth_dtype",
            "truth_to_numpy", "summary", "bench"]
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@ from ...sim.report import decode
 from .. import Setup
 from . import api as tf
 from . import report
-from .scenario import KINDS, ChassisCar, chassis_scenario_dir, load_chassis_scenario
+from .scenario import KINDS, ChassisCar, load_tireforce_scenario, tireforce_scenario_dir
 
 
 class TireForce:
@@ -20,13 +20,13 @@ class TireForce:
     faults = None
 
     def scenario_dir(self) -> Path:
-        return chassis_scenario_dir()
+        return tireforce_scenario_dir()
 
     def claims(self, doc: dict) -> bool:
         return doc.get("kind") in KINDS
 
     def load(self, path: Path):
-        return load_chassis_scenario(path)
+        return load_tireforce_scenario(path)
 
     def car(self, scenario, duration_s: float | None = None):
         return ChassisCar(scenario, duration_s)
