@@ -1,15 +1,15 @@
-"""pytest glue for the user-mode-Linux harness (vehest_can.uml): the ``uml`` fixture."""
+"""pytest glue for the user-mode-Linux harness (vehest_can.tools.uml): the ``uml`` fixture."""
 
 import os
 
 import pytest
 
-from vehest_can import uml as _uml
+from vehest_can.tools import uml as _uml
 
 
 @pytest.fixture(scope="session")
 def uml(tmp_path_factory):
-    """``vehest_can.uml``, once one probe boot has run a command in the guest.
+    """``vehest_can.tools.uml``, once one probe boot has run a command in the guest.
 
     Skips with the reason when UML, its CAN modules or can-utils are missing, or the probe boot
     fails; with ``CI=true`` in the environment it fails instead, because CI must run these tests.

@@ -1,4 +1,4 @@
-"""Run inside a network namespace that has only loopback (see tests/test_host_only.py).
+"""Run inside a network namespace that has only loopback (see tests/bus/test_host_only.py).
 
 The ECU daemon (its own process) and the simulator, in lockstep over the *default* bus: no
 ``-i``/``-c`` given, no CAN_* environment. Writes the ECU's frames and the daemon's stderr to OUT.
@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from vehest_can import bus as busmod
-from vehest_can.scenario import load_scenario
-from vehest_can.sim import SimMaster, drive_from_scenario
+from vehest_can.bus import bus as busmod
+from vehest_can.sim.scenario import load_scenario
+from vehest_can.sim.session import SimMaster, drive_from_scenario
 
 out = Path(sys.argv[1])
 seconds = float(sys.argv[2])

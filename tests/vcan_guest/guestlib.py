@@ -1,8 +1,8 @@
 """Helpers shared by the guest scripts in this folder: processes on a real SocketCAN vcan0.
 
-These scripts run inside user-mode Linux (``vehest_can.uml``), as root, with the host's venv.
+These scripts run inside user-mode Linux (``vehest_can.tools.uml``), as root, with the host's venv.
 They orchestrate can-utils and the ``vehest-can daemon`` as separate processes and write what
-they saw to files and one JSON document on stdout; the host-side tests (tests/test_vcan.py)
+they saw to files and one JSON document on stdout; the host-side tests (tests/service/test_vcan.py)
 judge it. Nothing here asserts on time: the guest's clock is not a real-time one.
 """
 from __future__ import annotations
@@ -18,9 +18,9 @@ from pathlib import Path
 
 import can
 
-from vehest_can import bus as busmod
-from vehest_can import lockstep
-from vehest_can.frames import frame_id
+from vehest_can.bus import bus as busmod
+from vehest_can.bus import lockstep
+from vehest_can.bus.frames import frame_id
 
 CHANNEL = "vcan0"
 STATUS_ID = frame_id("VEHEST_Status")

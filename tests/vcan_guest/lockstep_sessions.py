@@ -14,7 +14,7 @@ seconds, candump's exit status, the daemon's exit status, summary and statistics
 Runs on any python-can bus (``-i udp_multicast -c 239.74.x.y`` on the host); ``--capture`` needs
 a SocketCAN channel. Inside user-mode Linux:
 
-    python -m vehest_can.uml -- .venv/bin/python tests/vcan_guest/lockstep_sessions.py \\
+    python -m vehest_can.tools.uml -- .venv/bin/python tests/vcan_guest/lockstep_sessions.py \\
         out/vcan --capture --daemon-log launch_2nd tip_in_tip_out
 """
 from __future__ import annotations
@@ -29,8 +29,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import guestlib  # noqa: E402
 
-from vehest_can.scenario import load_scenario  # noqa: E402
-from vehest_can.sim import SimMaster, drive_from_scenario  # noqa: E402
+from vehest_can.sim.scenario import load_scenario  # noqa: E402
+from vehest_can.sim.session import SimMaster, drive_from_scenario  # noqa: E402
 
 
 def main() -> None:

@@ -36,9 +36,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import guestlib  # noqa: E402
 from guestlib import STATUS_ID, cansend, cansend_frame  # noqa: E402
 
-from vehest_can.frames import frame_id, to_message  # noqa: E402
-from vehest_can.scenario import load_scenario  # noqa: E402
-from vehest_can.sim import SimMaster, drive_from_scenario, run_inprocess  # noqa: E402
+from vehest_can.bus.frames import frame_id, to_message  # noqa: E402
+from vehest_can.sim.scenario import load_scenario  # noqa: E402
+from vehest_can.sim.session import SimMaster, drive_from_scenario, run_inprocess  # noqa: E402
+from vehest_can.systems.ecu import Ecu
 
 DLS_ID = frame_id("DLS_Sensors")
 SCENARIO = "launch_2nd"
@@ -49,7 +50,7 @@ MARK_BEFORE, MARK_AFTER = "7AA#0102030405060708", "7AB#0807060504030201"
 
 def dls_messages(seconds: float) -> list[can.Message]:
     """The DLS_Sensors frames of the scenario's first seconds, from the in-process run."""
-    s = run_inprocess(drive_from_scenario(load_scenario(SCENARIO), seconds))
+    s = run_inprocess(drive_from_scenario(load_scenario(SCENARIO), seconds), Ecu())
     return [to_message(f) for f in s.frames if f["id"] == DLS_ID]
 
 

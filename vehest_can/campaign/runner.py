@@ -3,8 +3,8 @@ rows appended to a Parquet dataset as it completes, so an interrupted campaign r
 from __future__ import annotations
 
 import hashlib
-import logging
 import json
+import logging
 import math
 import os
 import time
@@ -12,8 +12,8 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 from ..errors import ConfigError
+from . import systems
 from .spec import Campaign
-from .systems import system_for
 
 LOCAL_DASK = "local-dask"
 
@@ -31,7 +31,7 @@ def flatten(tree, prefix: str = "") -> dict[str, float]:
 
 def run_batch(campaign: Campaign, indices: list[int]) -> list[dict]:
     """The rows of some runs. A run that raises is a row with its error, not a lost batch."""
-    system = system_for(campaign.base)
+    system = systems.system_for(campaign.base)
     rows = []
     for i in indices:
         doc, values = campaign.run_doc(i)
@@ -39,7 +39,7 @@ def run_batch(campaign: Campaign, indices: list[int]) -> list[dict]:
         row.update({f"param.{k}": v for k, v in values.items()})
         t0 = time.perf_counter()
         try:
-            metrics = flatten(system.run(doc, campaign.base_path, campaign.faults(values)))
+            metrics = flatten(systems.run(system, doc, campaign.base_path, campaign.faults(values), doc["seed"]))
             row.update({f"metric.{k}": v for k, v in metrics.items() if campaign.keep(k)})
         except Exception as exc:  # noqa: BLE001 - recorded in the row, the campaign goes on
             row["error"] = f"{type(exc).__name__}: {exc}"

@@ -261,13 +261,13 @@ def load_campaign(path: str | Path) -> Campaign:
         _fail(path, "campaign.name", "must be a non-empty string")
     c = Campaign(path, name, base_path, base, int(runs), int(seed), tuple(vary), tuple(metrics), tuple(acc))
     # every dotted key lands where the system's own loader accepts it: check run 0 now, not at run 37
-    from .systems import system_for
+    from .systems import system_for, takes_faults, validate
 
     system = system_for(base)
-    if FAULT in keys and not system.takes_faults:
-        _fail(path, f"vary[{keys.index(FAULT)}].key", f"the {system.name} system's runs take no faults (yet)")
+    if FAULT in keys and not takes_faults(system):
+        _fail(path, f"vary[{keys.index(FAULT)}].key", f"the {system.name} system's runs take no faults (it has no fault study)")
     try:
-        system.validate(c.run_doc(0)[0], base_path)
+        validate(system, c.run_doc(0)[0], base_path)
     except ScenarioError as exc:
         raise ScenarioError(f"{path}: run 0 of this campaign is not a valid scenario: {exc}") from None
     return c

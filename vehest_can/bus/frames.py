@@ -1,0 +1,116 @@
+"""Frames across the firmware boundary: ``vh_frame_t`` <-> ``can.Message``, and the DBC helpers."""
+from __future__ import annotations
+
+from collections.abc import Set as AbstractSet
+from functools import cache
+from typing import cast
+
+import can
+import cantools
+import numpy as np
+
+from ..native import ffi, lib, struct_dtype
+from ..paths import dbc_path
+
+TICK_S = lib.VH_TICK_US * 1e-6
+
+#: numpy view of ``vh_frame_t`` (for bulk frame buffers filled by C loops)
+FRAME_DTYPE = struct_dtype("vh_frame_t")
+
+
+@cache
+def database(bus: str = "pt") -> cantools.database.can.Database:
+    return cast(cantools.database.can.Database, cantools.database.load_file(str(dbc_path(bus)), strict=True))
+
+
+#: the ECU's buses: powertrain (driveline, camber) and chassis (tyre force); IDs are unique across both
+BUSES = ("pt", "ch")
+
+
+def sent_by(nodes: AbstractSet[str], bus: str | None = None) -> frozenset[int]:
+    """Standard IDs the given DBC nodes transmit (on one bus, or on every bus). A node ignores its
+    own IDs on receive: some buses (python-can's udp_multicast) echo a sender's frames back to it."""
+    return frozenset(m.frame_id for b in ((bus,) if bus else BUSES) for m in database(b).messages
+                     if set(m.senders) & nodes and not m.is_extended_frame)
+
+
+def message(name: str):
+    """A message of either bus's DBC by name (names, like IDs, are unique across the buses)."""
+    for bus in BUSES:
+        try:
+            return database(bus).get_message_by_name(name)
+        except KeyError:
+            continue
+    raise KeyError(name)
+
+
+def is_own(msg: can.Message, own: frozenset[int]) -> bool:
+    return not msg.is_extended_id and msg.arbitration_id in own
+
+
+def frame_id(name: str, bus: str = "pt") -> int:
+    return database(bus).get_message_by_name(name).frame_id
+
+
+def to_message(frame, timestamp: float = 0.0, channel=None) -> can.Message:
+    """``vh_frame_t`` (cdata or a FRAME_DTYPE record) -> ``can.Message`` (IDs always explicit)."""
+    flags = int(frame["flags"] if isinstance(frame, np.void) else frame.flags)
+    n = int(frame["len"] if isinstance(frame, np.void) else frame.len)
+    data = bytes(frame["data"][:n]) if isinstance(frame, np.void) else bytes(ffi.buffer(frame.data)[:n])
+    return can.Message(
+        timestamp=timestamp,
+        arbitration_id=int(frame["id"] if isinstance(frame, np.void) else frame.id),
+        is_extended_id=bool(flags & lib.VH_FRAME_EXT),
+        is_fd=bool(flags & lib.VH_FRAME_FD),
+        bitrate_switch=bool(flags & lib.VH_FRAME_BRS),
+        data=data,
+        channel=channel,
+    )
+
+
+def to_frame(msg: can.Message, out=None):
+    """``can.Message`` -> ``vh_frame_t`` cdata. Remote and error frames carry no payload."""
+    out = out if out is not None else ffi.new("vh_frame_t *")
+    data = bytes(msg.data or b"")[:64]
+    out.id = msg.arbitration_id
+    out.len = len(data)
+    out.flags = (
+        (lib.VH_FRAME_EXT if msg.is_extended_id else 0)
+        | (lib.VH_FRAME_FD if msg.is_fd else 0)
+        | (lib.VH_FRAME_BRS if msg.bitrate_switch else 0)
+    )
+    ffi.memmove(out.data, data.ljust(64, b"\0"), 64)
+    return out
+
+
+def same_frame(a: can.Message, b: can.Message) -> bool:
+    """Equal on the wire (ID, ID type, FD, payload); timestamps and channels aside."""
+    return (a.arbitration_id, a.is_extended_id, a.is_fd, bytes(a.data)) == (
+        b.arbitration_id, b.is_extended_id, b.is_fd, bytes(b.data))
+
+
+def e2e_data_id(message) -> int:
+    attrs = message.dbc.attributes if message.dbc else {}
+    return int(attrs["E2EDataID"].value) if "E2EDataID" in attrs else 0
+
+
+class E2ESender:
+    """Encode a DBC message from physical values and protect it (E2E P01, the firmware's own C)."""
+
+    def __init__(self, bus: str = "pt"):
+        self.db = database(bus)
+        self._counters: dict[str, object] = {}
+
+    def message(self, name: str, values: dict, *, protect: bool = True) -> can.Message:
+        m = self.db.get_message_by_name(name)
+        signals = {s.name: 0 for s in m.signals}
+        signals.update(values)
+        payload = bytearray(m.encode(signals, scaling=True, strict=False, padding=False))
+        data_id = e2e_data_id(m)
+        if protect and data_id:
+            counter = self._counters.setdefault(name, ffi.new("uint8_t *", 0))
+            buf = ffi.new("uint8_t[]", bytes(payload))
+            lib.vh_e2e_p01_protect(buf, len(payload), data_id, counter)
+            payload = bytearray(ffi.buffer(buf, len(payload)))
+        return can.Message(arbitration_id=m.frame_id, is_extended_id=False, is_fd=m.is_fd,
+                           bitrate_switch=m.is_fd, data=bytes(payload))

@@ -1,0 +1,139 @@
+"""``vehest-can demo``: the main job. Car and ECU as two processes on a bus, every shipped scenario
+of every registered system (:mod:`vehest_can.systems`), then each system's tables beside the
+papers' figures, plots, metrics and candump logs. Nothing here knows a system by name."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import can
+import numpy as np
+
+from ..bus import bus as busmod
+from ..errors import VehestError
+from ..progress import Progress
+from ..sim.report import realtime_summary, write_metrics
+from ..sim.session import SimMaster, run_inprocess
+from ..systems import Setup, System, load_any_scenario, registered, shipped_scenarios
+from ..systems.ecu import Ecu
+
+
+def add_subparser(subparsers) -> None:
+    p = subparsers.add_parser("demo", help="the full loop: plant -> bus -> ECU -> estimates, with table and plots",
+                              description="Start the ECU daemon as its own process, run every system's scenarios in "
+                                          "lockstep over the bus, and report against the papers.")
+    p.add_argument("scenarios", nargs="*", metavar="SCENARIO",
+                   help="scenario files (or names of shipped ones) of any system (default: every scenario "
+                        "shipped with each registered system)")
+    p.add_argument("-o", "--out", default="out/demo", metavar="DIR", help="output folder (default: out/demo)")
+    p.add_argument("--realtime", type=float, default=0.0, metavar="S",
+                   help="also run S seconds in real time (2 kHz wall clock on both sides)")
+    busmod.add_arguments(p)
+    p.set_defaults(func=run)
+
+
+def _daemon_cmd(config: dict, mode: str, extra: list[str]) -> list[str]:
+    return [sys.executable, "-m", "vehest_can.cli", "daemon", "--mode", mode, *extra, *busmod.cli_args(config)]
+
+
+def _stop(proc: subprocess.Popen) -> str:
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGTERM)
+    try:
+        _, err = proc.communicate(timeout=10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        _, err = proc.communicate()
+    return err
+
+
+def run(args, systems: list[System] | None = None) -> int:
+    systems = registered() if systems is None else systems
+    paths = [Path(p) for p in args.scenarios] or shipped_scenarios(systems)
+    runs = [load_any_scenario(p, systems) for p in paths]
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    config = busmod.bus_config(args)
+    if config == {"interface": busmod.DEFAULT_INTERFACE, "channel": busmod.DEFAULT_CHANNEL, "fd": True}:
+        # nothing chosen and both processes are ours: a bus of this run's own keeps other runs out
+        config = busmod.private_multicast()
+    port = f" port {config['port']}" if "port" in config else ""
+    print(f"bus: {config['interface']} {config.get('channel')}{port}; ECU daemon in its own process; output in {out}/")
+
+    setups: dict[str, Setup] = {s.name: s.setup([sc for r, sc in runs if r is s], out) for s in systems}
+    daemon_args = [a for st in setups.values() for a in st.daemon_args]
+    ecu_proc = subprocess.Popen(_daemon_cmd(config, "lockstep", ["--idle-timeout", "60", *daemon_args]),
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy())
+    results: list[tuple[System, dict]] = []
+    try:
+        bus = busmod.open_bus(config)
+        try:
+            for system, sc in runs:
+                sdir = out / sc.name
+                sdir.mkdir(parents=True, exist_ok=True)
+                progress = Progress(f"{sc.name} (lockstep)")
+                with can.Logger(str(sdir / "session.log")) as writer:
+                    master = SimMaster(bus, system.car(sc), log_writer=writer, progress=progress)
+                    session = master.run_lockstep(end=False)
+                progress.done(f"{session.stats['realtime_factor']:.1f}x real time over the bus")
+                local_ecu = Ecu()  # configured like the daemon
+                for st in setups.values():
+                    st.configure(local_ecu)
+                local = run_inprocess(system.car(sc), local_ecu)
+                same = (len(local.frames) == len(session.frames)
+                        and np.array_equal(local.frames, session.frames))
+                print(f"  bus lockstep == in-process lockstep: {'identical' if same else 'DIFFERENT'} "
+                      f"({len(session.frames)} frames)")
+                metrics = system.metrics(sc, session, sdir, setups[system.name])
+                metrics["bus_equals_inprocess"] = bool(same)
+                metrics["inprocess_realtime_factor"] = local.stats["realtime_factor"]
+                results.append((system, metrics))
+        finally:
+            bus.shutdown()
+    finally:
+        err = _stop(ecu_proc)
+    print("ECU daemon: " + " | ".join(line for line in err.strip().splitlines()[-4:]))
+
+    all_metrics = [m for _, m in results]
+    if args.realtime > 0:
+        wall_clock = [(s, sc) for s, sc in runs if s.realtime]
+        system, sc = (wall_clock or runs)[0]
+        all_metrics.append(_realtime(args, config, system.car(sc, args.realtime), sc.name, out))
+
+    write_metrics(all_metrics, out / "metrics.json")
+    print()
+    tables = [t for s in systems for t in s.tables([m for r, m in results if r is s])]
+    if tables:
+        print("\n\n".join(tables))
+    print(f"\nplots: {', '.join(str(p) for p in sorted(out.glob('*/*.png')))}")
+    print(f"metrics: {out / 'metrics.json'}; candump logs: {', '.join(str(p) for p in sorted(out.glob('*/session.log')))}")
+    return 0
+
+
+def _realtime(args, config, car, name: str, out: Path) -> dict:
+    stats_file = out / "realtime_daemon.json"
+    stats_file.unlink(missing_ok=True)
+    # no --duration: the daemon runs until the car is done and SIGTERM stops it (clean shutdown)
+    ecu_proc = subprocess.Popen(_daemon_cmd(config, "realtime", ["--stats", str(stats_file)]),
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(1.0)  # let the daemon open its bus
+    bus = busmod.open_bus(config)
+    try:
+        progress = Progress(f"{name} (real time)")
+        session = SimMaster(bus, car, progress=progress).run_realtime()
+        progress.done()
+    finally:
+        bus.shutdown()
+        err = _stop(ecu_proc)
+    if ecu_proc.returncode not in (0, -signal.SIGTERM):
+        raise VehestError(f"real-time ECU daemon failed: {err}")
+    if not stats_file.exists():
+        raise VehestError(f"real-time ECU daemon wrote no statistics: {err}")
+    summary = realtime_summary(session, json.loads(stats_file.read_text()))
+    print("real time: " + summary["line"])
+    return summary

@@ -1,0 +1,1 @@
+"""The ECU as a service: the daemon on a bus, hardware-in-the-loop rehearsal, systemd notify, log replay."""

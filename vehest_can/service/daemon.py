@@ -1,0 +1,278 @@
+"""The ECU prototype daemon: the C core behind a python-can bus, in lockstep or real time.
+
+* lockstep: driven by SIM_Sync frames (see ``lockstep.py``); deterministic on any bus.
+* real time: the daemon's own 2 kHz wall clock; received frames are handed to the core as they
+  arrive (the core holds the last sample of each signal), deadline misses, tick lateness and
+  frame-to-estimate latency are measured.
+
+Bus errors (``can.CanError``/``OSError`` on send or receive, e.g. a SocketCAN link that goes
+down) do not stop the daemon: it counts them, warns once per outage, keeps ticking and goes on
+when the bus is back; the outages and failures are in the statistics.
+
+Stops cleanly on SIGINT/SIGTERM (or END in lockstep with ``exit_on_end``): log flushed, bus
+closed, summary returned.
+"""
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from dataclasses import dataclass, field
+
+import can
+
+from ..bus import lockstep
+from ..bus.bus import is_undecodable
+from ..bus.frames import TICK_S, frame_id, is_own, sent_by
+from ..bus.rt import Durations, Ticker, percentiles_us
+from ..systems.ecu import Ecu
+from . import sdnotify
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class DaemonStats:
+    mode: str
+    ticks: int = 0
+    frames_rx: int = 0
+    frames_tx: int = 0
+    sessions: int = 0
+    wall_s: float = 0.0
+    lateness_us: dict = field(default_factory=dict)
+    latency_us: dict = field(default_factory=dict)
+    deadline_misses: int = 0
+    counters: dict = field(default_factory=dict)
+    chassis_counters: dict = field(default_factory=dict)
+    health: dict = field(default_factory=dict)
+    bus_outages: int = 0      # runs of bus errors, each ended by a frame sent or received
+    send_failures: int = 0    # frames the bus refused (not sent, not logged)
+    recv_errors: int = 0      # errors raised by the bus's receive
+    rx_undecodable: int = 0   # datagrams/frames the transport could not turn into a CAN frame
+    bus_down_s: float = 0.0   # wall time from the first error of an outage to its end
+
+    def lines(self) -> list[str]:
+        out = [f"mode {self.mode}: {self.ticks} ticks, {self.frames_rx} frames in, {self.frames_tx} out, "
+               f"{self.wall_s:.1f} s"]
+        if self.mode == "realtime":
+            out.append(f"tick lateness µs {_fmt(self.lateness_us)}; deadline misses {self.deadline_misses}")
+            out.append(f"frame-to-estimate latency µs {_fmt(self.latency_us)}")
+        faults = {k: v for k, v in self.counters.items() if v}
+        out.append("faults: " + (", ".join(f"{k}={v}" for k, v in faults.items()) or "none"))
+        chassis = {k: v for k, v in self.chassis_counters.items() if v}
+        if chassis:
+            out.append("chassis faults: " + ", ".join(f"{k}={v}" for k, v in chassis.items()))
+        if self.rx_undecodable:
+            out.append(f"undecodable input: {self.rx_undecodable} (not a CAN frame of the bus's transport; dropped)")
+        if self.bus_outages:
+            out.append(f"bus errors: {self.bus_outages} outage(s), {self.send_failures} failed sends, "
+                       f"{self.recv_errors} receive errors, down {self.bus_down_s:.1f} s")
+        else:
+            out.append("bus errors: none")
+        out.append("health: " + ", ".join(f"{k}={v}" for k, v in self.health.items()))
+        return out
+
+
+def _fmt(p: dict) -> str:
+    return " ".join(f"{k}={v:.0f}" for k, v in p.items() if k != "n") or "-"
+
+
+class EcuDaemon:
+    def __init__(self, bus: can.BusABC, ecu: Ecu | None = None, *, log_writer: can.Listener | None = None,
+                 log_channel: str | None = "vcan0", notifier: sdnotify.Notifier | None = None):
+        self.bus = bus
+        self.notifier = notifier or sdnotify.Notifier()  # systemd's sd_notify; a no-op by default
+        self.ecu = ecu or Ecu()
+        self.log_writer = log_writer
+        self.log_channel = log_channel
+        self.stop_event = threading.Event()
+        self._dls_id = frame_id("DLS_Sensors")
+        self._own = sent_by({"VEHEST"})
+        self.stats = DaemonStats("idle")
+        self._down_since: float | None = None  # perf_counter() of an open outage's first error
+        self._down_send = False                # a send failed in the open outage
+
+    # -- shared -------------------------------------------------------------------------------
+    def _log(self, msg: can.Message, timestamp: float) -> None:
+        if self.log_writer is not None:
+            msg.timestamp = timestamp
+            msg.channel = self.log_channel
+            self.log_writer.on_message_received(msg)
+
+    def _send(self, msg: can.Message, timestamp: float) -> bool:
+        """Send and log one frame; a bus error is counted and the frame dropped (returns False)."""
+        try:
+            self.bus.send(msg)
+        except (can.CanError, OSError) as exc:
+            self.stats.send_failures += 1
+            self._bus_error("send", exc)
+            return False
+        self._bus_ok("send")
+        self._log(msg, timestamp)
+        return True
+
+    def _rx_error(self, exc: Exception) -> bool:
+        """Count a receive error. An undecodable datagram (garbage on a udp_multicast port, a
+        truncated frame) is a counted fault of the input, not an outage: the bus is fine and the
+        next frame may be good, so nothing waits. True if it was an outage-like error."""
+        if is_undecodable(exc):
+            self.stats.rx_undecodable += 1
+            if self.stats.rx_undecodable in (1, 10, 100, 1000) or self.stats.rx_undecodable % 10000 == 0:
+                log.warning("undecodable input on the bus (%d so far): %s", self.stats.rx_undecodable, exc)
+            return False
+        self.stats.recv_errors += 1
+        self._bus_error("receive", exc)
+        return True
+
+    def _bus_error(self, what: str, exc: Exception) -> None:
+        self._down_send |= what == "send"
+        if self._down_since is None:
+            self._down_since = time.perf_counter()
+            self.stats.bus_outages += 1
+            log.warning("bus error on %s (%s): keeping on ticking, counting failures until the bus is back",
+                        what, exc)
+
+    def _bus_ok(self, what: str) -> None:
+        """A frame went out or came in: that ends an outage (once sending failed, only a send does)."""
+        if self._down_since is not None and (what == "send" or not self._down_send):
+            down = time.perf_counter() - self._down_since
+            self.stats.bus_down_s += down
+            self._down_since = None
+            self._down_send = False
+            log.warning("bus back after %.1f s (%d failed sends, %d receive errors so far)",
+                        down, self.stats.send_failures, self.stats.recv_errors)
+
+    def _finish(self, stats: DaemonStats, t0: float) -> DaemonStats:
+        if self._down_since is not None:  # still down at exit
+            stats.bus_down_s += time.perf_counter() - self._down_since
+            self._down_since = None
+        stats.wall_s = time.perf_counter() - t0
+        stats.counters = self.ecu.counters()
+        stats.chassis_counters = self.ecu.chassis_counters()
+        stats.health = self.ecu.health()
+        self.notifier.stopping(sdnotify.status_line(f"{stats.mode} stopping", stats.ticks, stats.counters))
+        log.info("ECU daemon stopped: %s", stats.lines()[0])
+        return stats
+
+    def _start(self, stats: DaemonStats) -> sdnotify.Watchdog:
+        """READY=1 (the bus is open, the loop starts) and the loop's keep-alive (WATCHDOG=1, STATUS=)."""
+        where = self.bus.channel_info if self.bus.channel_info != "unknown" else type(self.bus).__name__
+        log.info("ECU daemon serving in %s mode on %s", stats.mode, where)
+        self.notifier.ready(f"{stats.mode}: serving on {where}")
+        return sdnotify.Watchdog(self.notifier, stats.mode, lambda: stats.ticks, self.ecu.counters, logger=log)
+
+    # -- lockstep -----------------------------------------------------------------------------
+    def serve_lockstep(self, *, exit_on_end: bool = False, idle_timeout: float | None = None) -> DaemonStats:
+        """Answer SIM_Sync frames until stopped (or END with exit_on_end, or idle_timeout s of silence)."""
+        stats = self.stats = DaemonStats("lockstep")
+        t0 = last = time.perf_counter()
+        watchdog = self._start(stats)
+        while not self.stop_event.is_set():
+            try:
+                msg = self.bus.recv(timeout=0.05)
+            except (can.CanError, OSError) as exc:
+                msg = None
+                if self._rx_error(exc):
+                    self.stop_event.wait(0.05)  # a bus that fails at once must not make us spin
+            watchdog.tick()
+            if msg is None:
+                if idle_timeout is not None and time.perf_counter() - last > idle_timeout:
+                    log.warning("no frame for %.1f s, stopping", idle_timeout)
+                    break
+                continue
+            last = time.perf_counter()
+            self._bus_ok("receive")
+            if msg.is_error_frame or msg.is_remote_frame or is_own(msg, self._own):
+                continue
+            stats.frames_rx += 1
+            now = self.ecu.tick * TICK_S
+            self._log(msg, now)
+            if not lockstep.is_sync(msg):
+                self.ecu.rx(msg)
+                continue
+            tick, cmd = lockstep.decode_sync(msg)
+            if cmd == lockstep.RESET:
+                self.ecu.reset()
+                stats.sessions += 1
+                self._send(lockstep.ack_message(tick, 0), 0.0)
+            elif cmd == lockstep.STEP:
+                out = self.ecu.step()
+                stats.frames_tx += sum(self._send(m, now) for m in out)
+                stats.ticks += 1
+                self._send(lockstep.ack_message(tick, len(out)), now)
+            elif cmd == lockstep.END:
+                self._send(lockstep.ack_message(tick, 0), now)
+                if exit_on_end:
+                    break
+        return self._finish(stats, t0)
+
+    # -- real time ----------------------------------------------------------------------------
+    def serve_realtime(self, *, duration: float | None = None) -> DaemonStats:
+        """Tick at 2 kHz of wall clock until stopped or for duration seconds."""
+        stats = self.stats = DaemonStats("realtime")
+        inbox: queue.SimpleQueue = queue.SimpleQueue()
+        stop_event = self.stop_event
+
+        class Inbox(can.Listener):
+            in_row = 0  # receive errors since the last frame
+
+            def on_message_received(self, msg: can.Message) -> None:
+                self.in_row = 0
+                inbox.put((time.perf_counter(), msg))
+
+            def on_error(self, exc: Exception) -> None:
+                # The notifier goes on receiving after this; counted on the ticking thread. Only a
+                # bus failing again and again (no frame between) backs off, up to 50 ms: garbage
+                # between good frames must not stall the receive path.
+                inbox.put((time.perf_counter(), exc))
+                if not is_undecodable(exc):
+                    self.in_row += 1
+                    if self.in_row > 3:
+                        stop_event.wait(min(0.05, 0.001 * 2 ** (self.in_row - 4)))
+
+        notifier = can.Notifier(self.bus, [Inbox()], timeout=0.005)
+        ticker = Ticker(TICK_S)
+        latencies = Durations()  # fixed memory: the daemon may run for weeks
+        t0 = time.perf_counter()
+        watchdog = self._start(stats)
+        ticker.start()
+        try:
+            while not self.stop_event.is_set():
+                if duration is not None and time.perf_counter() - t0 >= duration:
+                    break
+                missed = ticker.wait()
+                if missed:
+                    self.ecu.note_deadline_miss(missed)
+                now = time.perf_counter() - t0
+                pending = []
+                while True:
+                    try:
+                        t_rx, msg = inbox.get_nowait()
+                    except queue.Empty:
+                        break
+                    if isinstance(msg, Exception):
+                        self._rx_error(msg)
+                        continue
+                    self._bus_ok("receive")
+                    if msg.is_error_frame or msg.is_remote_frame or is_own(msg, self._own):
+                        continue
+                    stats.frames_rx += 1
+                    self._log(msg, now)
+                    self.ecu.rx(msg)
+                    if msg.arbitration_id == self._dls_id:
+                        pending.append(t_rx)
+                out = self.ecu.step()
+                sent = sum(self._send(m, now) for m in out)
+                t_tx = time.perf_counter()
+                if sent:
+                    latencies.extend(t_tx - t for t in pending)
+                stats.frames_tx += sent
+                stats.ticks += 1
+                watchdog.tick()
+        finally:
+            notifier.stop()
+        stats.lateness_us = percentiles_us(ticker.lateness)
+        stats.latency_us = percentiles_us(latencies)
+        stats.deadline_misses = ticker.misses
+        return self._finish(stats, t0)

@@ -1,0 +1,78 @@
+"""What a session gives people besides a system's own figures: its frames decoded by the DBC, a
+metrics JSON, and the frames lost / deadlines missed of a real-time run."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..bus.frames import TICK_S, database, message
+from .session import Session
+
+
+def decode(session: Session, name: str) -> dict[str, np.ndarray]:
+    """Signals of every frame `name` (of either bus's DBC) in the session, by tick (NaN where a
+    tick has none)."""
+    msg = message(name)
+    n = len(session.truth)
+    out = {s.name: np.full(n, np.nan) for s in msg.signals}
+    sel = session.frames["id"] == msg.frame_id
+    for f, k in zip(session.frames[sel], session.frame_tick[sel]):
+        if k >= n:
+            continue
+        values = msg.decode(bytes(f["data"][: f["len"]]), decode_choices=False)
+        for key, v in values.items():
+            out[key][k] = v
+    return out
+
+
+def write_metrics(metrics: list[dict], path: Path) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(metrics, indent=2, default=float) + "\n")
+
+
+def counter_gaps(session: Session, name: str) -> tuple[int, int]:
+    """(frames received, frames missing between them) of a message in a session, from its E2E
+    alive counter (0..14): what was lost on the way while this side was listening."""
+    msg = database("pt").get_message_by_name(name)
+    counters = [int(f["data"][1]) & 0x0F for f in session.frames[session.frames["id"] == msg.frame_id]]
+    gaps = sum((b - a - 1) % 15 for a, b in zip(counters, counters[1:]))
+    return len(counters), gaps
+
+
+def realtime_summary(session: Session, daemon: dict) -> dict:
+    """Frames lost either way, deadline misses and latency of a real-time run (car side + ECU side).
+
+    Car -> ECU: every sensor frame sent must have arrived (the daemon counts them, and its E2E
+    check counts counter skips). ECU -> car: the ECU keeps publishing before the car starts and
+    after it stops listening, so losses are the gaps in the E2E alive counters of what arrived."""
+    sensors_sent = int(session.stats.get("frames_sent", 0))
+    est_n, est_gaps = counter_gaps(session, "VEHEST_DrivelineEst")
+    sts_n, sts_gaps = counter_gaps(session, "VEHEST_Status")
+    out = {
+        "mode": "realtime",
+        "duration_s": len(session.truth) * TICK_S,
+        "sensor_frames_sent": sensors_sent,
+        "sensor_frames_received_by_ecu": int(daemon.get("frames_rx", 0)),
+        "ecu_counter_skips": int(daemon.get("counters", {}).get("counter_skip", 0)),
+        "ecu_frames_sent": int(daemon.get("frames_tx", 0)),
+        "ecu_frames_received_by_car": est_n + sts_n,
+        "ecu_frames_missing_in_counters": est_gaps + sts_gaps,
+        "ecu_deadline_misses": int(daemon.get("deadline_misses", 0)),
+        "car_deadline_misses": int(session.stats.get("deadline_misses", 0)),
+        "ecu_tick_lateness_us": daemon.get("lateness_us", {}),
+        "frame_to_estimate_latency_us": daemon.get("latency_us", {}),
+    }
+    lost_in = max(0, sensors_sent - out["sensor_frames_received_by_ecu"]) + out["ecu_counter_skips"]
+    lost_out = out["ecu_frames_missing_in_counters"]
+    out["frames_lost"] = lost_in + lost_out
+    lat = out["frame_to_estimate_latency_us"]
+    late = out["ecu_tick_lateness_us"]
+    out["line"] = (f"{out['duration_s']:.0f} s: {sensors_sent} sensor frames -> {lost_in} lost; "
+                   f"{out['ecu_frames_received_by_car']} ECU frames received -> {lost_out} missing in their "
+                   f"E2E counters; deadline misses ECU {out['ecu_deadline_misses']} car {out['car_deadline_misses']}; "
+                   f"ECU tick lateness p50 {late.get('p50', float('nan')):.0f} µs p99 {late.get('p99', float('nan')):.0f} µs; "
+                   f"frame-to-estimate latency p50 {lat.get('p50', float('nan')):.0f} µs "
+                   f"p99 {lat.get('p99', float('nan')):.0f} µs")
+    return out

@@ -1,0 +1,331 @@
+"""Scenarios: user-written TOML files that drive the driveline plant and its sensor node.
+
+The schema is documented in ``docs/scenarios.md``. ``load_scenario`` checks every key (unknown
+keys, types, ranges, time profiles) and raises :class:`~vehest_can.errors.ScenarioError` whose
+message names the file, the key as a dotted path and the problem. A loaded :class:`Scenario` is
+immutable; it turns itself into the C structs (``plant_params``, ``node_config``) and into
+ready-to-step instances (``make_plant``, ``make_node``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import ScenarioError
+from ..paths import shipped_dir, shipped_file
+from ..schema import Checker, Num, read_toml
+
+#: Plant and sensor-node step [s]: one ECU tick (VH_TICK_US).
+DT = 0.0005
+
+def scenario_dir() -> Path:
+    """The shipped scenarios: inside the installed package, or firmware_sim/scenarios/ of a checkout."""
+    return shipped_dir("scenarios", "firmware_sim/scenarios", "*.toml")
+
+
+def list_scenarios() -> list[str]:
+    """Names of the shipped scenarios (file stems)."""
+    return sorted(p.stem for p in scenario_dir().glob("*.toml"))
+
+
+def scenario_path(name_or_path: str | Path) -> Path:
+    """A path to a scenario file: an existing path as given, else a shipped scenario's name."""
+    return shipped_file(name_or_path, scenario_dir())
+
+
+# ---- schema --------------------------------------------------------------------------------
+
+_TOP: dict[str, Any] = {
+    "name": "string",
+    "description": "string",
+    "duration_s": Num(0.0, 3600.0, lo_open=True),
+    "seed": Num(0, 2**64 - 1, integer=True),
+    "initial_speed_kmh": Num(0.0, 250.0),
+}
+_TOP_REQUIRED = ("name", "duration_s")
+_TABLES = ("driver", "road", "vehicle", "sensors", "camber")
+
+_DRIVER = {"gear": Num(0, 5, integer=True)}  # plus "throttle", a profile
+_ROAD = {
+    # TOML key -> (vh_dlp_params_t field, range)
+    "roughness_std_nm": ("road_std", Num(0.0, 2000.0)),
+    "roughness_bandwidth_hz": ("road_bw", Num(0.0, 500.0, lo_open=True)),
+}
+# [vehicle] overrides: TOML key -> (vh_dlp_params_t field, range). The ranges are physical
+# plausibility; the plant itself then refuses combinations its fixed step cannot resolve.
+_VEHICLE = {
+    "output_inertia_kgm2": ("jo", Num(0.008, 1.0)),
+    "vehicle_inertia_kgm2": ("jv", Num(10.0, 5000.0)),
+    "final_drive_ratio": ("rd", Num(0.1, 1.0)),
+    "shaft_stiffness_nm_per_rad": ("ks", Num(100.0, 100000.0)),
+    "shaft_damping_nms_per_rad": ("cs", Num(0.0, 100.0)),
+    "wheel_radius_m": ("rt", Num(0.15, 0.6)),
+    "rolling_resistance": ("mu_r", Num(0.0, 0.1)),
+    "air_density_kg_m3": ("rho", Num(0.0, 2.0)),
+    "drag_coefficient": ("ca", Num(0.0, 2.0)),
+    "frontal_area_m2": ("area", Num(0.0, 10.0)),
+    "engine_inertia_kgm2": ("je", Num(0.02, 2.0)),
+    "engine_peak_torque_nm": ("te_peak", Num(10.0, 1000.0)),
+    "idle_speed_rad_s": ("w_idle", Num(40.0, 150.0)),
+}
+_GEAR_RATIO = Num(0.2, 3.0)  # each of vehicle.gear_ratios, w_o = R_i w_t
+# [sensors] noise standard deviations: TOML key -> (vh_dls_config_t noise_std indices, range)
+_SENSORS = {
+    "out_shaft_speed_std_rad_s": ((0,), Num(0.0, 100.0)),
+    "wheel_speed_std_rad_s": ((1, 2), Num(0.0, 100.0)),
+    "shaft_torque_std_nm": ((3,), Num(0.0, 1000.0)),
+    "engine_speed_std_rad_s": ((4,), Num(0.0, 100.0)),
+    "turbine_speed_std_rad_s": ((5,), Num(0.0, 100.0)),
+}
+# [camber]: the four wheel-mounted inspection devices of seed 002 (FL, FR, RL, RR)
+_CAMBER_POSES = {"wheel": 0, "x_down": 1, "z_down": 2}
+_CAMBER = {
+    "theta_deg": Num(-15.0, 15.0),    # true camber per wheel
+    "psi_deg": Num(-45.0, 45.0),      # device misalignment yaw per wheel
+    "chip_deg": Num(-10.0, 10.0),     # chip rotation in the device about x, y, z, per wheel
+    "lsb_mg": Num(0.1, 100.0, lo_open=False),
+    "noise_mg": Num(0.0, 100.0),
+}
+
+
+@dataclass(frozen=True)
+class Camber:
+    theta_deg: tuple[float, float, float, float]
+    psi_deg: tuple[float, float, float, float]
+    chip_deg: tuple[tuple[float, float, float], ...]
+    lsb_mg: float = 4.0
+    noise_mg: float = 4.0
+    pose: str = "wheel"
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One validated scenario. Times in s, speeds in rad/s unless the name says otherwise."""
+
+    name: str
+    description: str
+    duration_s: float
+    seed: int
+    initial_speed_kmh: float
+    gear: int
+    throttle: tuple[tuple[float, float], ...]  # (t, value) points, t strictly increasing
+    road_std_nm: float
+    road_bandwidth_hz: float
+    vehicle: tuple[tuple[str, Any], ...] = ()  # [vehicle] overrides as written (TOML key, value)
+    sensors: tuple[tuple[str, float], ...] = ()  # every [sensors] key, defaults filled in
+    camber: Camber | None = None  # [camber]: inspection devices clamped on
+    path: Path | None = None
+
+    @property
+    def n_steps(self) -> int:
+        """Plant steps of DT in duration_s."""
+        return int(round(self.duration_s / DT))
+
+    def times(self) -> np.ndarray:
+        """Time after each plant step: DT, 2 DT, ..., n_steps DT."""
+        return (np.arange(self.n_steps) + 1) * DT
+
+    def throttle_at(self, t) -> np.ndarray:
+        """Throttle at times t: piecewise linear, held before the first and after the last point."""
+        ts = np.array([p[0] for p in self.throttle], dtype=float)
+        vs = np.array([p[1] for p in self.throttle], dtype=float)
+        return np.interp(np.asarray(t, dtype=float), ts, vs)
+
+    @property
+    def node_seed(self) -> int:
+        """Seed of the sensor node's own random stream, derived from ``seed`` (odd multiplier: a bijection)."""
+        return (self.seed * 0x9E3779B97F4A7C15 + 0x444C53) % 2**64
+
+    def plant_params(self, ffi, lib):
+        """A ``vh_dlp_params_t *``: the plant's defaults with this scenario's road and vehicle."""
+        prm = ffi.new("vh_dlp_params_t *")
+        lib.vh_dlp_params_default(prm)
+        prm.road_std = self.road_std_nm
+        prm.road_bw = self.road_bandwidth_hz
+        for key, value in self.vehicle:
+            if key == "gear_ratios":
+                for i, r in enumerate(value):
+                    prm.ri[i] = r
+            else:
+                setattr(prm, _VEHICLE[key][0], value)
+        return prm
+
+    def node_config(self, ffi, lib):
+        """A ``vh_dls_config_t *``: the sensor node's defaults with this scenario's noise and seed."""
+        cfg = ffi.new("vh_dls_config_t *")
+        lib.vh_dls_config_default(cfg)
+        for key, value in self.sensors:
+            for ch in _SENSORS[key][0]:
+                cfg.noise_std[ch] = value
+        cfg.seed = self.node_seed
+        return cfg
+
+    def camber_configs(self, ffi, lib):
+        """(``vh_cambernode_config_t[4]``, pose) for the inspection devices, or None."""
+        if self.camber is None:
+            return None
+        cfgs = ffi.new("vh_cambernode_config_t[4]")
+        for i in range(4):
+            lib.vh_cambernode_config_default(ffi.addressof(cfgs[i]))
+            cfgs[i].theta_rad = np.radians(self.camber.theta_deg[i])
+            cfgs[i].psi_rad = np.radians(self.camber.psi_deg[i])
+            cfgs[i].chip_rad = [float(np.radians(a)) for a in self.camber.chip_deg[i]]
+            cfgs[i].lsb_g = [self.camber.lsb_mg * 1e-3] * 3
+            cfgs[i].noise_std_g = self.camber.noise_mg * 1e-3
+            cfgs[i].seed = (self.node_seed + 7919 * (i + 1)) % 2**64 or 1
+        return cfgs, _CAMBER_POSES[self.camber.pose]
+
+    def make_plant(self, ffi, lib):
+        """An initialised ``vh_dlp_t *`` at the initial speed in the scenario's gear."""
+        p = ffi.new("vh_dlp_t *")
+        if lib.vh_dlp_init(p, self.plant_params(ffi, lib), self.seed) != lib.VH_OK:
+            raise ScenarioError(f"{self._where()}: vehicle: the plant refuses these parameters "
+                                "(a mode too fast for its 0.5 ms step)")
+        if self.initial_speed_kmh > 0.0:
+            lib.vh_dlp_set_rolling(p, self.initial_speed_kmh / 3.6, self.gear)
+        return p
+
+    def make_node(self, ffi, lib):
+        """An initialised ``vh_dls_t *``."""
+        n = ffi.new("vh_dls_t *")
+        if lib.vh_dls_init(n, self.node_config(ffi, lib)) != lib.VH_OK:
+            raise ScenarioError(f"{self._where()}: sensors: the sensor node refuses this configuration")
+        return n
+
+    def run_truth(self, ffi, lib) -> np.ndarray:
+        """Run the plant alone over the whole scenario; the truth of every step as a numpy record array."""
+        p = self.make_plant(ffi, lib)
+        n = self.n_steps
+        thr = np.ascontiguousarray(self.throttle_at(self.times()))
+        out = ffi.new("vh_dlp_truth_t[]", n)
+        lib.vh_dlp_run(p, n, ffi.cast("double *", ffi.from_buffer(thr)), self.gear, out)
+        return truth_to_numpy(ffi, out, n)
+
+    def _where(self) -> str:
+        return str(self.path) if self.path is not None else f"scenario {self.name!r}"
+
+
+def truth_dtype(ffi) -> np.dtype:
+    """numpy dtype laid out like ``vh_dlp_truth_t`` (offsets from the compiler, via cffi)."""
+    from ..native import struct_dtype
+
+    return struct_dtype("vh_dlp_truth_t")
+
+
+def truth_to_numpy(ffi, truth_array, n: int) -> np.ndarray:
+    """Copy n ``vh_dlp_truth_t`` from a cffi array into a numpy record array."""
+    return np.frombuffer(ffi.buffer(truth_array, n * ffi.sizeof("vh_dlp_truth_t")),
+                         dtype=truth_dtype(ffi)).copy()
+
+
+# ---- loading -------------------------------------------------------------------------------
+
+def _native():
+    from ..native import ffi, lib  # the compiled core; imported late so the schema helpers need none
+    return ffi, lib
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Load and validate one scenario file (a path, or the name of a shipped scenario)."""
+    path = scenario_path(path)
+    return scenario_from_dict(read_toml(path), path)
+
+
+def scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> Scenario:
+    """Validate an already parsed TOML document (``path`` only names it in errors)."""
+    ffi, lib = _native()
+    c = Checker(Path(path))
+    c.table(doc, "", set(_TOP) | set(_TABLES))
+    for key in _TOP_REQUIRED:
+        if key not in doc:
+            c.fail(key, "missing (required)")
+    name = c.string(doc["name"], "name")
+    if not name.strip():
+        c.fail("name", "must not be empty")
+    description = c.string(doc.get("description", ""), "description")
+    duration = c.number(doc["duration_s"], "duration_s", _TOP["duration_s"])
+    seed = c.number(doc.get("seed", 1), "seed", _TOP["seed"])
+    v0 = c.number(doc.get("initial_speed_kmh", 0.0), "initial_speed_kmh", _TOP["initial_speed_kmh"])
+
+    if "driver" not in doc:
+        c.fail("driver", "missing (required table with throttle and gear)")
+    driver = c.table(doc["driver"], "driver", set(_DRIVER) | {"throttle"})
+    for key in ("throttle", "gear"):
+        if key not in driver:
+            c.fail(f"driver.{key}", "missing (required)")
+    throttle = c.profile(driver["throttle"], "driver.throttle", Num(0.0, 1.0))
+    gear = c.number(driver["gear"], "driver.gear", _DRIVER["gear"])
+
+    prm = ffi.new("vh_dlp_params_t *")
+    lib.vh_dlp_params_default(prm)
+    road = c.table(doc.get("road", {}), "road", _ROAD)
+    road_v = {k: c.number(road[k], f"road.{k}", spec) if k in road else getattr(prm, field)
+              for k, (field, spec) in _ROAD.items()}
+
+    vehicle_doc = c.table(doc.get("vehicle", {}), "vehicle", set(_VEHICLE) | {"gear_ratios"})
+    vehicle = []
+    for k, v in vehicle_doc.items():
+        if k == "gear_ratios":
+            if not isinstance(v, list) or len(v) != 5:
+                c.fail("vehicle.gear_ratios", "must be a list of 5 ratios R_i (gears 1..5, w_o = R_i w_t)")
+            vehicle.append((k, tuple(c.number(r, f"vehicle.gear_ratios[{i}]", _GEAR_RATIO)
+                                     for i, r in enumerate(v))))
+        else:
+            vehicle.append((k, c.number(v, f"vehicle.{k}", _VEHICLE[k][1])))
+
+    cfg = ffi.new("vh_dls_config_t *")
+    lib.vh_dls_config_default(cfg)
+    sensors_doc = c.table(doc.get("sensors", {}), "sensors", _SENSORS)
+    sensors = tuple((k, c.number(sensors_doc[k], f"sensors.{k}", spec) if k in sensors_doc
+                     else cfg.noise_std[chans[0]]) for k, (chans, spec) in _SENSORS.items())
+
+    camber = _camber(c, doc["camber"]) if "camber" in doc else None
+
+    sc = Scenario(name=name, description=description, duration_s=duration, seed=seed,
+                  initial_speed_kmh=v0, gear=gear, throttle=throttle,
+                  road_std_nm=road_v["roughness_std_nm"], road_bandwidth_hz=road_v["roughness_bandwidth_hz"],
+                  vehicle=tuple(sorted(vehicle)), sensors=sensors, camber=camber, path=Path(path))
+    probe = ffi.new("vh_dlp_t *")
+    if lib.vh_dlp_init(probe, sc.plant_params(ffi, lib), sc.seed) != lib.VH_OK:
+        c.fail("vehicle", "the plant refuses this combination of parameters (a mode too fast for "
+                          "its 0.5 ms step: raise the inertias or the gear ratios, or lower stiffness or damping)")
+    return sc
+
+
+def _camber(c, doc) -> Camber:
+    t = c.table(doc, "camber", set(_CAMBER) | {"pose"})
+    for key in ("theta_deg", "psi_deg"):
+        if key not in t:
+            c.fail(f"camber.{key}", "missing (required: four values, FL FR RL RR)")
+
+    def four(key, spec, width=None):
+        v = t[key]
+        if not isinstance(v, list) or len(v) != 4:
+            c.fail(f"camber.{key}", "must be a list of 4 entries (FL, FR, RL, RR)")
+        if width is None:
+            return tuple(c.number(x, f"camber.{key}[{i}]", spec) for i, x in enumerate(v))
+        out = []
+        for i, row in enumerate(v):
+            if not isinstance(row, list) or len(row) != width:
+                c.fail(f"camber.{key}[{i}]", f"must be a list of {width} angles (about x, y, z)")
+            out.append(tuple(c.number(x, f"camber.{key}[{i}][{j}]", spec) for j, x in enumerate(row)))
+        return tuple(out)
+
+    pose = c.string(t.get("pose", "wheel"), "camber.pose")
+    if pose not in _CAMBER_POSES:
+        c.fail("camber.pose", f"{pose!r}: expected one of {', '.join(_CAMBER_POSES)}")
+    return Camber(
+        theta_deg=four("theta_deg", _CAMBER["theta_deg"]),
+        psi_deg=four("psi_deg", _CAMBER["psi_deg"]),
+        chip_deg=four("chip_deg", _CAMBER["chip_deg"], 3) if "chip_deg" in t else ((0.0, 0.0, 0.0),) * 4,
+        lsb_mg=c.number(t.get("lsb_mg", 4.0), "camber.lsb_mg", _CAMBER["lsb_mg"]),
+        noise_mg=c.number(t.get("noise_mg", 4.0), "camber.noise_mg", _CAMBER["noise_mg"]),
+        pose=pose,
+    )
+
+
+__all__ = ["DT", "Scenario", "load_scenario", "scenario_from_dict", "scenario_dir", "scenario_path",
+           "list_scenarios", "truth_dtype", "truth_to_numpy", "Camber"]

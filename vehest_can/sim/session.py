@@ -1,0 +1,346 @@
+"""The simulated car (plant + sensor node, in C) and the three ways to drive it against the ECU.
+
+1. ``run_inprocess``: plant, sensor node and ECU stepped together in one C loop, frames passed in
+   memory. Fastest; for tests, batch runs and benchmarks.
+2. ``SimMaster.run_lockstep``: the car here, the ECU daemon elsewhere on a bus; the tick's frames,
+   then SIM_Sync, then wait for the ECU's frames and VEHEST_SyncAck. Identical results on any bus.
+3. ``SimMaster.run_realtime``: the car on its own 2 kHz wall clock; the ECU daemon runs its own.
+
+All three produce a ``Session``: the plant's truth per tick and every frame with its tick.
+"""
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from dataclasses import dataclass, field
+
+import can
+import numpy as np
+
+from ..bus import lockstep
+from ..bus.bus import is_undecodable
+from ..bus.frames import FRAME_DTYPE, TICK_S, is_own, sent_by, to_frame, to_message
+from ..bus.rt import Ticker, percentiles_us
+from ..errors import BusError, VehestError
+from ..native import check, ffi, lib, struct_dtype
+
+log = logging.getLogger(__name__)
+
+
+TRUTH_DTYPE = struct_dtype("vh_dlp_truth_t")
+#: DBC nodes the simulated car plays (everything but the ECU)
+CAR_NODES = frozenset({"DLS", "CIS", "SIM", "CHS"})
+
+
+@dataclass
+class Drive:
+    """What the car is asked to do: one throttle and gear per tick, plant and node set-up."""
+
+    name: str
+    throttle: np.ndarray          # (n,) in [0, 1]
+    gear: np.ndarray              # (n,) uint8
+    plant_params: object          # vh_dlp_params_t *
+    plant_seed: int
+    node_config: object           # vh_dls_config_t *
+    initial_speed: float = 0.0    # m/s; > 0 starts rolling in gear[0]
+    camber: tuple | None = None   # (vh_cambernode_config_t[4], pose): inspection devices on
+
+    @property
+    def n(self) -> int:
+        return len(self.throttle)
+
+
+@dataclass
+class Session:
+    name: str
+    mode: str
+    truth: np.ndarray             # (n,) TRUTH_DTYPE
+    frames: np.ndarray            # (m,) FRAME_DTYPE, in bus order
+    frame_tick: np.ndarray        # (m,) tick of each frame
+    stats: dict = field(default_factory=dict)
+
+    def messages(self, channel: str = "vcan0"):
+        """The session as python-can messages, timestamped with simulated time (for logs)."""
+        for f, k in zip(self.frames, self.frame_tick):
+            yield to_message(f, timestamp=float(k) * TICK_S, channel=channel)
+
+
+def drive_from_scenario(scenario, duration_s: float | None = None) -> Drive:
+    """A scenario file's drive. A longer duration repeats the scenario's driver profile."""
+    duration = scenario.duration_s if duration_s is None else duration_s
+    n = int(round(duration / TICK_S))
+    t = ((np.arange(n) + 1) * TICK_S) % scenario.duration_s  # the scenario's times(), repeated
+    return Drive(
+        name=scenario.name,
+        throttle=np.asarray(scenario.throttle_at(t), dtype=np.float64),
+        gear=np.full(n, scenario.gear, dtype=np.uint8),
+        plant_params=scenario.plant_params(ffi, lib),
+        plant_seed=scenario.seed,
+        node_config=scenario.node_config(ffi, lib),
+        initial_speed=scenario.initial_speed_kmh / 3.6,
+        camber=scenario.camber_configs(ffi, lib),
+    )
+
+
+class Car:
+    """``vh_dlsim_t``: one tick of plant and sensor node per call. The simulator needs only
+    ``name``, ``n``, ``truth_dtype``, ``reset``, ``tick`` and ``truth``: the chassis car
+    (:class:`vehest_can.systems.tireforce.scenario.ChassisCar`) has the same interface."""
+
+    truth_dtype = TRUTH_DTYPE
+
+    def __init__(self, drive: Drive):
+        self.drive = drive
+        self.name, self.n = drive.name, drive.n
+        self.c = ffi.new("vh_dlsim_t *")
+        check(lib.vh_dlsim_init(self.c, drive.plant_params, drive.plant_seed, drive.node_config), "car set-up")
+        if drive.camber is not None:
+            check(lib.vh_dlsim_set_camber(self.c, *drive.camber), "camber inspection devices")
+        self._out = ffi.new("vh_frame_t[]", lib.VH_DLSIM_MAX_TX)
+        self.reset()
+
+    def reset(self) -> None:
+        lib.vh_dlsim_reset(self.c)
+        if self.drive.initial_speed > 0:
+            check(lib.vh_dlp_set_rolling(ffi.addressof(self.c.plant), self.drive.initial_speed,
+                                         int(self.drive.gear[0])), "initial speed")
+
+    def tick(self, k: int) -> list:
+        n = lib.vh_dlsim_tick(self.c, float(self.drive.throttle[k]), int(self.drive.gear[k]),
+                              self._out, lib.VH_DLSIM_MAX_TX)
+        return [self._out[i] for i in range(n)]
+
+    def truth(self) -> np.void:
+        return np.frombuffer(ffi.buffer(ffi.addressof(self.c.plant.truth)), dtype=TRUTH_DTYPE)[0].copy()
+
+
+def run_inprocess(drive, ecu) -> Session:
+    """Mode 1: the car's frames of each tick into the ECU, then its step. A driveline Drive runs
+    as one C call (plant + node + ECU per tick); any other car (e.g. the chassis car) tick by tick
+    through the same C calls from Python. `ecu` is a :class:`vehest_can.systems.ecu.Ecu` (the
+    firmware with every system's app; it sits above the car and the sessions)."""
+    if not isinstance(drive, Drive):
+        return _run_car_inprocess(drive, ecu)
+    car = Car(drive)
+    n = drive.n
+    throttle = np.ascontiguousarray(drive.throttle, dtype=np.float64)
+    gear = np.ascontiguousarray(drive.gear, dtype=np.uint8)
+    truth = np.zeros(n, dtype=TRUTH_DTYPE)
+    cap = n * (lib.VH_DLSIM_MAX_TX + lib.VH_ECU_MAX_TX)
+    frames = np.zeros(cap, dtype=FRAME_DTYPE)
+    ticks = np.zeros(cap, dtype=np.uint32)
+    t0 = time.perf_counter()
+    total = lib.vh_lockstep_run(
+        car.c, ecu.c, n, ffi.cast("double *", ffi.from_buffer(throttle)), ffi.cast("uint8_t *", ffi.from_buffer(gear)),
+        ffi.cast("vh_dlp_truth_t *", ffi.from_buffer(truth)), ffi.cast("vh_frame_t *", ffi.from_buffer(frames)),
+        ffi.cast("uint32_t *", ffi.from_buffer(ticks)), cap,
+    )
+    wall = time.perf_counter() - t0
+    return Session(drive.name, "inprocess", truth, frames[:total], ticks[:total],
+                   stats={"wall_s": wall, "realtime_factor": n * TICK_S / wall if wall else float("inf"),
+                          "counters": ecu.counters(), "health": ecu.health()})
+
+
+def _run_car_inprocess(car, ecu) -> Session:
+    car.reset()
+    truth = np.zeros(car.n, dtype=car.truth_dtype)
+    frames, ticks = [], []
+    t0 = time.perf_counter()
+    for k in range(car.n):
+        for f in car.tick(k):
+            p = ffi.addressof(f)
+            frames.append(bytes(ffi.buffer(p)))
+            ticks.append(k)
+            ecu.rx_frame(p)
+        for f in ecu.step_frames():
+            frames.append(bytes(ffi.buffer(ffi.addressof(f))))
+            ticks.append(k)
+        truth[k] = car.truth()
+    wall = time.perf_counter() - t0
+    out = np.frombuffer(b"".join(frames), dtype=FRAME_DTYPE).copy() if frames else np.zeros(0, FRAME_DTYPE)
+    return Session(car.name, "inprocess", truth, out, np.asarray(ticks, dtype=np.uint32),
+                   stats={"wall_s": wall, "realtime_factor": car.n * TICK_S / wall if wall else float("inf"),
+                          "counters": ecu.counters(), "chassis_counters": ecu.chassis_counters(),
+                          "health": ecu.health()})
+
+
+class SimMaster:
+    """The car on a bus: lockstep master or real-time node. Records every frame it sees or sends."""
+
+    def __init__(self, bus: can.BusABC, drive, *, log_writer: can.Listener | None = None,
+                 log_channel: str = "vcan0", ack_timeout: float = 2.0, progress=None):
+        """`drive`: a driveline Drive, or any car with Car's interface (e.g. a ChassisCar)."""
+        self.bus = bus
+        self.car = Car(drive) if isinstance(drive, Drive) else drive
+        self.log_writer = log_writer
+        self.log_channel = log_channel
+        self.ack_timeout = ack_timeout
+        self.progress = progress
+        self.stop_event = threading.Event()
+        self._frames: list = []
+        self._ticks: list[int] = []
+        self._own = sent_by(CAR_NODES)
+        self._ecu = sent_by({"VEHEST"})
+        self.foreign = 0  # frames from neither the car nor the ECU: not part of the session
+
+    def _record(self, msg: can.Message, tick: int) -> None:
+        self._frames.append(msg)
+        self._ticks.append(tick)
+        self._log(msg, tick)
+
+    def _log(self, msg: can.Message, tick: int) -> None:
+        """Into the log only (sync frames: on the bus, but not part of the car/ECU session)."""
+        if self.log_writer is not None:
+            msg.timestamp = tick * TICK_S
+            msg.channel = self.log_channel
+            self.log_writer.on_message_received(msg)
+
+    def _session(self, mode: str, truth: np.ndarray, stats: dict) -> Session:
+        frames = np.zeros(len(self._frames), dtype=FRAME_DTYPE)
+        cf = ffi.new("vh_frame_t *")
+        for i, m in enumerate(self._frames):
+            to_frame(m, cf)
+            frames[i] = np.frombuffer(ffi.buffer(cf), dtype=FRAME_DTYPE)[0]
+        return Session(self.car.name, mode, truth, frames, np.asarray(self._ticks, dtype=np.uint32), stats)
+
+    def _await_ack(self, tick: int, deadline_s: float) -> list[can.Message]:
+        """ECU frames of this tick, up to and excluding its ack."""
+        got: list[can.Message] = []
+        end = time.monotonic() + deadline_s
+        while True:
+            msg = self.bus.recv(timeout=max(0.0, end - time.monotonic()))
+            if msg is None:
+                raise BusError(f"lockstep: no VEHEST_SyncAck for tick {tick} within {deadline_s:.1f} s "
+                               f"(is the ECU daemon running on this bus?)")
+            if is_own(msg, self._own):
+                continue
+            if not is_own(msg, self._ecu):
+                self.foreign += 1
+                continue
+            if lockstep.is_ack(msg):
+                ack_tick, count = lockstep.decode_ack(msg)
+                if ack_tick != tick:
+                    continue  # a late ack of an earlier handshake
+                if count != len(got):
+                    raise BusError(f"lockstep: tick {tick}: ECU sent {count} frames, {len(got)} arrived")
+                return got
+            got.append(msg)
+
+    def connect(self, attempts: int = 50) -> None:
+        """RESET handshake: the ECU starts from scratch; retried while the daemon is starting.
+
+        Each attempt carries its own tick number, above any STEP tick, so a late answer to an
+        earlier attempt is never taken for the answer to a later one (or to tick 0)."""
+        for attempt in range(attempts):
+            nonce = lockstep.RESET_TICK_BASE + attempt
+            reset = lockstep.sync_message(nonce, lockstep.RESET)
+            self.bus.send(reset)
+            try:
+                self._await_ack(nonce, 0.2)
+                self._log(reset, 0)
+                return
+            except BusError:
+                continue
+        raise BusError("lockstep: the ECU daemon did not answer RESET (is it running on this bus?)")
+
+    def run_lockstep(self, *, end: bool = True, window: int = 16) -> Session:
+        """Mode 2. Deterministic: the ECU sees exactly each tick's frames, whatever the bus.
+
+        Up to `window` ticks are in flight: the ECU steps on each SIM_Sync in the order the
+        frames were sent, so its output does not depend on the window; the window only saves
+        round trips (and bounds what a lossy bus like udp_multicast has to buffer)."""
+        self.car.reset()
+        self.connect()
+        n = self.car.n
+        truth = np.zeros(n, dtype=self.car.truth_dtype)
+        sent: dict[int, list] = {}
+        t0 = time.perf_counter()
+        k_sent = k_done = 0
+        while k_done < n:
+            while k_sent < n and k_sent - k_done < max(1, window) and not self.stop_event.is_set():
+                sent[k_sent] = [to_message(f) for f in self.car.tick(k_sent)]
+                for msg in sent[k_sent]:
+                    self.bus.send(msg)
+                self.bus.send(lockstep.sync_message(k_sent))
+                truth[k_sent] = self.car.truth()
+                k_sent += 1
+            if k_done == k_sent:  # stopped
+                break
+            answer = self._await_ack(k_done, self.ack_timeout)
+            for msg in sent.pop(k_done):  # recorded in tick order: car frames, then the ECU's
+                self._record(msg, k_done)
+            self._log(lockstep.sync_message(k_done), k_done)
+            for msg in answer:
+                self._record(msg, k_done)
+            k_done += 1
+            if self.progress and k_done % 200 == 0:
+                self.progress(k_done, n)
+        truth = truth[:k_done]
+        if end:
+            self.bus.send(lockstep.sync_message(n, lockstep.END))
+        wall = time.perf_counter() - t0
+        return self._session("lockstep", truth, {"wall_s": wall, "realtime_factor": len(truth) * TICK_S / wall})
+
+    def run_realtime(self, *, settle_s: float = 0.2) -> Session:
+        """Mode 3: send the car's frames on a 2 kHz wall clock; record what the ECU publishes."""
+        self.car.reset()
+        n = self.car.n
+        truth = np.zeros(n, dtype=self.car.truth_dtype)
+        inbox: queue.SimpleQueue = queue.SimpleQueue()
+
+        errors = {"rx_undecodable": 0, "recv_errors": 0}
+        stop_event = self.stop_event
+
+        class Inbox(can.Listener):
+            def on_message_received(inner, msg: can.Message) -> None:  # noqa: N805
+                if not is_own(msg, self._own):
+                    inbox.put(msg)
+
+            def on_error(inner, exc: Exception) -> None:  # noqa: N805
+                # Counted; the notifier goes on receiving (without this its thread would die and
+                # the car would stop hearing the ECU). A failing bus backs off a little.
+                if is_undecodable(exc):
+                    errors["rx_undecodable"] += 1
+                else:
+                    errors["recv_errors"] += 1
+                    stop_event.wait(0.005)
+
+        notifier = can.Notifier(self.bus, [Inbox()], timeout=0.005)
+        ticker = Ticker(TICK_S)
+        sent = 0
+        k = 0
+        t0 = time.perf_counter()
+        ticker.start()
+        try:
+            for k in range(n):
+                if self.stop_event.is_set():
+                    break
+                ticker.wait()
+                for f in self.car.tick(k):
+                    msg = to_message(f)
+                    try:
+                        self.bus.send(msg)
+                    except can.CanError as exc:
+                        raise BusError(f"send failed at tick {k}: {exc}") from exc
+                    sent += 1
+                    self._record(msg, k)
+                truth[k] = self.car.truth()
+                while not inbox.empty():
+                    self._record(inbox.get_nowait(), k)
+                if self.progress and k % 200 == 0:
+                    self.progress(k, n)
+            time.sleep(settle_s)  # the ECU's answers to the last ticks
+            while not inbox.empty():
+                self._record(inbox.get_nowait(), k)
+        finally:
+            notifier.stop()
+        wall = time.perf_counter() - t0
+        return self._session("realtime", truth[: k + 1], {
+            "wall_s": wall, "frames_sent": sent, "deadline_misses": ticker.misses,
+            "lateness_us": percentiles_us(ticker.lateness), **errors,
+        })
+
+
+__all__ = ["Drive", "Session", "Car", "run_inprocess", "SimMaster", "TRUTH_DTYPE", "VehestError"]

@@ -1,0 +1,45 @@
+"""The driveline system's registration: what the demo and the reports ask of it (:class:`~vehest_can.systems.System`)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from ...sim.scenario import load_scenario, scenario_dir
+from ...sim.session import drive_from_scenario
+from .. import Setup
+from . import report
+from .campaign import CAMPAIGN
+from .faults import FAULTS
+
+
+class Driveline:
+    campaign = CAMPAIGN  # vehest-can campaign
+    name = "driveline"
+    kinds: tuple[str, ...] = ()   # driveline scenario files carry no `kind`
+    realtime = True
+    faults = FAULTS
+
+    def scenario_dir(self) -> Path:
+        return scenario_dir()
+
+    def claims(self, doc: dict) -> bool:
+        return "kind" not in doc and "camber" not in doc
+
+    def load(self, path: Path):
+        return load_scenario(path)
+
+    def car(self, scenario, duration_s: float | None = None):
+        return drive_from_scenario(scenario, duration_s)
+
+    def setup(self, scenarios: list, out: Path) -> Setup:
+        return Setup()
+
+    def metrics(self, scenario, session, out_dir: Path, setup: Setup) -> dict:
+        metrics = report.driveline_metrics(session)
+        report.plots(session, out_dir)
+        return metrics
+
+    def tables(self, metrics: list[dict]) -> list[str]:
+        return [report.table(metrics)] if metrics else []
+
+
+SYSTEM = Driveline()

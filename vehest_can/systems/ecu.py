@@ -1,0 +1,113 @@
+"""The ECU firmware (``vh_ecu_t``) seen from Python: frames in, a tick, frames out.
+
+It holds every system's app, so it sits with the systems and takes their configurations; the
+sessions below it (``sim.session.run_inprocess``) are handed an ECU rather than making one."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import can
+
+from ..bus.frames import to_frame, to_message
+from ..errors import ConfigError
+from ..native import check, ffi, lib
+from .camber.api import WHEELS
+from .driveline.api import DkfConfig
+from .tireforce.api import SkfConfig
+
+COUNTERS = (
+    "crc_error", "counter_repeat", "counter_skip", "dlc_error", "timeout", "unknown_id",
+    "signal_invalid", "input_invalid", "filter_reset", "deadline_miss", "rx_burst",
+)
+#: the chassis side's own counters (VEHEST_ChassisStatus)
+CHASSIS_COUNTERS = (
+    "crc_error", "counter_repeat", "counter_skip", "dlc_error", "timeout", "signal_invalid",
+    "filter_reset", "rx_burst", "saturation",
+)
+HEALTH = {0: "INIT", 1: "OK", 2: "DEGRADED", 3: "FAULT"}
+
+
+@dataclass
+class EcuConfig:
+    dkf_t: DkfConfig
+    dkf_s: DkfConfig
+    #: more good frames of one message in a tick than this is a burst (stale samples of a draining
+    #: queue), not used until the message is regular again; 0 switches the check off
+    rx_burst_frames: int = 2
+    #: the tyre-force SKFMEC (seed 000) the ECU runs in fixed point; None: the C core's default
+    skf: SkfConfig | None = None
+
+    @classmethod
+    def default(cls) -> EcuConfig:
+        return cls(DkfConfig.default("speeds+torque"), DkfConfig.default("speeds"))
+
+    def to_c(self):
+        c = ffi.new("vh_ecu_config_t *")
+        lib.vh_ecu_config_default(c)
+        self.dkf_t.to_c(ffi.addressof(c.dkf[lib.VH_ECU_DKF_T]))
+        self.dkf_s.to_c(ffi.addressof(c.dkf[lib.VH_ECU_DKF_S]))
+        if not 0 <= self.rx_burst_frames <= 255:
+            raise ConfigError(f"rx_burst_frames must be 0..255 (0 = off), got {self.rx_burst_frames}")
+        c.rx_burst_frames = self.rx_burst_frames
+        if self.skf is not None:
+            self.skf.to_c(ffi.addressof(c, "skf"))
+        return c
+
+
+class Ecu:
+    """One ECU instance. ``rx`` every received frame, then ``step`` once per 500 µs tick."""
+
+    def __init__(self, config: EcuConfig | None = None):
+        self.config = config or EcuConfig.default()
+        self._c_config = self.config.to_c()
+        self.c = ffi.new("vh_ecu_t *")
+        check(lib.vh_ecu_init(self.c, self._c_config), "ECU configuration")
+        self._rx = ffi.new("vh_frame_t *")
+        self._tx = ffi.new("vh_frame_t[]", lib.VH_ECU_MAX_TX)
+
+    def reset(self) -> None:
+        lib.vh_ecu_reset(self.c)
+
+    def rx(self, msg: can.Message) -> None:
+        if msg.is_error_frame or msg.is_remote_frame:
+            return
+        lib.vh_ecu_rx(self.c, to_frame(msg, self._rx))
+
+    def rx_frame(self, frame) -> None:
+        """A ``vh_frame_t *`` straight from a C node (in-process runs)."""
+        lib.vh_ecu_rx(self.c, frame)
+
+    def step_frames(self) -> list:
+        """One tick; the frames to transmit as ``vh_frame_t`` cdata (valid until the next step)."""
+        n = lib.vh_ecu_step(self.c, self._tx, lib.VH_ECU_MAX_TX)
+        return [self._tx[i] for i in range(n)]
+
+    def step(self, timestamp: float = 0.0) -> list[can.Message]:
+        return [to_message(f, timestamp) for f in self.step_frames()]
+
+    def set_camber_calibrations(self, calibrations: dict) -> None:
+        """Load inspection-device calibrations ({wheel: camber.Calibration}, e.g. from
+        camber.load_calibrations); they persist across ECU resets."""
+        for wheel, cal in calibrations.items():
+            check(lib.vh_ecu_set_camber_calibration(self.c, WHEELS.index(wheel), cal._to_c()),
+                  f"camber calibration of {wheel}")
+
+    def note_deadline_miss(self, n: int = 1) -> None:
+        lib.vh_ecu_note_deadline_miss(self.c, n)
+
+    @property
+    def tick(self) -> int:
+        return int(self.c.tick)
+
+    def counters(self) -> dict[str, int]:
+        return {name: int(getattr(self.c.cnt, name)) for name in COUNTERS}
+
+    def health(self) -> dict[str, str]:
+        return {
+            "dkf_t": HEALTH[self.c.dkf[lib.VH_ECU_DKF_T].health],
+            "dkf_s": HEALTH[self.c.dkf[lib.VH_ECU_DKF_S].health],
+            "skfmec_q": HEALTH[self.c.chs.skf.health],
+        }
+
+    def chassis_counters(self) -> dict[str, int]:
+        return {name: int(getattr(self.c.chs.cnt, name)) for name in CHASSIS_COUNTERS}

@@ -1,0 +1,274 @@
+"""Tire lateral force estimators (seed 000) over numpy arrays: SKFMEC (double), SKFMEC (fixed point,
+the ECU's version) and the plain EKF baseline.
+
+All three run the ECU's own C (``c_core/tireforce/vh_skf.c``, ``vh_skfq.c``); this module only marshals
+arrays. ``reference.py`` is the independent numpy implementation; the truth they are checked
+against is the 14-DOF chassis plant (``scenario.py``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+
+from ...errors import ConfigError
+from ...native import check, ffi, lib
+
+SKFMEC = "skfmec"
+EKF = "ekf"
+FIXED = "skfmec-fixed"
+VARIANTS = (SKFMEC, FIXED, EKF)
+_VARIANT_C = {SKFMEC: lib.VH_SKF_SKFMEC, FIXED: lib.VH_SKF_SKFMEC, EKF: lib.VH_SKF_EKF}
+STATES = ("vx", "vy", "r", "phi", "p", "fyf", "fyr")
+WHEELS = ("FL", "FR", "RL", "RR")
+_VEC = {"s": 7, "q": 7, "p0": 7, "r": 4, "gp": 7, "gy": 2}
+
+
+@dataclass
+class SkfConfig:
+    """Estimator configuration (``vh_skf_config_t``); defaults come from the C core."""
+
+    m: float
+    ms: float
+    iz: float
+    ix: float
+    lf: float
+    lr: float
+    h: float
+    e: float
+    hf: float
+    hr: float
+    kphif: float
+    kphir: float
+    cphif: float
+    cphir: float
+    rw: float
+    iw: float
+    tf: float
+    tr: float
+    g: float
+    zeta1: float
+    zeta2: float
+    lt_gain: float
+    ts: float
+    tau_wdot: float
+    s: tuple
+    q: tuple
+    p0: tuple
+    r: tuple
+    gp: tuple
+    gy: tuple
+    p_cap: float
+    p_max: float
+    x_max: float
+    scaled: bool = True
+    mec: bool = True
+
+    @classmethod
+    def default(cls, variant: str = SKFMEC, **overrides) -> SkfConfig:
+        if variant not in _VARIANT_C:
+            raise ConfigError(f"estimator {variant!r}: expected one of {list(VARIANTS)}")
+        c = ffi.new("vh_skf_config_t *")
+        lib.vh_skf_config_default(c, _VARIANT_C[variant])
+        cfg = cls.from_c(c)
+        names = {f.name for f in fields(cls)}
+        for key, value in overrides.items():
+            if key not in names:
+                raise ConfigError(f"unknown estimator setting {key!r}")
+            setattr(cfg, key, tuple(float(v) for v in value) if key in _VEC else value)
+        return cfg
+
+    @classmethod
+    def from_c(cls, c) -> SkfConfig:
+        kw: dict[str, Any] = {}
+        for f in fields(cls):
+            v = getattr(c, f.name)
+            kw[f.name] = tuple(v) if f.name in _VEC else (bool(v) if f.name in ("scaled", "mec") else float(v))
+        return cls(**kw)
+
+    def to_c(self, c=None):
+        c = c if c is not None else ffi.new("vh_skf_config_t *")
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.name in _VEC:
+                v = tuple(v)
+                if len(v) != _VEC[f.name]:
+                    raise ConfigError(f"{f.name}: expected {_VEC[f.name]} values, got {len(v)}")
+                setattr(c, f.name, [float(x) for x in v])
+            elif f.name in ("scaled", "mec"):
+                setattr(c, f.name, int(bool(v)))
+            else:
+                setattr(c, f.name, float(v))
+        return c
+
+
+@dataclass
+class Inputs:
+    """One drive's sensor samples at the estimator step: (n,) arrays and (n, 4) wheel arrays."""
+
+    ax: np.ndarray
+    ay: np.ndarray
+    r: np.ndarray
+    p: np.ndarray
+    delta: np.ndarray
+    omega: np.ndarray
+    torque: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.ax)
+
+    def matrix(self) -> np.ndarray:
+        """(n, 13) rows laid out as ``vh_skf_input_t``."""
+        n = len(np.asarray(self.ax))
+        cols = []
+        for name in ("ax", "ay", "r", "p", "delta"):
+            a = np.asarray(getattr(self, name), dtype=np.float64)
+            if a.shape != (n,):
+                raise ConfigError(f"{name} must have shape ({n},), got {a.shape}")
+            cols.append(a[:, None])
+        for name in ("omega", "torque"):
+            a = np.asarray(getattr(self, name), dtype=np.float64)
+            if a.shape != (n, 4):
+                raise ConfigError(f"{name} must have shape ({n}, 4), got {a.shape}")
+            cols.append(a)
+        return np.ascontiguousarray(np.hstack(cols))
+
+    def slice(self, a: int, b: int) -> Inputs:
+        return Inputs(**{f.name: np.asarray(getattr(self, f.name))[a:b] for f in fields(self)})
+
+
+@dataclass
+class TireForceRun:
+    x: np.ndarray          # (n, 7) physical: vx vy r phi p Fyf Fyr
+    fy: np.ndarray         # (n, 4) per-tire lateral force FL FR RL RR (eq. 36-37)
+    fz: np.ndarray         # (n, 4) normal loads (eq. 39)
+    health: np.ndarray     # (n,) vh_health_t
+    resets: int
+    saturations: int = 0   # fixed point only: saturating operations that clipped during the run
+    p: np.ndarray | None = None  # (n, 7, 7) covariance in filter coordinates, when asked for
+
+
+def _ptr(a, t):
+    return ffi.NULL if a is None else ffi.cast(t, ffi.from_buffer(a))
+
+
+def _mask(mask, n):
+    if mask is None:
+        return None
+    m = np.ascontiguousarray(mask, dtype=np.uint8)
+    if m.shape != (n,):
+        raise ConfigError(f"mask must have shape ({n},), got {m.shape}")
+    return m
+
+
+class TireForceKF:
+    """SKFMEC or the plain EKF in double precision: one ``vh_skf_t``."""
+
+    def __init__(self, config: SkfConfig | None = None, variant: str = SKFMEC):
+        if variant == FIXED:
+            raise ConfigError("the fixed-point estimator is TireForceFixed")
+        self.config = config or SkfConfig.default(variant)
+        self._f = ffi.new("vh_skf_t *")
+        check(lib.vh_skf_init(self._f, self.config.to_c()), "tire force estimator configuration")
+
+    def reset(self) -> None:
+        lib.vh_skf_reset(self._f)
+
+    @property
+    def caps(self) -> int:
+        return int(self._f.caps)
+
+    def run(self, inputs: Inputs, mask=None, *, covariances: bool = False) -> TireForceRun:
+        u = inputs.matrix()
+        n = u.shape[0]
+        m = _mask(mask, n)
+        x, fy, fz = np.empty((n, 7)), np.empty((n, 4)), np.empty((n, 4))
+        health = np.empty(n, dtype=np.uint8)
+        p = np.empty((n, 7, 7)) if covariances else None
+        resets = lib.vh_skf_run(self._f, n, _ptr(u, "double *"), _ptr(m, "uint8_t *"), _ptr(x, "double *"),
+                                _ptr(fy, "double *"), _ptr(fz, "double *"), _ptr(p, "double *"),
+                                _ptr(health, "uint8_t *"))
+        return TireForceRun(x=x, fy=fy, fz=fz, health=health, resets=int(resets), p=p)
+
+
+class TireForceFixed:
+    """SKFMEC in fixed point (``vh_skfq_t``): the ECU's integer filter.
+
+    Its integer constants come from the double configuration through the C calibration function
+    (``vh_skfq_params_from_config``); inputs are quantised to the documented Q formats by the C core
+    (round half up, saturating), outputs converted back to physical units here.
+    """
+
+    def __init__(self, config: SkfConfig | None = None):
+        self.config = config or SkfConfig.default(SKFMEC)
+        if not self.config.scaled:
+            raise ConfigError("the fixed-point estimator runs scaled only (scaled=True)")
+        self.params = ffi.new("vh_skfq_params_t *")
+        check(lib.vh_skfq_params_from_config(self.config.to_c(), self.params), "fixed-point constants")
+        self._f = ffi.new("vh_skfq_t *")
+        check(lib.vh_skfq_init(self._f, self.params), "fixed-point estimator")
+
+    def reset(self) -> None:
+        lib.vh_skfq_reset(self._f)
+
+    @property
+    def saturations(self) -> int:
+        return int(self._f.sat)
+
+    @property
+    def caps(self) -> int:
+        return int(self._f.caps)
+
+    @staticmethod
+    def quantise(inputs: Inputs) -> np.ndarray:
+        """(n, 13) int32 rows laid out as ``vh_skfq_input_t`` (the C core's own rounding)."""
+        u = inputs.matrix()
+        q = np.empty(u.shape, dtype=np.int32)
+        lib.vh_skfq_quantise_inputs(u.shape[0], _ptr(u, "double *"), _ptr(q, "int32_t *"))
+        return q
+
+    def run_raw(self, q: np.ndarray, mask=None, *, covariances: bool = False) -> dict:
+        """Run on quantised inputs; returns the raw integer outputs (x in Q.FX scaled, fy/fz in Q.FN)."""
+        q = np.ascontiguousarray(q, dtype=np.int32)
+        if q.ndim != 2 or q.shape[1] != 13:
+            raise ConfigError(f"quantised inputs must have shape (n, 13), got {q.shape}")
+        n = q.shape[0]
+        m = _mask(mask, n)
+        out = {"x": np.empty((n, 7), np.int32), "fy": np.empty((n, 4), np.int32), "fz": np.empty((n, 4), np.int32),
+               "health": np.empty(n, np.uint8), "p": np.empty((n, 7, 7), np.int32) if covariances else None}
+        sat0 = self._f.sat
+        out["resets"] = int(lib.vh_skfq_run(self._f, n, _ptr(q, "int32_t *"), _ptr(m, "uint8_t *"),
+                                            _ptr(out["x"], "int32_t *"), _ptr(out["fy"], "int32_t *"),
+                                            _ptr(out["fz"], "int32_t *"), _ptr(out["p"], "int32_t *"),
+                                            _ptr(out["health"], "uint8_t *")))
+        out["saturations"] = int(self._f.sat - sat0)
+        return out
+
+    def run(self, inputs: Inputs, mask=None, *, covariances: bool = False) -> TireForceRun:
+        """As TireForceKF.run. A row with a non-finite input gets an empty mask (the double filter's
+        rule), since an integer cannot carry NaN: the quantiser saturates it."""
+        u = inputs.matrix()
+        bad = ~np.all(np.isfinite(u), axis=1)
+        if bad.any():
+            m = np.full(len(u), lib.VH_SKF_ALL_VALID, np.uint8) if mask is None else _mask(mask, len(u)).copy()
+            m[bad] = 0
+            mask = m
+        raw = self.run_raw(self.quantise(inputs), mask, covariances=covariances)
+        s = np.asarray(self.config.s)
+        return TireForceRun(
+            x=raw["x"] / 2.0 ** lib.VH_SKFQ_FX / s,
+            fy=raw["fy"] / 2.0 ** lib.VH_SKFQ_FN,
+            fz=raw["fz"] / 2.0 ** lib.VH_SKFQ_FN,
+            health=raw["health"], resets=raw["resets"], saturations=raw["saturations"],
+            p=None if raw["p"] is None else raw["p"] / 2.0 ** lib.VH_SKFQ_FP,
+        )
+
+
+def estimator(variant: str = SKFMEC, config: SkfConfig | None = None):
+    """The estimator object for a variant name: 'skfmec', 'skfmec-fixed' or 'ekf'."""
+    if variant == FIXED:
+        return TireForceFixed(config)
+    if variant in (SKFMEC, EKF):
+        return TireForceKF(config, variant)
+    raise ConfigError(f"estimator {variant!r}: expected one of {list(VARIANTS)}")

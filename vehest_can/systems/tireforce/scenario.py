@@ -1,0 +1,508 @@
+"""Tyre-force scenarios: TOML files that drive the 14-DOF chassis plant (vh_veh14) and its sensor node
+(vh_chsnode), and the car they make.
+
+A tyre-force scenario says ``kind = "tireforce"`` at the top (``kind = "chassis"``, its old name, still
+loads); the schema is in ``docs/chassis_plant.md``.
+:func:`load_tireforce_scenario` checks every key (unknown keys, types, ranges, time profiles, split-μ
+consistency, and finally whether the plant accepts the vehicle) and raises
+:class:`~vehest_can.errors.ScenarioError` naming the file, the dotted key and the problem. The driveline
+loader (:mod:`vehest_can.sim.scenario`) is untouched: it rejects ``kind`` as an unknown key, and this loader
+rejects a file without one of these kinds.
+
+Tyre-force scenarios live in ``firmware_sim/scenarios/chassis/`` (the driveline loader and tests iterate over
+``firmware_sim/scenarios/*.toml``, so they do not see them).
+
+``python -m vehest_can.systems.tireforce.scenario [SCENARIO ...]`` runs scenarios and prints a summary;
+``python -m vehest_can.systems.tireforce.scenario --bench`` times the plant alone.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ...errors import ScenarioError
+from ...paths import shipped_dir, shipped_file
+from ...schema import Checker, Num, read_toml, type_name
+from ...sim.scenario import DT, _native
+
+#: The scenario kind, then its old name (files that say kind = "chassis" keep loading).
+KINDS = ("tireforce", "chassis")
+
+#: Wheels in the order of every per-wheel quantity: the paper's 1..4 in a left turn.
+WHEELS = ("FL", "FR", "RL", "RR")
+
+def tireforce_scenario_dir() -> Path:
+    """The shipped tyre-force scenarios: inside the installed package, or firmware_sim/scenarios/chassis/."""
+    return shipped_dir("scenarios/chassis", "firmware_sim/scenarios/chassis", "*.toml")
+
+
+def list_tireforce_scenarios() -> list[str]:
+    return sorted(p.stem for p in tireforce_scenario_dir().glob("*.toml"))
+
+
+def tireforce_scenario_path(name_or_path: str | Path) -> Path:
+    """An existing path as given, else a shipped tyre-force scenario's name."""
+    return shipped_file(name_or_path, tireforce_scenario_dir())
+
+
+# ---- schema --------------------------------------------------------------------------------
+
+_TOP: dict[str, Any] = {
+    "kind": "string",
+    "name": "string",
+    "description": "string",
+    "duration_s": Num(0.0, 3600.0, lo_open=True),
+    "seed": Num(0, 2**64 - 1, integer=True),
+    "initial_speed_kmh": Num(0.0, 250.0),
+}
+_TOP_REQUIRED = ("kind", "name", "duration_s")
+_TABLES = ("driver", "road", "vehicle", "tyre", "sensors")
+
+_STEER_DEG = Num(-30.0, 30.0)     # road-wheel angle; the plant clamps at 0.6 rad (34 deg)
+_DRIVE_NM = Num(-5000.0, 5000.0)  # per wheel; negative is engine braking
+_BRAKE_NM = Num(0.0, 10000.0)     # per wheel, a magnitude
+_MU = Num(0.0, 2.0)
+
+# [vehicle] overrides: TOML key -> (vh_v14_params_t field, range). Plausibility ranges; the plant then
+# checks the combination (a roll stiffness the tyres can carry, springs softer in roll than k_phi, ...).
+_VEHICLE = {
+    "sprung_mass_kg": ("ms", Num(200.0, 5000.0)),
+    "roll_inertia_kgm2": ("ix", Num(50.0, 5000.0)),
+    "pitch_inertia_kgm2": ("iy", Num(200.0, 20000.0)),
+    "yaw_inertia_kgm2": ("iz", Num(200.0, 20000.0)),
+    "cg_to_front_axle_m": ("lf", Num(0.3, 3.0)),
+    "cg_to_rear_axle_m": ("lr", Num(0.3, 3.0)),
+    "cg_height_m": ("h", Num(0.2, 1.5)),
+    "half_track_front_m": ("tf", Num(0.4, 1.2)),
+    "half_track_rear_m": ("tr", Num(0.4, 1.2)),
+    "roll_centre_height_front_m": ("hf", Num(0.0, 0.4)),
+    "roll_centre_height_rear_m": ("hr", Num(0.0, 0.4)),
+    "roll_stiffness_front_nm_per_rad": ("kphi_f", Num(1e3, 1e6)),
+    "roll_stiffness_rear_nm_per_rad": ("kphi_r", Num(1e3, 1e6)),
+    "roll_damping_front_nms_per_rad": ("cphi_f", Num(0.0, 1e5)),
+    "roll_damping_rear_nms_per_rad": ("cphi_r", Num(0.0, 1e5)),
+    "wheel_radius_m": ("rw", Num(0.15, 0.6)),
+    "wheel_inertia_kgm2": ("iw", Num(0.3, 20.0)),
+    "unsprung_mass_front_kg": ("m_uf", Num(10.0, 200.0)),
+    "unsprung_mass_rear_kg": ("m_ur", Num(10.0, 200.0)),
+    "spring_rate_front_n_per_m": ("k_f", Num(5e3, 3e5)),
+    "spring_rate_rear_n_per_m": ("k_r", Num(5e3, 3e5)),
+    "tyre_stiffness_n_per_m": ("kt", Num(5e4, 2e6)),
+    "tyre_damping_ns_per_m": ("ct", Num(0.0, 5e3)),
+    "air_density_kg_m3": ("rho", Num(0.0, 2.0)),
+    "drag_area_m2": ("cda", Num(0.0, 5.0)),
+}
+#: The true car is this much heavier than the paper's (the estimator's model): payload at the sprung CG.
+_MASS_DELTA = Num(-500.0, 2000.0)
+_TYRE = {
+    "relaxation_length_x_m": ("relax_x", Num(0.0, 2.0)),
+    "relaxation_length_y_m": ("relax_y", Num(0.0, 2.0)),
+}
+_TYRE_COEF = {"lateral_coefficients": "a", "longitudinal_coefficients": "b"}  # 9 numbers each
+# [sensors]: TOML key -> (vh_chs_config_t array, channel indices, range)
+_SENSORS = {
+    "ax_std_m_s2": ("noise_std", (0,), Num(0.0, 10.0)),
+    "ay_std_m_s2": ("noise_std", (1,), Num(0.0, 10.0)),
+    "yaw_rate_std_rad_s": ("noise_std", (2,), Num(0.0, 1.0)),
+    "roll_rate_std_rad_s": ("noise_std", (3,), Num(0.0, 1.0)),
+    "steer_std_rad": ("noise_std", (4,), Num(0.0, 0.1)),
+    "wheel_speed_std_rad_s": ("noise_std", (5, 6, 7, 8), Num(0.0, 10.0)),
+    "wheel_torque_std_nm": ("noise_std", (9, 10, 11, 12), Num(0.0, 1000.0)),
+    "ax_bias_m_s2": ("bias", (0,), Num(-10.0, 10.0)),
+    "ay_bias_m_s2": ("bias", (1,), Num(-10.0, 10.0)),
+    "yaw_rate_bias_rad_s": ("bias", (2,), Num(-1.0, 1.0)),
+    "roll_rate_bias_rad_s": ("bias", (3,), Num(-1.0, 1.0)),
+    "steer_bias_rad": ("bias", (4,), Num(-0.1, 0.1)),
+    "wheel_speed_bias_rad_s": ("bias", (5, 6, 7, 8), Num(-10.0, 10.0)),
+    "wheel_torque_bias_nm": ("bias", (9, 10, 11, 12), Num(-1000.0, 1000.0)),
+}
+
+
+@dataclass(frozen=True)
+class TireForceScenario:
+    """One validated tyre-force scenario. Profiles are (t, value...) points, piecewise linear in time."""
+
+    name: str
+    description: str
+    duration_s: float
+    seed: int
+    initial_speed_kmh: float
+    steer_deg: tuple[tuple[float, float], ...]
+    drive_nm: tuple[tuple[float, ...], ...]      # (t, FL, FR, RL, RR)
+    brake_nm: tuple[tuple[float, ...], ...]
+    mu_left: tuple[tuple[float, float], ...]
+    mu_right: tuple[tuple[float, float], ...]
+    mass_delta_kg: float = 0.0
+    vehicle: tuple[tuple[str, float], ...] = ()  # [vehicle] overrides as written
+    tyre: tuple[tuple[str, Any], ...] = ()
+    sensors: tuple[tuple[str, float], ...] = ()  # only the keys written
+    accel_gravity: bool = False
+    path: Path | None = None
+
+    # ---- time and inputs ----
+
+    @property
+    def n_steps(self) -> int:
+        return int(round(self.duration_s / DT))
+
+    def times(self) -> np.ndarray:
+        """Sample time of each step: 0, DT, ..., (n_steps - 1) DT (the truth of step k is at k DT)."""
+        return np.arange(self.n_steps) * DT
+
+    @staticmethod
+    def _interp(points, t, column: int = 1) -> np.ndarray:
+        ts = np.array([p[0] for p in points], dtype=float)
+        vs = np.array([p[column] for p in points], dtype=float)
+        return np.interp(np.asarray(t, dtype=float), ts, vs)
+
+    def steer_rad_at(self, t) -> np.ndarray:
+        return np.radians(self._interp(self.steer_deg, t))
+
+    def drive_at(self, t) -> np.ndarray:
+        """Drive torque per wheel at times t: shape (len(t), 4)."""
+        return np.stack([self._interp(self.drive_nm, t, 1 + w) for w in range(4)], axis=-1)
+
+    def brake_at(self, t) -> np.ndarray:
+        return np.stack([self._interp(self.brake_nm, t, 1 + w) for w in range(4)], axis=-1)
+
+    def mu_at(self, t) -> np.ndarray:
+        """Friction under each wheel: left wheels (FL, RL) see mu_left, right ones mu_right."""
+        left, right = self._interp(self.mu_left, t), self._interp(self.mu_right, t)
+        return np.stack([left, right, left, right], axis=-1)
+
+    def input_array(self) -> np.ndarray:
+        """Inputs of every step as an (n_steps, 13) float64 array laid out like ``vh_v14_input_t``."""
+        t = self.times()
+        return np.ascontiguousarray(np.column_stack(
+            [self.steer_rad_at(t), self.drive_at(t), self.brake_at(t), self.mu_at(t)]))
+
+    def inputs(self, ffi):
+        """``vh_v14_input_t[n_steps]`` (cdata owning its memory)."""
+        arr = self.input_array()
+        if ffi.sizeof("vh_v14_input_t") != arr.shape[1] * 8:
+            raise AssertionError("vh_v14_input_t is not 13 packed doubles")
+        out = ffi.new("vh_v14_input_t[]", len(arr))
+        ffi.memmove(out, arr.tobytes(), arr.nbytes)
+        return out
+
+    # ---- C structs ----
+
+    def plant_params(self, ffi, lib):
+        """``vh_v14_params_t *``: the paper's car with this scenario's overrides and extra mass."""
+        prm = ffi.new("vh_v14_params_t *")
+        lib.vh_v14_params_default(prm)
+        for key, value in self.vehicle:
+            setattr(prm, _VEHICLE[key][0], value)
+        prm.ms += self.mass_delta_kg
+        for key, value in self.tyre:
+            if key in _TYRE_COEF:
+                arr = getattr(prm.tyre, _TYRE_COEF[key])
+                for i, v in enumerate(value):
+                    arr[i] = v
+            else:
+                setattr(prm, _TYRE[key][0], value)
+        return prm
+
+    @property
+    def node_seed(self) -> int:
+        """Seed of the sensor node's random stream, derived from ``seed`` (odd multiplier: a bijection)."""
+        return (self.seed * 0x9E3779B97F4A7C15 + 0x434853) % 2**64
+
+    def node_config(self, ffi, lib):
+        cfg = ffi.new("vh_chs_config_t *")
+        lib.vh_chs_config_default(cfg)
+        for key, value in self.sensors:
+            array, chans, _ = _SENSORS[key]
+            for ch in chans:
+                getattr(cfg, array)[ch] = value
+        cfg.seed = self.node_seed
+        cfg.accel_gravity = int(self.accel_gravity)
+        return cfg
+
+    def make_plant(self, ffi, lib):
+        """An initialised ``vh_v14_t *`` rolling straight at the initial speed."""
+        p = ffi.new("vh_v14_t *")
+        if lib.vh_v14_init(p, self.plant_params(ffi, lib)) != lib.VH_OK:
+            raise ScenarioError(f"{self._where()}: vehicle: the plant refuses these parameters")
+        lib.vh_v14_set_rolling(p, self.initial_speed_kmh / 3.6)
+        return p
+
+    def make_node(self, ffi, lib):
+        n = ffi.new("vh_chs_t *")
+        if lib.vh_chs_init(n, self.node_config(ffi, lib)) != lib.VH_OK:
+            raise ScenarioError(f"{self._where()}: sensors: the sensor node refuses this configuration")
+        return n
+
+    # ---- runs ----
+
+    def run_truth(self, ffi, lib) -> np.ndarray:
+        """The plant alone over the whole scenario: the truth of every step as a numpy record array."""
+        p = self.make_plant(ffi, lib)
+        n = self.n_steps
+        out = ffi.new("vh_v14_truth_t[]", n)
+        lib.vh_v14_run(p, n, self.inputs(ffi), out)
+        return truth_to_numpy(ffi, out, n)
+
+    def run_with_frames(self, ffi, lib):
+        """Plant and sensor node tick by tick: (truth record array, list of CHS_Sensors payloads)."""
+        p, node = self.make_plant(ffi, lib), self.make_node(ffi, lib)
+        n = self.n_steps
+        inputs = self.inputs(ffi)
+        out = ffi.new("vh_v14_truth_t[]", n)
+        frame = ffi.new("vh_frame_t[1]")
+        payloads = []
+        for k in range(n):
+            lib.vh_v14_step(p, inputs + k)
+            out[k] = p.truth
+            lib.vh_chs_step(node, ffi.addressof(p, "truth"), frame, 1)
+            payloads.append(bytes(ffi.buffer(frame[0].data, frame[0].len)))
+        return truth_to_numpy(ffi, out, n), payloads
+
+    def _where(self) -> str:
+        return str(self.path) if self.path is not None else f"scenario {self.name!r}"
+
+
+class ChassisCar:
+    """The 14-DOF plant and its chassis sensor node as a car on the bus: one tick per call, the
+    interface of :class:`vehest_can.sim.session.Car` (``name``, ``n``, ``truth_dtype``, ``reset``, ``tick``,
+    ``truth``), so the simulator drives it in every mode."""
+
+    def __init__(self, sc: TireForceScenario, duration_s: float | None = None):
+        from ...native import ffi, lib
+
+        self._ffi, self._lib = ffi, lib
+        self.scenario = sc
+        self.name = sc.name
+        self.n = sc.n_steps if duration_s is None else int(round(duration_s / DT))
+        if not 0 < self.n <= sc.n_steps:
+            raise ScenarioError(f"{sc._where()}: duration must be in (0, {sc.duration_s}] s")
+        self.truth_dtype = truth_dtype(ffi)
+        self._inputs = sc.inputs(ffi)
+        self._out = ffi.new("vh_frame_t[1]")
+        self.reset()
+
+    def reset(self) -> None:
+        self._plant = self.scenario.make_plant(self._ffi, self._lib)
+        self._node = self.scenario.make_node(self._ffi, self._lib)
+
+    def tick(self, k: int) -> list:
+        self._lib.vh_v14_step(self._plant, self._inputs + k)
+        n = self._lib.vh_chs_step(self._node, self._ffi.addressof(self._plant, "truth"), self._out, 1)
+        return [self._out[i] for i in range(n)]
+
+    def truth(self) -> np.void:
+        return np.frombuffer(self._ffi.buffer(self._ffi.addressof(self._plant, "truth")),
+                             dtype=self.truth_dtype)[0].copy()
+
+
+def truth_dtype(ffi) -> np.dtype:
+    """numpy dtype laid out like ``vh_v14_truth_t`` (per-wheel arrays as (4,) sub-arrays)."""
+    from ...native import struct_dtype
+
+    return struct_dtype("vh_v14_truth_t")
+
+
+def truth_to_numpy(ffi, truth_array, n: int) -> np.ndarray:
+    return np.frombuffer(ffi.buffer(truth_array, n * ffi.sizeof("vh_v14_truth_t")),
+                         dtype=truth_dtype(ffi)).copy()
+
+
+# ---- loading -------------------------------------------------------------------------------
+
+def _vector_profile(c: Checker, value, key: str, spec: Num) -> tuple[tuple[float, ...], ...]:
+    """[[t, FL, FR, RL, RR], ...] with t strictly increasing."""
+    if not isinstance(value, list) or not value:
+        c.fail(key, "must be a non-empty list of [time_s, FL, FR, RL, RR] points")
+    points: list[tuple[float, ...]] = []
+    for i, pt in enumerate(value):
+        k = f"{key}[{i}]"
+        if not isinstance(pt, list) or len(pt) != 5:
+            c.fail(k, f"must be a [time_s, FL, FR, RL, RR] point (5 numbers), not {pt!r}")
+        t = c.number(pt[0], f"{k}[0]", Num(0.0, 1e6))
+        vals = tuple(c.number(v, f"{k}[{j + 1}]", spec) for j, v in enumerate(pt[1:]))
+        if points and not t > points[-1][0]:
+            c.fail(k, f"time {t:g} s does not come after the previous point's {points[-1][0]:g} s: "
+                      "times must increase strictly")
+        points.append((t, *vals))
+    return tuple(points)
+
+
+def load_tireforce_scenario(path: str | Path) -> TireForceScenario:
+    """Load and validate one tyre-force scenario (a path, or the name of a shipped one)."""
+    path = tireforce_scenario_path(path)
+    return tireforce_scenario_from_dict(read_toml(path), path)
+
+
+def tireforce_scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> TireForceScenario:
+    """Validate an already parsed TOML document (``path`` only names it in errors)."""
+    ffi, lib = _native()
+    c = Checker(Path(path))
+    if not isinstance(doc, dict):
+        c.fail("", f"must be a TOML document (a table), not {type_name(doc)}")
+    if doc.get("kind") not in KINDS:
+        if "kind" not in doc:
+            c.fail("kind", 'missing: a tireforce scenario starts with kind = "tireforce" (or its old name, '
+                           'kind = "chassis"; driveline scenarios are read by vehest_can.sim.scenario.load_scenario)')
+        c.fail("kind", f'must be "tireforce" (or its old name "chassis"), not {doc["kind"]!r}')
+    c.table(doc, "", set(_TOP) | set(_TABLES))
+    for key in _TOP_REQUIRED:
+        if key not in doc:
+            c.fail(key, "missing (required)")
+    name = c.string(doc["name"], "name")
+    if not name.strip():
+        c.fail("name", "must not be empty")
+    description = c.string(doc.get("description", ""), "description")
+    duration = c.number(doc["duration_s"], "duration_s", _TOP["duration_s"])
+    seed = c.number(doc.get("seed", 1), "seed", _TOP["seed"])
+    v0 = c.number(doc.get("initial_speed_kmh", 0.0), "initial_speed_kmh", _TOP["initial_speed_kmh"])
+
+    if "driver" not in doc:
+        c.fail("driver", "missing (required table with steer_deg)")
+    driver = c.table(doc["driver"], "driver", {"steer_deg", "drive_nm", "brake_nm"})
+    if "steer_deg" not in driver:
+        c.fail("driver.steer_deg", "missing (required: [[time_s, road-wheel angle in degrees], ...])")
+    steer = c.profile(driver["steer_deg"], "driver.steer_deg", _STEER_DEG)
+    zero = ((0.0, 0.0, 0.0, 0.0, 0.0),)
+    drive = _vector_profile(c, driver["drive_nm"], "driver.drive_nm", _DRIVE_NM) if "drive_nm" in driver else zero
+    brake = _vector_profile(c, driver["brake_nm"], "driver.brake_nm", _BRAKE_NM) if "brake_nm" in driver else zero
+
+    road = c.table(doc.get("road", {}), "road", {"mu", "mu_left", "mu_right"})
+    split = [k for k in ("mu_left", "mu_right") if k in road]
+    if "mu" in road and split:
+        c.fail(f"road.{split[0]}", "give either mu (both sides) or mu_left and mu_right (split-mu), not both")
+    if len(split) == 1:
+        other = "mu_right" if split[0] == "mu_left" else "mu_left"
+        c.fail(f"road.{other}", f"missing: split-mu needs both mu_left and mu_right ({split[0]} is given)")
+    if split:
+        mu_l = c.profile(road["mu_left"], "road.mu_left", _MU)
+        mu_r = c.profile(road["mu_right"], "road.mu_right", _MU)
+    else:
+        mu_l = mu_r = c.profile(road["mu"], "road.mu", _MU) if "mu" in road else ((0.0, 1.0),)
+
+    vehicle_doc = c.table(doc.get("vehicle", {}), "vehicle", set(_VEHICLE) | {"mass_delta_kg"})
+    mass_delta = 0.0
+    vehicle = []
+    for k, v in vehicle_doc.items():
+        if k == "mass_delta_kg":
+            mass_delta = c.number(v, "vehicle.mass_delta_kg", _MASS_DELTA)
+        else:
+            vehicle.append((k, c.number(v, f"vehicle.{k}", _VEHICLE[k][1])))
+
+    tyre_doc = c.table(doc.get("tyre", {}), "tyre", set(_TYRE) | set(_TYRE_COEF))
+    tyre = []
+    for k, v in tyre_doc.items():
+        if k in _TYRE_COEF:
+            if not isinstance(v, list) or len(v) != 9:
+                c.fail(f"tyre.{k}", "must be a list of 9 Magic Formula coefficients (C, then 1..8 as published)")
+            tyre.append((k, tuple(c.number(x, f"tyre.{k}[{i}]", Num(-1e6, 1e6)) for i, x in enumerate(v))))
+        else:
+            tyre.append((k, c.number(v, f"tyre.{k}", _TYRE[k][1])))
+
+    sensors_doc = c.table(doc.get("sensors", {}), "sensors", set(_SENSORS) | {"accel_gravity"})
+    accel_gravity = False
+    sensors = []
+    for k, v in sensors_doc.items():
+        if k == "accel_gravity":
+            if not isinstance(v, bool):
+                c.fail("sensors.accel_gravity", f"must be true or false, not {type_name(v)}")
+            accel_gravity = v
+        else:
+            sensors.append((k, c.number(v, f"sensors.{k}", _SENSORS[k][2])))
+
+    sc = TireForceScenario(name=name, description=description, duration_s=duration, seed=seed,
+                         initial_speed_kmh=v0, steer_deg=steer, drive_nm=drive, brake_nm=brake,
+                         mu_left=mu_l, mu_right=mu_r, mass_delta_kg=mass_delta, vehicle=tuple(sorted(vehicle)),
+                         tyre=tuple(sorted(tyre)), sensors=tuple(sorted(sensors)),
+                         accel_gravity=accel_gravity, path=Path(path))
+    prm = sc.plant_params(ffi, lib)
+    if not prm.ms > 0:
+        c.fail("vehicle.mass_delta_kg", f"leaves a sprung mass of {prm.ms:g} kg")
+    if lib.vh_v14_init(ffi.new("vh_v14_t *"), prm) != lib.VH_OK:
+        if tyre_doc.keys() & set(_TYRE_COEF) and not lib.vh_mft_check(ffi.addressof(prm, "tyre")):
+            c.fail("tyre", "the Magic Formula coefficients do not give a peaked curve for loads up to "
+                           "20 kN (need 1 < C < 2, D > 0, BCD > 0, E < 1)")
+        c.fail("vehicle", "the plant refuses this combination: the roll stiffness must be below the tyres' "
+                          "own (2 kt t^2) and at least the springs' (2 k t^2), and the roll centres below the CG")
+    if lib.vh_chs_init(ffi.new("vh_chs_t *"), sc.node_config(ffi, lib)) != lib.VH_OK:
+        c.fail("sensors", "the sensor node refuses this configuration")
+    return sc
+
+
+# ---- command line: run scenarios, benchmark the plant ----------------------------------------
+
+def summary(sc: TireForceScenario, tr: np.ndarray) -> dict[str, float]:
+    """Figures of a run: peaks of the lateral forces per tyre, a_y, roll; friction use."""
+    use = np.hypot(tr["fx"], tr["fy"]) / np.maximum(tr["mu"] * tr["fz"], 1e-9)
+    out: dict[str, Any] = {"duration_s": sc.duration_s, "vx_end_kmh": float(tr["vx"][-1] * 3.6),
+           "ay_peak_m_s2": float(np.abs(tr["ay"]).max()), "ay_peak_g": float(np.abs(tr["ay"]).max() / 9.81),
+           "roll_peak_deg": float(np.degrees(np.abs(tr["phi"]).max())),
+           "yaw_rate_peak_deg_s": float(np.degrees(np.abs(tr["r"]).max())),
+           "friction_use_max": float(use[tr["fz"] > 0].max())}
+    for w, name in enumerate(WHEELS):
+        out[f"fy_peak_{name}_N"] = float(np.abs(tr["fy"][:, w]).max())
+        out[f"fz_range_{name}_N"] = (float(tr["fz"][:, w].min()), float(tr["fz"][:, w].max()))
+    return out
+
+
+def bench(seconds: float = 10.0, repeats: int = 9) -> dict[str, float]:
+    """Plant alone (vh_v14_run in C, inputs prepared): best and median of `repeats`, CPU and wall time.
+
+    On a shared machine the best of several runs is the figure of the code; the median shows the load.
+    """
+    ffi, lib = _native()
+    sc = load_tireforce_scenario("chassis_paper_mu_drop")
+    n = int(round(seconds / DT))
+    reps = int(math.ceil(n / sc.n_steps))
+    inputs = np.tile(sc.input_array(), (reps, 1))[:n]
+    cin = ffi.new("vh_v14_input_t[]", n)
+    ffi.memmove(cin, inputs.tobytes(), inputs.nbytes)
+    out = ffi.new("vh_v14_truth_t[]", n)
+    wall, cpu = [], []
+    for _ in range(repeats):
+        p = sc.make_plant(ffi, lib)
+        t0, c0 = time.perf_counter(), time.process_time()
+        lib.vh_v14_run(p, n, cin, out)
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+    return {"simulated_s": n * DT, "steps": n,
+            "x_real_time_cpu_best": n * DT / min(cpu), "x_real_time_cpu_median": n * DT / float(np.median(cpu)),
+            "x_real_time_wall_median": n * DT / float(np.median(wall)),
+            "us_per_step_cpu_best": min(cpu) / n * 1e6}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m vehest_can.systems.tireforce.scenario", description=__doc__.split("\n")[0])
+    ap.add_argument("scenarios", nargs="*", help="tyre-force scenario files or shipped names (default: all shipped)")
+    ap.add_argument("--bench", action="store_true", help="time the plant alone instead")
+    args = ap.parse_args(argv)
+    ffi, lib = _native()
+    try:
+        if args.bench:
+            for k, v in bench().items():
+                print(f"{k:26s} {v:.4g}")
+            return 0
+        for name in args.scenarios or list_tireforce_scenarios():
+            sc = load_tireforce_scenario(name)
+            tr = sc.run_truth(ffi, lib)
+            print(f"== {sc.name}: {sc.description}")
+            for k, v in summary(sc, tr).items():
+                print(f"  {k:22s} {v if isinstance(v, tuple) else round(v, 4)}")
+    except ScenarioError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    return 0
+
+
+__all__ = ["DT", "WHEELS", "TireForceScenario", "load_tireforce_scenario", "tireforce_scenario_from_dict",
+           "tireforce_scenario_dir", "tireforce_scenario_path", "list_tireforce_scenarios", "truth_dtype",
+           "truth_to_numpy", "summary", "bench"]
+
+if __name__ == "__main__":
+    sys.exit(main())

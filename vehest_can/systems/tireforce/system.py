@@ -1,0 +1,64 @@
+"""The tireforce system's registration: what the demo and the reports ask of it (:class:`~vehest_can.systems.System`)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ...bus.frames import database
+from ...sim.report import decode
+from .. import Setup
+from . import api as tf
+from . import report
+from .campaign import CAMPAIGN
+from .scenario import KINDS, ChassisCar, load_tireforce_scenario, tireforce_scenario_dir
+
+
+class TireForce:
+    campaign = CAMPAIGN  # vehest-can campaign
+    name = "tireforce"
+    kinds = KINDS
+    realtime = False
+    faults = None
+
+    def scenario_dir(self) -> Path:
+        return tireforce_scenario_dir()
+
+    def claims(self, doc: dict) -> bool:
+        return doc.get("kind") in KINDS
+
+    def load(self, path: Path):
+        return load_tireforce_scenario(path)
+
+    def car(self, scenario, duration_s: float | None = None):
+        return ChassisCar(scenario, duration_s)
+
+    def setup(self, scenarios: list, out: Path) -> Setup:
+        return Setup()
+
+    def metrics(self, scenario, session, out_dir: Path, setup: Setup) -> dict:
+        """Against the plant: the ECU's fixed-point estimates from the bus, and the double SKFMEC and
+        the paper's plain EKF re-run off-line on the same decoded CHS_Sensors samples."""
+        sc = scenario
+        chs = database("ch").get_message_by_name("CHS_Sensors")
+        dec = report.decode_inputs(m for m in session.messages() if m.arbitration_id == chs.frame_id)
+        runs = report.run_estimators(dec)
+        est = decode(session, "VEHEST_TireForceEst")
+        on = est["SkfmecQ_Health"] > 0  # published (NaN elsewhere) and past INIT: SNA before
+        bus_fy = np.column_stack([est[f"Fy{i}"] for i in range(1, 5)])[on]
+        same = bool(np.array_equal(bus_fy, np.floor(runs[tf.FIXED].fy[on] / 0.5 + 0.5) * 0.5))
+        print(f"  ECU's fixed-point Fy on the bus == array API on the decoded samples: "
+              f"{'identical' if same else 'DIFFERENT'} ({int(on.sum())} frames)")
+        metrics = {"scenario": sc.name, "description": sc.description, "mass_delta_kg": sc.mass_delta_kg,
+                   "mode": session.mode, "ecu_equals_array_api": same,
+                   **report.evaluate(session.truth, runs), "relations": report.relations(session.truth)}
+        files = report.plots("relations", session.truth, None, out_dir, title=sc.name)
+        files += report.plots("forces", session.truth, runs, out_dir, title=sc.name)
+        metrics["plots"] = [str(p) for p in files]
+        return metrics
+
+    def tables(self, metrics: list[dict]) -> list[str]:
+        return [report.table(m, m["scenario"]) for m in metrics]
+
+
+SYSTEM = TireForce()

@@ -1,0 +1,245 @@
+"""``vehest-can bench``: speed figures, measured side by side in one process.
+
+Targets (issue 2): filter >= 100x faster than filterpy per step through the array API; one full
+ECU tick (unpack, checks, two filters, pack) <= 5 µs median in a C loop; in-process lockstep of
+plant + sensor node + ECU >= 100x faster than real time. Tyre-force estimators (seed 000): the
+SKFMEC step in fixed point and in double and the plain EKF step in a C loop, against the numpy
+reference step (skf_ref) on the same inputs; the ECU tick with the chassis estimator active
+(DLS_Sensors + CHS_Sensors in every tick) <= 10 µs median; the 14-DOF chassis plant alone
+>= 200x real time. Medians of repeated runs; ratios are against baselines timed in the same run.
+"""
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..bus.frames import TICK_S
+from ..native import ffi, lib
+from ..systems.driveline import reference as dkf_ref
+from ..systems.driveline.api import DkfConfig, DrivelineKF
+from ..systems.ecu import Ecu
+
+ROOT = Path(__file__).resolve().parents[2]  # the source checkout: c_core/ is built from here
+
+
+def _median_time(fn, repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times))
+
+
+def _data(n: int, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    wo = 200 + 2 * np.arange(n) * TICK_S
+    z = np.c_[wo + rng.normal(0, 5, n), 0.255 * wo + rng.normal(0, 2, n), 1500 + rng.normal(0, 7, n)]
+    return np.full(n, 170.0), z
+
+
+def c_loop() -> dict[str, tuple[float, float]] | None:
+    """Build c_core/bench/vh_bench.c with the extension's flags and run it: {name: (median_ns, p99_ns)}."""
+    src = ROOT / "c_core" / "bench" / "vh_bench.c"
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if not src.exists() or cc is None:
+        return None
+    sys.path.insert(0, str(ROOT / "c_core"))
+    import vehest_build
+
+    with tempfile.TemporaryDirectory() as tmp:
+        gen = Path(tmp) / "generated"
+        sources = [str(s) for s in vehest_build.firmware_sources(gen)] + [str(src)]
+        inc = [f"-I{d}" for d in vehest_build.bench_include_dirs(gen)]
+        exe = Path(tmp) / "vh_bench"
+        subprocess.run([cc, *vehest_build.STRICT_FLAGS, *vehest_build.OPT_FLAGS, *inc, *sources, "-lm", "-o", str(exe)],
+                       check=True, capture_output=True, text=True)
+        out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout
+    rows = {}
+    for line in out.splitlines():
+        name, _, med, p99 = line.split()
+        rows[name] = (float(med), float(p99))
+    return rows
+
+
+def run(quick: bool = False) -> dict:
+    n = 2000 if quick else 20000
+    repeats = 3 if quick else 7
+    u, z = _data(n)
+    cfg = DkfConfig.default("speeds+torque")
+    res: dict = {"steps": n}
+
+    kf = DrivelineKF(cfg)
+    def array_api():
+        kf.reset()
+        kf.run(u, z)
+
+    res["array_api_ns"] = _median_time(array_api, repeats) / n * 1e9
+
+    f = ffi.new("vh_dkf_t *")
+    lib.vh_dkf_init(f, cfg.to_c())
+    zc = ffi.new("double[3]")
+    step = lib.vh_dkf_step
+
+    def single_calls():
+        for i in range(n):
+            zc[0], zc[1], zc[2] = z[i]
+            step(f, 170.0, zc, 15)
+
+    res["single_cffi_ns"] = _median_time(single_calls, repeats) / n * 1e9
+    m = min(n, 4000)
+    res["numpy_ref_ns"] = _median_time(lambda: dkf_ref.run(cfg, u[:m], z[:m]), max(1, repeats // 2)) / m * 1e9
+    try:
+        from filterpy.kalman import KalmanFilter
+    except ImportError:
+        res["filterpy_ns"] = None
+    else:
+        a, b = dkf_ref.model(cfg)
+        ad, bd = dkf_ref.discretise(a, b, cfg.ts, cfg.disc)
+
+        def filterpy_run():
+            kf2 = KalmanFilter(dim_x=4, dim_z=3, dim_u=1)
+            kf2.F, kf2.B = ad, bd.reshape(4, 1)
+            kf2.H = np.eye(4)[:3]
+            kf2.Q, kf2.R, kf2.P = np.diag(cfg.q), np.diag(cfg.r), np.diag(cfg.p0)
+            kf2.x = np.array([z[0, 0], z[0, 1], z[0, 2], 0.0])
+            for i in range(m):
+                kf2.predict(u=np.array([[u[i]]]))
+                kf2.update(z[i])
+
+        res["filterpy_ns"] = _median_time(filterpy_run, max(1, repeats // 2)) / m * 1e9
+    res["c_loop"] = c_loop()
+    res["tireforce"] = tireforce(c_samples=4000 if quick else 40000, ref_steps=100 if quick else 400,
+                                 repeats=1 if quick else 3)
+    res["chassis_plant"] = chassis_plant(seconds=1.0 if quick else 10.0, repeats=3 if quick else 9)
+    return res
+
+
+def skf_inputs(n: int):
+    """The inputs of c_core/bench/vh_bench_skf.c (0.5 Hz sine steer at 70 km/h, its LCG noise), as tireforce.Inputs."""
+    from ..systems.tireforce.api import Inputs
+
+    t = np.arange(n) * 5e-4
+    vx = 19.44
+    lcg, noise = 12345, np.empty(n)
+    for i in range(n):
+        lcg = (lcg * 1103515245 + 12345) & 0xFFFFFFFF
+        noise[i] = ((lcg >> 16) / 65536.0 - 0.5) * 0.02
+    delta = 0.035 * np.sin(2.0 * 3.14159265358979 * 0.5 * t)
+    r = vx * delta / 2.693 + noise
+    return Inputs(ax=noise.copy(), ay=vx * r + noise, r=r, p=0.01 * np.cos(2.0 * 3.14159265358979 * 0.5 * t) + noise,
+                  delta=delta, omega=np.repeat((vx / 0.305 + noise)[:, None], 4, axis=1), torque=np.full((n, 4), 10.0))
+
+
+def tireforce(c_samples: int = 40000, ref_steps: int = 400, repeats: int = 3) -> dict:
+    """Seed-000 estimators: C-loop steps (bench_c_loop: skfmec_fixed_step, skfmec_double_step,
+    ekf_double_step; {name: (median_ns, p99_ns)}, None without a compiler) and the numpy reference
+    SKFMEC step (skf_ref.run, median ns/step over `ref_steps` steps of the same inputs)."""
+    from ..systems.tireforce import reference as skf_ref
+    from ..systems.tireforce.api import SKFMEC, SkfConfig
+
+    cfg = SkfConfig.default(SKFMEC)
+    inp = skf_inputs(ref_steps)
+    ref_ns = _median_time(lambda: skf_ref.run(cfg, inp.ax, inp.ay, inp.r, inp.p, inp.delta, inp.omega, inp.torque),
+                          repeats) / ref_steps * 1e9
+    return {"c_loop": bench_c_loop(samples=c_samples), "numpy_ref_ns": ref_ns, "ref_steps": ref_steps}
+
+
+def chassis_plant(seconds: float = 10.0, repeats: int = 9) -> dict[str, float]:
+    """The 14-DOF chassis plant alone (vehest_can.systems.tireforce.scenario.bench, what
+    `python -m vehest_can.systems.tireforce.scenario --bench` prints)."""
+    from ..systems.tireforce import scenario as chassis
+
+    return chassis.bench(seconds=seconds, repeats=repeats)
+
+
+def lockstep_factor(drive_factory, repeats: int = 3) -> float:
+    """Median real-time factor of the in-process lockstep of a drive."""
+    from ..sim.session import run_inprocess
+
+    factors = [run_inprocess(drive_factory(), Ecu()).stats["realtime_factor"] for _ in range(repeats)]
+    return float(np.median(factors))
+
+
+def table(res: dict, lockstep: dict[str, float] | None = None) -> str:
+    lines = [f"{'benchmark':<44}{'median':>14}{'vs filterpy':>13}"]
+    fp = res.get("filterpy_ns")
+
+    def row(name, ns, unit="ns/step"):
+        ratio = f"{fp / ns:>11.0f}x" if fp and ns else f"{'-':>12}"
+        lines.append(f"{name:<44}{ns:>9.0f} {unit}{ratio}")
+
+    c = res.get("c_loop") or {}
+    if "dkf_step" in c:
+        row("KF step, C loop", c["dkf_step"][0])
+    row("KF step, Python array API (one call/run)", res["array_api_ns"])
+    row("KF step, one cffi call per step", res["single_cffi_ns"])
+    row("KF step, numpy reference", res["numpy_ref_ns"])
+    if fp:
+        row("KF step, filterpy KalmanFilter", fp)
+    if "ecu_tick" in c:
+        lines.append(f"{'ECU tick (rx+unpack+checks+2 KF+pack), C loop':<44}{c['ecu_tick'][0] / 1000:>9.2f} µs/tick"
+                     f"   p99 {c['ecu_tick'][1] / 1000:.2f} µs (target <= 5 µs)")
+    if "ecu_tick_chassis" in c:
+        lines.append(f"{'ECU tick + CHS frame + fixed SKFMEC, C loop':<44}{c['ecu_tick_chassis'][0] / 1000:>9.2f} µs/tick"
+                     f"   p99 {c['ecu_tick_chassis'][1] / 1000:.2f} µs (target <= 10 µs)")
+    tf = res.get("tireforce") or {}
+    tc, ref = tf.get("c_loop") or {}, tf.get("numpy_ref_ns")
+    for key, name in (("skfmec_fixed_step", "SKFMEC fixed-point step, C loop"),
+                      ("skfmec_double_step", "SKFMEC double step, C loop"), ("ekf_double_step", "EKF double step, C loop")):
+        if key in tc:
+            vs = f"   p99 {tc[key][1]:.0f} ns, {ref / tc[key][0]:.0f}x numpy ref" if ref else ""
+            lines.append(f"{name:<44}{tc[key][0]:>9.0f} ns/step{vs}")
+    if ref:
+        lines.append(f"{'SKFMEC step, numpy reference (skf_ref)':<44}{ref / 1000:>9.0f} µs/step")
+    cp = res.get("chassis_plant")
+    if cp:
+        lines.append(f"{'14-DOF chassis plant alone, C (vh_v14_run)':<44}{cp['us_per_step_cpu_best']:>9.2f} µs/step"
+                     f"   = {cp['x_real_time_cpu_best']:.0f}x real time, best (median {cp['x_real_time_cpu_median']:.0f}x;"
+                     f" target >= 200x)")
+    if "car_tick" in c:
+        lines.append(f"{'car tick (plant + sensor node), C loop':<44}{c['car_tick'][0] / 1000:>9.2f} µs/tick"
+                     f"   = {500 / (c['car_tick'][0] / 1000):.0f}x real time")
+    for name, factor in (lockstep or {}).items():
+        lines.append(f"{'in-process lockstep ' + name:<44}{factor:>9.0f}x real time (target >= 100x)")
+    if fp:
+        lines.append(f"array API vs filterpy: {fp / res['array_api_ns']:.0f}x faster (target >= 100x)")
+    if ref and "skfmec_fixed_step" in tc and "skfmec_double_step" in tc:
+        lines.append(f"fixed-point C step is {ref / tc['skfmec_fixed_step'][0]:.0f}x, double C step "
+                     f"{ref / tc['skfmec_double_step'][0]:.0f}x faster than the numpy reference step")
+    if "ecu_tick" in c and "ecu_tick_chassis" in c:
+        lines.append(f"chassis side of the ECU tick: +{(c['ecu_tick_chassis'][0] - c['ecu_tick'][0]) / 1000:.2f} µs median")
+    return "\n".join(lines)
+
+
+def bench_c_loop(cc: str | None = None, samples: int = 40000) -> dict[str, tuple[float, float]] | None:
+    """Build and run ``c_core/bench/vh_bench_skf.c`` with the extension's flags.
+
+    Returns {name: (median_ns, p99_ns)} for ``skfmec_double_step``, ``ekf_double_step`` and
+    ``skfmec_fixed_step`` (one step timed call by call in a C loop), or None without a compiler.
+    """
+    root = ROOT
+    src = root / "c_core" / "bench" / "vh_bench_skf.c"
+    cc = cc or shutil.which("cc") or shutil.which("gcc")
+    if not src.exists() or cc is None:
+        return None
+    sys.path.insert(0, str(root / "c_core"))
+    import vehest_build
+
+    sources = [src] + [vehest_build.firmware_path(f) for f in ("vh_skf.c", "vh_skfq.c", "vh_skfq_host.c", "vh_fix.c")]
+    with tempfile.TemporaryDirectory() as tmp:
+        exe = Path(tmp) / "vh_bench_skf"
+        subprocess.run([cc, *vehest_build.STRICT_FLAGS, *vehest_build.OPT_FLAGS, *(f"-I{d}" for d in vehest_build.FIRMWARE_DIRS),
+                        *map(str, sources), "-lm", "-o", str(exe)], check=True, capture_output=True, text=True)
+        out = subprocess.run([str(exe), str(samples)], check=True, capture_output=True, text=True).stdout
+    rows = {}
+    for line in out.splitlines():
+        name, _, med, p99 = line.split()
+        rows[name] = (float(med), float(p99))
+    return rows
