@@ -5,7 +5,6 @@ from pathlib import Path
 from setuptools import setup
 from setuptools.command.build_py import build_py
 
-
 DATA = {"dbc": ("dbc", "*.dbc"), "scenarios": ("firmware_sim/scenarios", "*.toml"),
         "scenarios/chassis": ("firmware_sim/scenarios/chassis", "*.toml"),
         "campaigns": ("firmware_sim/campaigns", "*.toml")}

@@ -26,7 +26,7 @@ from vehest_can.sim.session import drive_from_scenario, run_inprocess
 from vehest_can.systems.ecu import Ecu
 
 CI = os.environ.get("CI", "").lower() in ("true", "1")
-HERE = Path(__file__).resolve().parents[1]  # tests/
+HERE = Path(__file__).resolve().parent  # tests/bus/
 ECU_IDS = {m.frame_id for m in database("pt").messages if "VEHEST" in m.senders and m.name != "VEHEST_SyncAck"}
 
 

@@ -1,4 +1,3 @@
-import numpy as np
 import pytest
 
 from vehest_can.systems.roll import evaluate as ev

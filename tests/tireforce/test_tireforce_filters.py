@@ -422,7 +422,8 @@ def build_bench(tmp: Path, name: str, flags: list[str]) -> Path:
     exe = tmp / name
     sources = [ROOT / "c_core" / "bench" / "vh_bench_skf.c"] + [ROOT / "c_core" / f for f in (
         "tireforce/vh_skf.c", "tireforce/vh_skfq.c", "tireforce/vh_skfq_host.c", "common/vh_fix.c")]
-    build = subprocess.run(["cc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", *flags, f"-I{INCLUDE}", f"-I{INCLUDE.parent / 'tireforce'}",
+    build = subprocess.run(["cc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", *flags, f"-I{INCLUDE}",
+             f"-I{INCLUDE.parent / 'tireforce'}",
                             *map(str, sources), "-lm", "-o", str(exe)], capture_output=True, text=True)
     assert build.returncode == 0, build.stderr
     return exe

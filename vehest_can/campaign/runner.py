@@ -145,9 +145,9 @@ def execute(campaign: Campaign, store: Store, *, workers: int, scheduler: str | 
                                    host="127.0.0.1", dashboard_address=None, silence_logs=logging.CRITICAL)
         client = Client(cluster if cluster is not None else scheduler)
         try:
-            futures = [client.submit(run_batch, campaign, b, pure=False) for b in jobs]
-            for f in dask_completed(futures):
-                take(f.result())
+            tasks = [client.submit(run_batch, campaign, b, pure=False) for b in jobs]
+            for task in dask_completed(tasks):
+                take(task.result())
         finally:
             client.close()
             if cluster is not None:

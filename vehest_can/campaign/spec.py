@@ -33,6 +33,7 @@ import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -150,7 +151,7 @@ def set_dotted(doc: dict, key: str, value) -> None:
         node[last] = value
 
 
-def _fail(path: Path, key: str, problem: str):
+def _fail(path: Path, key: str, problem: str) -> NoReturn:
     raise ScenarioError(f"{path}: {key}: {problem}")
 
 
@@ -176,7 +177,7 @@ def load_campaign(path: str | Path) -> Campaign:
     unknown = set(doc) - {"campaign", "vary", "acceptance"}
     if unknown:
         _fail(path, sorted(unknown)[0], "unknown key (expected one of: acceptance, campaign, vary)")
-    top = doc.get("campaign")
+    top: Any = doc.get("campaign")
     if not isinstance(top, dict):
         _fail(path, "campaign", "missing: a campaign file starts with a [campaign] table")
     for k in top:
@@ -207,6 +208,7 @@ def load_campaign(path: str | Path) -> Campaign:
         for a in DISTS[dist]:
             if a not in v:
                 _fail(path, f"{k}.{a}", f"missing (dist = {dist!r} needs {', '.join(DISTS[dist])})")
+        args: tuple
         if dist in ("list", "grid"):
             if not isinstance(v["values"], list) or not v["values"]:
                 _fail(path, f"{k}.values", "must be a non-empty list")
@@ -222,7 +224,7 @@ def load_campaign(path: str | Path) -> Campaign:
         if v.key == FAULT:
             if v.dist not in ("list", "grid"):
                 _fail(path, f"vary[{i}].dist", f'the {FAULT} key takes list or grid (of fault strings)')
-            from ..faults import parse_fault
+            from ..faults.spec import parse_fault
 
             for j, text in enumerate(v.args[0]):
                 if not isinstance(text, str):

@@ -9,15 +9,14 @@ import numpy as np
 
 from ..errors import ScenarioError
 from ..schema import read_toml
-from ..systems import System, claiming, registered
+from ..systems import CampaignRunner, System, claiming, registered
 
 
 def system_for(doc: dict) -> System:
     system = claiming(doc)
     if system is None:
         raise ScenarioError(f"kind: no registered system reads this scenario (kind = {doc.get('kind')!r})")
-    if getattr(system, "campaign", None) is None:
-        raise ScenarioError(f"the {system.name} system takes no campaigns (it has no campaign runner)")
+    _runner(system)
     return system
 
 
@@ -25,14 +24,21 @@ def takes_faults(system: System) -> bool:
     return system.faults is not None
 
 
+def _runner(system: System) -> CampaignRunner:
+    runner = getattr(system, "campaign", None)
+    if runner is None:
+        raise ScenarioError(f"the {system.name} system takes no campaigns (it has no campaign runner)")
+    return runner
+
+
 def validate(system: System, doc: dict, path: Path):
-    return system.campaign.from_dict(doc, path)
+    return _runner(system).from_dict(doc, path)
 
 
 def run(system: System, doc: dict, path: Path, faults: tuple[str, ...] | None, seed: int) -> dict:
     scenario = validate(system, doc, path)
     if faults is None:
-        return system.campaign.run(scenario)
+        return _runner(system).run(scenario)
     return _fault_metrics(system, scenario, faults, seed)
 
 
@@ -46,6 +52,8 @@ def _fault_metrics(system: System, scenario, faults: tuple[str, ...], seed: int)
     from ..systems.ecu import COUNTERS
 
     study = system.faults
+    if study is None:
+        raise ScenarioError(f"the {system.name} system's runs take no faults (it has no fault study)")
     r = run_with_faults(system.car(scenario), faults_from_cli(list(faults), seed=seed % 2**32), study=study)
     after = np.arange(r.n) * TICK_S >= 0.5  # the filters' start-up, as the reports skip it
     out: dict = {}

@@ -7,6 +7,7 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 from ..errors import ConfigError
 
@@ -32,7 +33,8 @@ class Bar:
     """tqdm's bar on a terminal (runs done, rate, ETA, failures); elsewhere a line every 10 %."""
 
     def __init__(self, label: str):
-        self.label, self.bar, self.tty = label, None, sys.stderr.isatty()
+        self.label, self.tty = label, sys.stderr.isatty()
+        self.bar: Any = None
 
     def start(self, total: int, initial: int) -> None:
         from tqdm import tqdm
@@ -40,7 +42,8 @@ class Bar:
         self.bar = tqdm(total=total, initial=initial, desc=self.label, unit="run", dynamic_ncols=True,
                         file=sys.stderr, mininterval=0.5, disable=not self.tty)
         self.bar.set_postfix(failed=0)
-        self.total, self.done, self.decile, self.t0, self.initial = total, initial, initial * 10 // max(total, 1), time.perf_counter(), initial
+        self.total, self.done, self.initial = total, initial, initial
+        self.decile, self.t0 = initial * 10 // max(total, 1), time.perf_counter()
 
     def update(self, n: int, failed: int) -> None:
         self.bar.update(n)

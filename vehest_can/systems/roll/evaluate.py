@@ -37,8 +37,8 @@ def paper_case(speed_kmh: float, steer_deg: float = 5.0, t_ramp=(0.5, 2.5), dura
 
 
 def run_plant(doc: dict) -> np.ndarray:
-    from vehest_can.chassis import chassis_scenario_from_dict
     from vehest_can.native import ffi, lib
+    from vehest_can.systems.tireforce.scenario import tireforce_scenario_from_dict as chassis_scenario_from_dict
 
     sc = chassis_scenario_from_dict(doc)
     return sc.run_truth(ffi, lib)
@@ -239,8 +239,8 @@ def closed_loop_plant(speed_kmh: float = 72.0, active: bool = True, prec: str = 
     from the truth (noise as synthesise(); unsprung acceleration as the mean over the plant tick),
     the applied moments (an actuator status would report them) are the UKF's known inputs, and the
     SMC's command reaches the actuators one plant tick (0.5 ms) later."""
-    from vehest_can.chassis import chassis_scenario_from_dict
     from vehest_can.native import ffi, lib
+    from vehest_can.systems.tireforce.scenario import tireforce_scenario_from_dict as chassis_scenario_from_dict
 
     noise = dict(NOISE, **(noise or {}))
     rng = np.random.default_rng(seed)
@@ -284,7 +284,7 @@ def closed_loop_plant(speed_kmh: float = 72.0, active: bool = True, prec: str = 
         mc.append((mf, mr))
         sh.append(hs)
         uh.append(h)
-    from vehest_can.chassis import truth_to_numpy
+    from vehest_can.systems.tireforce.scenario import truth_to_numpy
     return PlantLoopResult(truth_to_numpy(ffi, out, n), np.array(idx), np.array(xh, float), np.array(mc),
                            m_act, np.array(sh, np.uint32), np.array(uh, np.uint32))
 
@@ -334,7 +334,7 @@ def ukf_vs_ekf(doc: dict, seed: int = 1) -> dict:
     phi_t, p_t = truth["phi"][idx], truth["p"][idx]
     xu, _, _ = rn.Ukf(prm, "f64").run(u, z)
     xe = ref.RefEkf(rn.params_dict(prm)).run(u, z)
-    out = {"peak_ay": float(np.abs(truth["ay"]).max())}
+    out: dict = {"peak_ay": float(np.abs(truth["ay"]).max())}
     for name, x in (("ukf", xu), ("ekf", xe)):
         out[name] = (float(np.sqrt(np.mean((x[:, 4] - phi_t) ** 2)) / np.abs(phi_t).max()),
                      float(np.sqrt(np.mean((x[:, 5] - p_t) ** 2)) / np.abs(p_t).max()))

@@ -2,8 +2,6 @@
 controller in the float32 (ECU) and double (reference) builds of one source."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 
 from vehest_can._roll import ffi, lib

@@ -40,7 +40,8 @@ class RollModel:
         self.fz0 = fs0 + self.mu_c * G
         self.jack = np.where(front, p["hf"], p["hr"]) / t * np.array([-1.0, 1.0, -1.0, 1.0])
         self.t = t
-        ks = lambda kphi, tt: 1.0 / (1.0 / kphi - 1.0 / (2 * p["kt"] * tt**2))
+        def ks(kphi, tt):  # suspension roll stiffness from the total (springs in series with the tyres)
+            return 1.0 / (1.0 / kphi - 1.0 / (2 * p["kt"] * tt**2))
         self.arb_f = (ks(p["kphi_f"], p["tf"]) - 2 * p["k_f"] * p["tf"] ** 2) / (4 * p["tf"] ** 2)
         self.arb_r = (ks(p["kphi_r"], p["tr"]) - 2 * p["k_r"] * p["tr"] ** 2) / (4 * p["tr"] ** 2)
         dpk = p["mu"] * p["mu_load"]

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-UNIT = Path(__file__).resolve().parent.parent / "examples" / "systemd" / "vehest-ecu.service"
+UNIT = Path(__file__).resolve().parents[2] / "examples" / "systemd" / "vehest-ecu.service"
 
 
 def test_systemd_unit_exposure_is_at_most_3():

@@ -231,7 +231,7 @@ max = 7.0
     worst = summary["metrics"]["variants.skfmec-fixed.rms_pct.FL"]
     scenario_file = Path(summary["worst_run_scenarios"][str(worst["worst_run"])])
     assert (tmp_path / "out" / "variants.skfmec-fixed.rms_pct.FL.png").stat().st_size > 10_000
-    from vehest_can.scenario import read_toml
+    from vehest_can.schema import read_toml
     doc = read_toml(scenario_file)
     again = flatten(systems.run(system_for(doc), doc, scenario_file, None, doc["seed"]))
     assert again["variants.skfmec-fixed.rms_pct.FL"] == worst["worst"]
@@ -242,7 +242,7 @@ max = 7.0
 def test_write_run_scenario_is_a_loadable_scenario(tmp_path):
     c = load_campaign(short(tmp_path, runs=3))
     f = write_run_scenario(c, 2, tmp_path / "run2.toml")
-    from vehest_can.scenario import load_scenario
+    from vehest_can.sim.scenario import load_scenario
     sc = load_scenario(f)
     assert sc.duration_s == 1.5 and sc.seed == c.run_doc(2)[0]["seed"]
 

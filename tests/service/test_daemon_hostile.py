@@ -9,12 +9,13 @@ import time
 import numpy as np
 import pytest
 
-from vehest_can import bus as busmod
-from vehest_can.daemon import EcuDaemon
-from vehest_can.report import decode
-from vehest_can.rt import Durations, percentiles_us
-from vehest_can.scenario import load_scenario
-from vehest_can.sim import SimMaster, drive_from_scenario
+from vehest_can.bus import bus as busmod
+from vehest_can.bus.rt import Durations, percentiles_us
+from vehest_can.service.daemon import EcuDaemon
+from vehest_can.sim.report import decode
+from vehest_can.sim.scenario import load_scenario
+from vehest_can.sim.session import SimMaster, drive_from_scenario
+from vehest_can.systems.ecu import Ecu
 
 
 def junk_sender(group: str, port: int, rate_hz: float, stop: threading.Event, sent: list):
@@ -31,7 +32,7 @@ def junk_sender(group: str, port: int, rate_hz: float, stop: threading.Event, se
 def test_garbage_datagrams_between_good_frames_are_counted_and_do_not_stall_the_ecu():
     config = busmod.private_multicast()
     ecu_bus, car_bus = busmod.open_bus(config), busmod.open_bus(config)
-    daemon = EcuDaemon(ecu_bus)
+    daemon = EcuDaemon(ecu_bus, Ecu())
     result = {}
     t = threading.Thread(target=lambda: result.setdefault("stats", daemon.serve_realtime()), daemon=True)
     stop, sent = threading.Event(), []
@@ -80,7 +81,7 @@ def test_durations_are_held_in_fixed_memory_and_agree_with_numpy():
 
 
 def test_ticker_lateness_does_not_grow_with_ticks():
-    from vehest_can.rt import Ticker
+    from vehest_can.bus.rt import Ticker
 
     t = Ticker(1e-5)
     t.start()
