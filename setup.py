@@ -24,6 +24,6 @@ class BuildPyWithData(build_py):
 
 
 setup(
-    cffi_modules=["c_core/vehest_build.py:ffibuilder"],
+    cffi_modules=["c_core/vehest_build.py:ffibuilder", "c_core/xcp/xcp_build.py:ffibuilder"],
     cmdclass={"build_py": BuildPyWithData},
 )
