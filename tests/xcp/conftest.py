@@ -1,0 +1,88 @@
+"""pyxcp, the independent master, against the slave's bridge on python-can's virtual bus."""
+from __future__ import annotations
+
+import itertools
+import logging
+import struct
+
+import can
+import pytest
+
+pyxcp = pytest.importorskip("pyxcp")
+from traitlets.config import Config  # noqa: E402  (pyxcp's configuration system)
+
+from pyxcp.config import General, PyXCP, Transport  # noqa: E402
+from pyxcp.master import Master  # noqa: E402
+
+from vehest_can.xcp import DEMO, Slave, XcpBridge, key_for, load  # noqa: E402
+
+_channels = itertools.count()
+SECRET = 0x5EC0DE42
+
+
+def seed_n_key(secret: int):
+    def compute(resource: int, seed: bytes) -> bytes:
+        return key_for(seed, secret)
+    return compute
+
+
+def make_master(channel: str, desc, *, secret: int | None = SECRET, timeout: float = 1.0) -> Master:
+    c = Config()
+    c.Transport.layer = "CAN"
+    c.Transport.timeout = timeout
+    c.Transport.Can.interface = "virtual"
+    c.Transport.Can.channel = channel
+    c.Transport.Can.can_id_master = desc.cro_id
+    c.Transport.Can.can_id_slave = desc.dto_id
+    c.Transport.Can.fd = desc.fd
+    c.General.connect_retries = 0
+    c.General.disable_error_handling = True  # an ERR response raises at once instead of retrying
+    app = PyXCP(config=c)
+    app.log_level = logging.WARNING
+    app._setup_logger()
+    app.general = General(config=c, parent=app)
+    app.transport = Transport(config=c, parent=app)
+    if secret is not None:
+        app.general.seed_n_key_function = seed_n_key(secret)
+    logging.getLogger("pyxcp").setLevel(logging.WARNING)
+    return Master("can", config=app)
+
+
+class Rig:
+    """A slave on its bridge and a pyxcp master, on one fresh virtual channel."""
+
+    def __init__(self, desc=None, **slave_kw):
+        self.desc = desc or load(DEMO)
+        self.channel = f"xcp-test-{next(_channels)}"
+        self.slave = Slave(self.desc, secret=SECRET, **slave_kw)
+        self.bus = can.Bus(interface="virtual", channel=self.channel, receive_own_messages=False)
+        self.bridge = XcpBridge(self.bus, self.slave).start()
+        self.master = make_master(self.channel, self.desc)
+        self.master.__enter__()
+
+    def connect(self):
+        """CONNECT, then GET_COMM_MODE_INFO (pyxcp's block transfers need MAX_BS/MIN_ST)."""
+        r = self.master.connect()
+        self.master.getCommModeInfo()
+        return r
+
+    def close(self):
+        try:
+            self.master.close()
+        finally:
+            self.bridge.stop()
+            self.bus.shutdown()
+
+    def download(self, name: str, values, fmt: str | None = None):
+        item = self.desc.item(name)
+        from vehest_can.xcp.description import C_TYPES
+        fmt = fmt or "<" + C_TYPES[item.ctype][4] * len(values)
+        self.master.setMta(item.address)
+        self.master.push(item.address, 0, struct.pack(fmt, *values))
+
+
+@pytest.fixture
+def rig():
+    r = Rig()
+    yield r
+    r.close()
