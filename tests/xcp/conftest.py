@@ -86,3 +86,15 @@ def rig():
     r = Rig()
     yield r
     r.close()
+
+
+@pytest.fixture
+def make_rig():
+    rigs = []
+
+    def make(desc=None, **kw):
+        rigs.append(Rig(desc, **kw))
+        return rigs[-1]
+    yield make
+    for r in rigs:
+        r.close()
