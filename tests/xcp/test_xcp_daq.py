@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import logging
+import os
 import threading
 import time
 
@@ -117,7 +118,10 @@ def test_daq_of_every_measurement_loses_nothing(make_rig, fd):
 
 
 def test_daq_at_1ms_on_the_wall_clock(make_rig):
-    """The ECU's 1 ms event channel with the bridge on its own 2 kHz clock: every sample arrives."""
+    """The ECU's 1 ms event channel with the bridge on its own 2 kHz clock: every sample arrives.
+
+    VEHEST_XCP_RT_SECONDS (default 2) sets the length; the acceptance run is 30 s."""
+    seconds = float(os.environ.get("VEHEST_XCP_RT_SECONDS", "2"))
     rig = daq_rig(make_rig, fd=False)
     desc = rig.desc
     meas = [(m.name, m.address, 0, C_TYPES[m.ctype][3]) for m in desc.measurements[:20]]
@@ -130,14 +134,15 @@ def test_daq_at_1ms_on_the_wall_clock(make_rig):
     policy.setup()
     rig.bridge.start_clock()
     policy.start()
-    time.sleep(2.0)
+    time.sleep(seconds)
     policy.stop()
     time.sleep(0.2)
     rig.bridge.stop()
     c = rig.slave.counters()
     col = [h[0] for h in policy.daq_lists[0].headers].index("ecu_tick")
     ticks = [row[col] for _, _, row in policy.samples]
-    assert len(ticks) >= 1500, len(ticks)  # 2 s at 1 kHz, allowing for start/stop latency
+    assert len(ticks) >= 750 * seconds, len(ticks)  # 1 kHz, allowing for start/stop latency
     assert ticks == list(range(ticks[0], ticks[0] + 2 * len(ticks), 2))  # every 2nd tick, none lost
     assert c["dto_overrun"] == 0
-    print(f"\nDAQ 1 ms on the clock: {len(ticks)} samples of 20 measurements, {c['dto']} DTOs, 0 lost")
+    print(f"\nDAQ 1 ms on the clock, {seconds:g} s: {len(ticks)} samples of 20 measurements, "
+          f"{c['dto']} DTOs, 0 lost, bridge at tick {rig.bridge.tick}")
