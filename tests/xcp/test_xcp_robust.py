@@ -175,3 +175,17 @@ def test_short_and_unknown_cros():
     assert answer(s, b"\xFC") == bytes([0xFE, 0x00])  # SYNCH -> ERR_CMD_SYNCH
     c = s.counters()
     assert (c["err_syntax"], c["err_unknown"], c["ignored"], c["err"]) == (3, 2, 2, 5)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(cro, min_size=1, max_size=30))
+def test_the_slave_is_deterministic(cros):
+    """Two instances fed the same CROs and ticks answer byte for byte the same (seeds included)."""
+    a, b = unlocked(), unlocked()
+    for i, c in enumerate([CONNECT] + cros):
+        for s in (a, b):
+            s.rx(c, i)
+            s.tick(i)
+            s.event(0)
+        assert a.frames() == b.frames()
+    assert a.counters() == b.counters() and memory(a) == memory(b)
