@@ -606,18 +606,30 @@ static void cmd_get_daq_resolution_info(vh_xcp_t *x)
 
 static void cmd_get_daq_event_info(vh_xcp_t *x, uint16_t ev)
 {
+    const char *name;
+    size_t n;
     uint8_t *r;
     if (ev >= x->cfg.n_events) {
         res_err(x, ERR_OUT_OF_RANGE);
         return;
     }
+    name = x->cfg.events[ev].name;
+    n = (name != NULL) ? strlen(name) : 0u;
+    if (n > VH_XCP_ID_MAX) {
+        n = VH_XCP_ID_MAX;
+    }
     r = res_begin(x, 7u);
-    r[1] = 0x04u;  /* DAQ_EVENT_PROPERTIES: DAQ */
+    /* DAQ_EVENT_PROPERTIES: DAQ; CONSISTENCY = EVENT (every list of the event is sampled in one
+     * call, with no ECU code running in between) */
+    r[1] = 0x84u;
     r[2] = 0xFFu;  /* MAX_DAQ_LIST: any number */
-    r[3] = 0u;     /* no name (the A2L names the events) */
+    r[3] = (uint8_t)n;
     r[4] = x->cfg.events[ev].cycle;
     r[5] = x->cfg.events[ev].unit;
     r[6] = 0u;
+    x->mta_is_id = 1u; /* the name is uploaded from the MTA */
+    x->mta_id = name;
+    x->mta = 0u;
 }
 
 static void cmd_get_daq_clock(vh_xcp_t *x)

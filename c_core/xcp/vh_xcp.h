@@ -75,7 +75,8 @@ typedef struct {
 } vh_xcp_char_t;
 
 typedef struct {
-    uint8_t cycle;    /* GET_DAQ_EVENT_INFO: EVENT_CHANNEL_TIME_CYCLE ... */
+    const char *name; /* GET_DAQ_EVENT_INFO: uploaded from the MTA, like GET_ID */
+    uint8_t cycle;    /* EVENT_CHANNEL_TIME_CYCLE ... */
     uint8_t unit;     /* ... in EVENT_CHANNEL_TIME_UNIT (3 = 1 us, 4 = 10 us, 5 = 100 us, 6 = 1 ms) */
 } vh_xcp_event_t;
 
@@ -163,7 +164,7 @@ typedef struct {
     uint32_t seed;
     uint32_t seed_state; /* LCG, deterministic */
     uint32_t tick;
-    /* MTA: memory address, or the GET_ID string */
+    /* MTA: memory address, or a string (GET_ID, GET_DAQ_EVENT_INFO) */
     uint32_t mta;
     uint8_t mta_is_id;
     const char *mta_id;

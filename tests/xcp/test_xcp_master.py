@@ -172,3 +172,16 @@ def test_calibration_pages(rig):
     assert rig.slave.read("dkf_r_torque") == 200.0
     with pytest.raises(ERR):
         rig.master.setCalPage(0x03, 0, 2)  # no page 2
+
+
+def test_daq_info_names_the_ecu_event_channels(rig):
+    rig.connect()
+    info = rig.master.getDaqInfo(include_event_lists=True)
+    assert info["processor"]["properties"]["configType"] == "DYNAMIC"
+    assert info["processor"]["maxDaq"] == 8
+    assert info["resolution"]["timestampTicks"] == 500
+    ev = info["channels"]
+    assert [e["name"] for e in ev] == ["tick", "1ms", "10ms"]
+    assert [(e["cycle"], e["unit"]) for e in ev] == [(50, "EVENT_CHANNEL_TIME_UNIT_10US"),
+                                                      (100, "EVENT_CHANNEL_TIME_UNIT_10US"),
+                                                      (100, "EVENT_CHANNEL_TIME_UNIT_100US")]

@@ -217,7 +217,7 @@ def _if_data_xcp(d: Description) -> list[str]:
         f"IDENTIFICATION_FIELD_TYPE_ABSOLUTE GRANULARITY_ODT_ENTRY_SIZE_DAQ_BYTE {d.max_dto - 1} NO_OVERLOAD_INDICATION",
         "    PRESCALER_SUPPORTED",
         # one timestamp tick per ECU tick (TIMESTAMP_TICKS in 1 us), 4 bytes: the tick count
-        "    /begin TIMESTAMP_SUPPORTED 500 SIZE_DWORD UNIT_1US",
+        f"    /begin TIMESTAMP_SUPPORTED {d.tick_us} SIZE_DWORD UNIT_1US",
         "    /end TIMESTAMP_SUPPORTED",
     ]
     for ch, ev in enumerate(d.events):

@@ -19,18 +19,18 @@ from .slave import EXTENDED, Slave
 
 
 class XcpBridge:
-    def __init__(self, bus: can.BusABC, slave: Slave, *, tick_us: int = 500,
+    def __init__(self, bus: can.BusABC, slave: Slave, *, tick_us: int | None = None,
                  on_tick: Callable[[int], None] | None = None):
         self.bus = bus
         self.slave = slave
-        self.tick_us = tick_us
+        self.tick_us = slave.desc.tick_us if tick_us is None else tick_us
         self.on_tick = on_tick
         self.tick = 0
         d = slave.desc
         self._cro_id = d.cro_id & 0x1FFFFFFF
         self._cro_ext = bool(d.cro_id & EXTENDED)
         # event channel -> period in ticks (every tick, 1 ms, 10 ms for the ECU's channels)
-        self.periods = [max(1, ev.cycle_us // tick_us) for ev in d.events]
+        self.periods = [max(1, ev.cycle_us // self.tick_us) for ev in d.events]
         self.sent = 0
         self._lock = threading.Lock()
         self._notifier: can.Notifier | None = None

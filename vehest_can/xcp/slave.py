@@ -59,7 +59,7 @@ class Slave:
     """One C slave instance and the memory it serves (all kept alive by this object)."""
 
     def __init__(self, desc: Description, *, secret: int = 0x5EC0DE42, protect: int = 0x05,
-                 tick_us: int = 500, open_ticks: int = 200, pad8: bool = False,
+                 tick_us: int | None = None, open_ticks: int = 200, pad8: bool = False,
                  ident: str = "vehest-can ECU XCP slave"):
         self.desc = desc
         self.secret = secret
@@ -83,13 +83,16 @@ class Slave:
         events = ffi.new("vh_xcp_event_t[]", max(len(desc.events), 1))
         for i, ev in enumerate(desc.events):
             events[i].cycle, events[i].unit = ev.xcp_cycle_unit()
+            self._keep.append(ffi.new("char[]", ev.name.encode()))
+            events[i].name = self._keep[-1]
         id_ascii = ffi.new("char[]", ident.encode())
         id_a2l = ffi.new("char[]", desc.name.encode())
         self._keep += [regions, chars, events, id_ascii, id_a2l]
         cfg = ffi.new("vh_xcp_config_t *")
         cfg.cro_id, cfg.dto_id = desc.cro_id, desc.dto_id
         cfg.max_cto, cfg.max_dto, cfg.fd, cfg.pad8 = desc.max_cto, desc.max_dto, desc.fd, pad8
-        cfg.protect, cfg.secret, cfg.tick_us, cfg.open_ticks = protect, secret, tick_us, open_ticks
+        cfg.protect, cfg.secret, cfg.open_ticks = protect, secret, open_ticks
+        cfg.tick_us = desc.tick_us if tick_us is None else tick_us
         cfg.regions, cfg.n_regions = regions, 1
         cfg.cal_address, cfg.cal_size = desc.calibration_address, desc.calibration_size
         cfg.cal_ref, cfg.cal_work, cfg.cal_ecu = self.cal_ref, self.cal_work, self.cal_ecu

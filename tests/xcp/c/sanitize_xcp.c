@@ -45,7 +45,7 @@ static const vh_xcp_region_t REGIONS[] = {
     {MEAS_ADDR, 48u, VH_XCP_ACC_READ | VH_XCP_ACC_DAQ, meas},
     {MEAS_ADDR + 48u, 16u, VH_XCP_ACC_READ, meas + 48},
 };
-static const vh_xcp_event_t EVENTS[] = {{50u, 4u}, {1u, 6u}, {10u, 6u}};
+static const vh_xcp_event_t EVENTS[] = {{"tick", 50u, 4u}, {"1ms", 1u, 6u}, {NULL, 10u, 6u}};
 
 static void check_limits(const uint8_t *page)
 {
