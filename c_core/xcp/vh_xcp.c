@@ -699,16 +699,18 @@ static void cmd_alloc_odt_entry(vh_xcp_t *x, uint16_t list, uint8_t odt, uint8_t
         return;
     }
     o = &x->odt[x->daq[list].first_odt + odt];
-    if (o->entry_count != 0u) {
-        res_err(x, ERR_SEQUENCE);
+    if (o->allocated) {
+        res_err(x, ERR_SEQUENCE); /* one ALLOC_ODT_ENTRY per ODT */
         return;
     }
-    if (count == 0u || (uint32_t)x->n_entries + count > VH_XCP_MAX_ENTRIES) {
+    /* zero entries is legal: on classic CAN a first ODT may have room for its timestamp only */
+    if ((uint32_t)x->n_entries + count > VH_XCP_MAX_ENTRIES) {
         res_err(x, ERR_MEMORY_OVERFLOW);
         return;
     }
     o->first_entry = x->n_entries;
     o->entry_count = count;
+    o->allocated = 1u;
     x->n_entries = (uint16_t)(x->n_entries + count);
     x->daq_state = DAQ_ENTRIES;
     res_ok(x);
@@ -818,13 +820,16 @@ static void cmd_get_daq_list_mode(vh_xcp_t *x, uint16_t list)
     r[7] = x->daq[list].priority;
 }
 
-/* A list can run when every ODT entry is written and every ODT fits a DTO. */
+/* A list can run when every ODT has its entries allocated and written, and fits a DTO. */
 static bool daq_list_valid(const vh_xcp_t *x, const vh_xcp_daq_t *d)
 {
     unsigned j, k;
     for (j = 0; j < d->odt_count; ++j) {
         const vh_xcp_odt_t *o = &x->odt[d->first_odt + j];
         unsigned cap = x->cfg.max_dto - 1u - ((j == 0u && (d->mode & MODE_TIMESTAMP)) ? TS_SIZE : 0u);
+        if (!o->allocated) {
+            return false;
+        }
         for (k = 0; k < o->entry_count; ++k) {
             if (x->entry[o->first_entry + k].size == 0u) {
                 return false;

@@ -147,7 +147,8 @@ typedef struct {
 
 typedef struct {
     uint16_t first_entry;
-    uint8_t entry_count;
+    uint8_t entry_count; /* 0 is allowed: an ODT that carries only the timestamp */
+    uint8_t allocated;
 } vh_xcp_odt_t;
 
 typedef struct {

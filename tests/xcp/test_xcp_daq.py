@@ -146,3 +146,28 @@ def test_daq_at_1ms_on_the_wall_clock(make_rig):
     assert c["dto_overrun"] == 0
     print(f"\nDAQ 1 ms on the clock, {seconds:g} s: {len(ticks)} samples of 20 measurements, "
           f"{c['dto']} DTOs, 0 lost, bridge at tick {rig.bridge.tick}")
+
+
+def test_daq_of_4_byte_items_with_a_timestamp_on_classic_can(make_rig):
+    """Only 4-byte items: the first ODT (3 bytes free after PID and timestamp) carries the
+    timestamp alone, an ODT of zero entries (pyxcp allocates it so)."""
+    rig = daq_rig(make_rig, fd=False)
+    desc = rig.desc
+    items = [m for m in desc.measurements if C_TYPES[m.ctype][1] == 4]
+    meas = [(m.name, m.address, 0, C_TYPES[m.ctype][3]) for m in items]
+    policy = Collect([DaqList(name="wide", event_num=0, stim=False, enable_timestamps=True,
+                              measurements=meas, priority=0, prescaler=1)])
+    rig.master.transport.policy = policy
+    policy.xcp_master = rig.master
+    rig.connect()
+    rig.master.cond_unlock("daq")
+    policy.setup()
+    policy.start()
+    policy.want = 50
+    rig.bridge.advance(50)
+    assert policy.done.wait(10), len(policy.samples)
+    policy.stop()
+    col = [h[0] for h in policy.daq_lists[0].headers].index("ecu_tick")
+    ticks = [row[col] for _, _, row in policy.samples]
+    assert ticks == list(range(1, 51))
+    assert rig.slave.counters()["dto"] == 50 * rig.slave.x.daq[0].odt_count
