@@ -10,10 +10,15 @@ import struct
 
 from hypothesis import HealthCheck, given, settings, strategies as st
 
+import tomllib
+
 from vehest_can.xcp import DEMO, Slave, key_for, load
+from vehest_can.xcp.description import from_dict
 from vehest_can.xcp.slave import raw_limits_for_c
 
 DESC = load(DEMO)
+FD_DESC = from_dict({**tomllib.loads(DEMO.read_text()),
+                     "xcp": {**tomllib.loads(DEMO.read_text())["xcp"], "fd": True, "max_cto": 64, "max_dto": 64}})
 SECRET = 0x5EC0DE42
 KNOWN = [0xFF, 0xFE, 0xFD, 0xFC, 0xFB, 0xFA, 0xF8, 0xF7, 0xF6, 0xF5, 0xF4, 0xF0, 0xED, 0xEB, 0xEA, 0xE9,
          0xE3, 0xE2, 0xE1, 0xE0, 0xDF, 0xDE, 0xDD, 0xDC, 0xDA, 0xD9, 0xD7, 0xD6, 0xD5, 0xD4, 0xD3]
@@ -29,8 +34,8 @@ def answer(s: Slave, cro: bytes) -> bytes | None:
     return frames[0].data if frames else None
 
 
-def unlocked() -> Slave:
-    s = Slave(DESC, secret=SECRET)
+def unlocked(desc=DESC, **kw) -> Slave:
+    s = Slave(desc, secret=SECRET, **kw)
     assert answer(s, CONNECT)[0] == 0xFF
     for res in (0x01, 0x04):
         seed = answer(s, bytes([0xF8, 0x00, res]))  # GET_SEED
@@ -55,7 +60,9 @@ def check_limits(s: Slave) -> None:
 
 
 def well_formed(resp: bytes, s: Slave) -> None:
-    assert 1 <= len(resp) <= DESC.max_cto
+    assert 1 <= len(resp) <= s.desc.max_cto
+    if s.desc.fd and len(resp) > 8:
+        assert len(resp) in (12, 16, 20, 24, 32, 48, 64)
     assert resp[0] in (0xFF, 0xFE)
     if resp[0] == 0xFE:
         assert len(resp) >= 2 and resp[1] in ERROR_CODES
@@ -64,13 +71,16 @@ def well_formed(resp: bytes, s: Slave) -> None:
 cro = st.one_of(
     st.binary(min_size=0, max_size=12),
     st.tuples(st.sampled_from(KNOWN), st.binary(min_size=0, max_size=9)).map(lambda t: bytes([t[0]]) + t[1]),
+    st.tuples(st.sampled_from(KNOWN), st.binary(min_size=0, max_size=66)).map(lambda t: bytes([t[0]]) + t[1]),
 )
+variant = st.sampled_from([(DESC, False), (DESC, True), (FD_DESC, False)])  # classic, classic padded, FD
 
 
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(st.lists(cro, min_size=1, max_size=40), st.booleans())
-def test_random_cros_never_crash_and_always_answer_well(cros, unlock):
-    s = unlocked() if unlock else Slave(DESC, secret=SECRET)
+@given(st.lists(cro, min_size=1, max_size=40), st.booleans(), variant)
+def test_random_cros_never_crash_and_always_answer_well(cros, unlock, var):
+    desc, pad8 = var
+    s = unlocked(desc, pad8=pad8) if unlock else Slave(desc, secret=SECRET, pad8=pad8)
     meas0, ref0, _ = memory(s)
     for i, c in enumerate(cros):
         was_connected = s.x.connected
