@@ -185,3 +185,28 @@ def test_daq_info_names_the_ecu_event_channels(rig):
     assert [(e["cycle"], e["unit"]) for e in ev] == [(50, "EVENT_CHANNEL_TIME_UNIT_10US"),
                                                       (100, "EVENT_CHANNEL_TIME_UNIT_10US"),
                                                       (100, "EVENT_CHANNEL_TIME_UNIT_100US")]
+
+
+def test_can_fd_short_download_and_a_matrix_in_two_frames(make_rig):
+    import tomllib
+    from vehest_can.xcp import DEMO
+    from vehest_can.xcp.description import from_dict
+    d = tomllib.loads(DEMO.read_text())
+    d["xcp"].update(fd=True, max_cto=64, max_dto=64)
+    rig = make_rig(from_dict(d))
+    r = rig.connect()
+    assert r.maxCto == 64 and r.maxDto == 64
+    rig.master.cond_unlock("calpag")
+    item = rig.desc.item("dkf_r_torque")
+    rig.master.shortDownload(item.address, 0, struct.pack("<f", 42.0))  # 8-byte header + data
+    g = rig.desc.item("skf_gain")
+    new = [float(i) / 2 for i in range(-8, 8)]
+    blob = struct.pack("<16f", *new)
+    rig.master.setMta(g.address)
+    rig.master.download(blob[:62])  # MAX_CTO - 2 bytes in one frame: the matrix is still open
+    rig.bridge.advance(1)
+    assert rig.slave.read("skf_gain") != new
+    rig.master.download(blob[62:])
+    rig.bridge.advance(1)
+    assert rig.slave.read("skf_gain") == new and rig.slave.read("dkf_r_torque") == 42.0
+    assert struct.unpack("<16f", rig.master.shortUpload(63, g.address)[:63] + b"\0")[:15] == tuple(new[:15])
