@@ -32,6 +32,7 @@ class XcpBridge:
         # event channel -> period in ticks (every tick, 1 ms, 10 ms for the ECU's channels)
         self.periods = [max(1, ev.cycle_us // self.tick_us) for ev in d.events]
         self.sent = 0
+        self.tx_errors = 0
         self._lock = threading.Lock()
         self._notifier: can.Notifier | None = None
         self._clock: threading.Thread | None = None
@@ -47,9 +48,12 @@ class XcpBridge:
 
     def _send(self) -> None:
         for f in self.slave.frames():
-            self.bus.send(can.Message(arbitration_id=f.arbitration_id, is_extended_id=f.is_extended_id,
-                                      is_fd=f.is_fd, bitrate_switch=f.is_fd, data=f.data))
-            self.sent += 1
+            try:
+                self.bus.send(can.Message(arbitration_id=f.arbitration_id, is_extended_id=f.is_extended_id,
+                                          is_fd=f.is_fd, bitrate_switch=f.is_fd, data=f.data))
+                self.sent += 1
+            except can.CanError:
+                self.tx_errors += 1  # a full TX buffer: counted, the master sees a lost DTO or a timeout
 
     # -- ticks ------------------------------------------------------------------------------------
     def advance(self, n: int = 1) -> None:

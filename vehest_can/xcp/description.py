@@ -185,6 +185,9 @@ def _layout(rows: list[dict], kind: str, base: int) -> tuple[Item, ...]:
             raise DescriptionError(f"{name}: address 0x{address:X} overlaps the item before it")
         initial = row.pop("initial", 0.0)
         initial = tuple(initial) if isinstance(initial, (list, tuple)) else (initial,) * (math.prod(shape) if shape else 1)
+        unknown = set(row) - {"unit", "min", "max", "factor", "offset", "comment"}
+        if unknown:
+            raise DescriptionError(f"{name}: unknown keys {', '.join(sorted(unknown))}")
         item = Item(name=name, ctype=ctype, kind=kind, address=address, shape=shape, initial=initial, **row)
         if item.factor == 0.0:
             raise DescriptionError(f"{name}: factor 0 has no inverse")
