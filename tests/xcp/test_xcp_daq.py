@@ -9,7 +9,8 @@ import time
 import can
 import pytest
 
-from pyxcp.daq_stim import DaqList, DaqOnlinePolicy
+pytest.importorskip("pyxcp")
+from pyxcp.daq_stim import DaqList, DaqOnlinePolicy  # noqa: E402
 
 from vehest_can.xcp.description import C_TYPES
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 import struct
 
 import pytest
-from pyxcp import types
+
+types = pytest.importorskip("pyxcp.types")
 
 ERR = types.XcpResponseError
 
