@@ -199,3 +199,28 @@ def test_the_slave_is_deterministic(cros):
             s.event(0)
         assert a.frames() == b.frames()
     assert a.counters() == b.counters() and memory(a) == memory(b)
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.floats(-10, 10, width=32), min_size=16, max_size=16),
+       st.lists(st.integers(1, 6), min_size=1, max_size=64), st.lists(st.booleans(), min_size=64, max_size=64))
+def test_the_ecu_never_sees_a_matrix_half_written(new, chunks, tick_after):
+    """Any chunking of the DOWNLOADs and any ticks in between: the ECU page holds the old matrix
+    until the last byte is written and the new one from the next tick on, never a mix."""
+    s = unlocked(open_ticks=0)
+    g = DESC.item("skf_gain")
+    old = s.read("skf_gain")
+    blob = struct.pack("<16f", *new)
+    new = list(struct.unpack("<16f", blob))
+    answer(s, bytes([0xF6, 0, 0, 0]) + struct.pack("<I", g.address))
+    pos, tick, k = 0, 0, 0
+    while pos < len(blob):
+        n = chunks[k % len(chunks)]
+        part = blob[pos:pos + n]
+        assert answer(s, bytes([0xF0, len(part)]) + part) == b"\xFF"
+        pos += len(part)
+        if tick_after[k % 64] or pos == len(blob):
+            tick += 1
+            s.tick(tick)
+            assert s.read("skf_gain") == (new if pos == len(blob) else old)
+        k += 1
