@@ -224,3 +224,15 @@ def test_the_ecu_never_sees_a_matrix_half_written(new, chunks, tick_after):
             s.tick(tick)
             assert s.read("skf_gain") == (new if pos == len(blob) else old)
         k += 1
+
+
+def test_one_element_in_the_middle_of_a_matrix_commits_after_open_ticks():
+    s = unlocked(open_ticks=200)
+    g = DESC.item("skf_gain")
+    answer(s, bytes([0xF6, 0, 0, 0]) + struct.pack("<I", g.address + 5 * 4))
+    assert answer(s, bytes([0xF0, 4]) + struct.pack("<f", 7.5)) == b"\xFF"
+    for t in range(1, 200):
+        s.tick(t)
+        assert s.read("skf_gain")[5] == 1.0  # the identity matrix of the reference page
+    s.tick(200)  # 200 ticks (100 ms) without a further write: the master is done
+    assert s.read("skf_gain")[5] == 7.5 and s.counters()["cal_commits"] == 1
