@@ -164,7 +164,8 @@ def _layout_name(ctype: str) -> str:
 
 
 def _compu(item: Item) -> list[str]:
-    fmt = '"%.6g"' if item.ctype in ("float", "double") else '"%8.3f"' if item.factor != 1.0 else '"%.0f"'
+    # ASAP2 display format "%Length.Layout" (total width, decimals), no type letter
+    fmt = '"%12.6"' if item.ctype in ("float", "double") else '"%10.3"' if item.factor != 1.0 else '"%10.0"'
     return [
         f"/begin COMPU_METHOD {item.compu_name} {_q(item.name + ' conversion')}",
         f"  LINEAR {fmt} {_q(item.unit)}",
@@ -277,7 +278,7 @@ def generate(d: Description) -> str:
     body += _if_data_xcp(d)
     body += [
         "/begin COMPU_METHOD CM_IDENTICAL \"no conversion\"",
-        "  IDENTICAL \"%.6g\" \"\"",
+        "  IDENTICAL \"%12.6\" \"\"",
         "/end COMPU_METHOD",
     ]
     for item in sorted((i for i in items if i.compu_name != "CM_IDENTICAL"), key=lambda i: i.name):
