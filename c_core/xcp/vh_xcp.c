@@ -185,6 +185,24 @@ static uint32_t char_size(const vh_xcp_char_t *c)
     return (uint32_t)c->count * type_size(c->type);
 }
 
+static bool in_limits(const vh_xcp_char_t *c, double v)
+{
+    return v >= c->min && v <= c->max; /* false for a NaN */
+}
+
+/* Every element of characteristic c (its bytes at p) within its limits. */
+static bool char_valid(const vh_xcp_char_t *c, const uint8_t *p)
+{
+    uint16_t e;
+    uint8_t es = type_size(c->type);
+    for (e = 0; e < c->count; ++e) {
+        if (!in_limits(c, element(p + (uint32_t)e * es, c->type))) {
+            return false;
+        }
+    }
+    return true;
+}
+
 int vh_xcp_init(vh_xcp_t *x, const vh_xcp_config_t *cfg)
 {
     unsigned i, j;
@@ -283,10 +301,18 @@ void vh_xcp_tick(vh_xcp_t *x, uint32_t tick)
         bool stale = (x->char_state[i] & CHAR_OPEN) && x->cfg.open_ticks > 0u &&
                      (uint32_t)(tick - x->char_tick[i]) >= x->cfg.open_ticks;
         if (x->char_state[i] == CHAR_PENDING || stale) {
-            uint32_t off = x->cfg.chars[i].address - x->cfg.cal_address;
-            memcpy(x->cfg.cal_ecu + off, x->cfg.cal_work + off, char_size(&x->cfg.chars[i]));
+            const vh_xcp_char_t *c = &x->cfg.chars[i];
+            uint32_t off = c->address - x->cfg.cal_address;
+            if (char_valid(c, x->cfg.cal_work + off)) {
+                memcpy(x->cfg.cal_ecu + off, x->cfg.cal_work + off, char_size(c));
+                x->n.cal_commits++;
+            } else {
+                /* an element left half written (its range check never ran) holds a value out of
+                 * range: the write is dropped, the working page takes the ECU's value back */
+                memcpy(x->cfg.cal_work + off, x->cfg.cal_ecu + off, char_size(c));
+                x->n.cal_dropped++;
+            }
             x->char_state[i] = 0u;
-            x->n.cal_commits++;
         }
     }
 }
@@ -498,7 +524,7 @@ static void download(vh_xcp_t *x, const uint8_t *data, uint8_t n)
                 continue;
             }
             v = element(x->cfg.cal_work + (c->address - x->cfg.cal_address) + e * es, c->type);
-            if (!(v >= c->min && v <= c->max)) {
+            if (!in_limits(c, v)) {
                 memcpy(x->cfg.cal_work + off, undo, n);
                 res_err(x, ERR_OUT_OF_RANGE);
                 return;

@@ -131,6 +131,7 @@ typedef struct {
     uint32_t key_fail;      /* wrong keys (the slave disconnects) */
     uint32_t cal_writes;    /* DOWNLOADs accepted */
     uint32_t cal_commits;   /* characteristics copied to the ECU page at a tick boundary */
+    uint32_t cal_dropped;   /* written part-way, out of range when due (never reach the ECU) */
     uint32_t dto;           /* DTO frames queued */
     uint32_t dto_overrun;   /* samples dropped: TX queue full */
 } vh_xcp_counters_t;

@@ -77,8 +77,13 @@ class Rig:
         item = self.desc.item(name)
         from vehest_can.xcp.description import C_TYPES
         fmt = fmt or "<" + C_TYPES[item.ctype][4] * len(values)
+        blob = struct.pack(fmt, *values)
+        # one DOWNLOAD per MAX_CTO - 2 bytes, each waiting for its RES: pyxcp's push() sends all
+        # but the last chunk without waiting (block_request), which races the tick in a test
         self.master.setMta(item.address)
-        self.master.push(item.address, 0, struct.pack(fmt, *values))
+        step = self.desc.max_cto - 2
+        for i in range(0, len(blob), step):
+            self.master.download(blob[i:i + step])
 
 
 @pytest.fixture

@@ -4,7 +4,8 @@
  * (connect, seed & key, a DAQ list, downloads) and then random CROs - raw bytes and frames that
  * start with a real command code - with ticks and events in between, over every configuration
  * variant (classic/FD, byte order, padding). After every CRO: at most one answer, well formed;
- * the reference page and the measurement memory unchanged; every characteristic within limits.
+ * the reference page and the measurement memory unchanged; every characteristic the ECU sees
+ * within limits.
  * Any sanitizer report aborts with a non-zero status (-fno-sanitize-recover=all).
  */
 #include <math.h>
@@ -272,8 +273,7 @@ static void run_variant(int fd, int big, int pad8, unsigned rounds)
             dto += answers(x, cfg.max_cto, cfg.max_dto, 0);
         }
         if (memcmp(meas, meas_copy, sizeof meas) != 0) FAIL("measurement memory written");
-        check_limits(cal_work);
-        check_limits(cal_ecu);
+        check_limits(cal_ecu); /* the working page may hold a half-written element */
         check_limits(cal_ref);
         if (!x->connected && (rnd() % 8u) == 0u) {
             const uint8_t con[2] = {0xFF, 0x00};
