@@ -103,3 +103,10 @@ def make_rig():
     yield make
     for r in rigs:
         r.close()
+
+
+@pytest.fixture
+def pyxcp_master():
+    """make_master(channel, desc) as a fixture (test modules cannot import this conftest by name:
+    tests/conftest.py is a "conftest" too)."""
+    return make_master
