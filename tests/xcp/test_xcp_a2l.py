@@ -72,3 +72,11 @@ def test_pya2l_parses_it():
         no_if = re.sub(rb"/begin IF_DATA.*?/end IF_DATA", b"", text, flags=re.S)
         p.tree_from_a2l(no_if, enforce_version_check=True)
         assert p.warnings == []
+
+
+def test_the_generator_does_not_need_the_c_extension():
+    code = ("import sys; sys.modules['vehest_can._xcp'] = None\n"  # importing it would fail
+            "from vehest_can.xcp import a2l, load, DEMO\n"
+            "assert 'CHARACTERISTIC' in a2l.generate(load(DEMO))\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
