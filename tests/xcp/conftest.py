@@ -20,7 +20,7 @@ def seed_n_key(secret: int):
     return compute
 
 
-def make_master(channel: str, desc, *, secret: int | None = SECRET, timeout: float = 1.0):
+def make_master(channel: str, desc, *, secret: int | None = SECRET, timeout: float = 1.0, bus=None):
     """A pyxcp master (skips the test when pyxcp is not installed: the C-only tests still run)."""
     pytest.importorskip("pyxcp")
     from pyxcp.config import General, PyXCP, Transport
@@ -30,7 +30,7 @@ def make_master(channel: str, desc, *, secret: int | None = SECRET, timeout: flo
     c = Config()
     c.Transport.layer = "CAN"
     c.Transport.timeout = timeout
-    c.Transport.Can.interface = "virtual"
+    c.Transport.Can.interface = "virtual" if bus is None else "custom"
     c.Transport.Can.channel = channel
     c.Transport.Can.can_id_master = desc.cro_id
     c.Transport.Can.can_id_slave = desc.dto_id
@@ -45,7 +45,7 @@ def make_master(channel: str, desc, *, secret: int | None = SECRET, timeout: flo
     if secret is not None:
         app.general.seed_n_key_function = seed_n_key(secret)
     logging.getLogger("pyxcp").setLevel(logging.WARNING)
-    return Master("can", config=app)
+    return Master("can", config=app, transport_layer_interface=bus)
 
 
 class Rig:

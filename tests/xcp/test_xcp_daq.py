@@ -172,3 +172,47 @@ def test_daq_of_4_byte_items_with_a_timestamp_on_classic_can(make_rig):
     ticks = [row[col] for _, _, row in policy.samples]
     assert ticks == list(range(1, 51))
     assert rig.slave.counters()["dto"] == 50 * rig.slave.x.daq[0].odt_count
+
+
+@pytest.mark.multicast
+def test_pyxcp_over_the_projects_host_only_multicast_bus(pyxcp_master):
+    """The project's default bus (udp_multicast joined on loopback, TTL 0: this host only), a
+    private group/port: pyxcp is handed a ready bus (transport_layer_interface) and sets up DAQ."""
+    from vehest_can import bus as busmod
+    from vehest_can.xcp import DEMO, Slave, XcpBridge, load
+
+    desc = load(DEMO)
+    cfg = busmod.private_multicast()
+    slave_bus, master_bus = busmod.open_bus(cfg), busmod.open_bus(cfg)
+    assert slave_bus.host_only and master_bus.host_only
+    slave = Slave(desc, secret=0x5EC0DE42)
+    bridge = XcpBridge(slave_bus, slave,
+                       on_tick=lambda t: slave.write_measurement("ecu_tick", t)).start()
+    try:
+        m = pyxcp_master(None, desc, bus=master_bus)
+        meas = [(x.name, x.address, 0, C_TYPES[x.ctype][3]) for x in desc.measurements]
+        policy = Collect([DaqList(name="mc", event_num=2, stim=False, enable_timestamps=True,
+                                  measurements=meas, priority=0, prescaler=1)])
+        m.transport.policy = policy
+        policy.xcp_master = m
+        with m:
+            m.connect()
+            m.getCommModeInfo()
+            assert m.identifier(0) == "vehest-can ECU XCP slave"
+            m.cond_unlock("daq")
+            policy.setup()
+            policy.start()
+            policy.want = 20
+            for _ in range(20):
+                bridge.advance(20)  # the 10 ms event: one sample per 20 ticks
+                time.sleep(0.005)
+            assert policy.done.wait(10), len(policy.samples)
+            policy.stop()
+            m.disconnect()
+        col = [h[0] for h in policy.daq_lists[0].headers].index("ecu_tick")
+        assert [row[col] for _, _, row in policy.samples[:20]] == list(range(20, 401, 20))
+    finally:
+        bridge.stop()
+        time.sleep(0.2)  # pyxcp's listener polls the bus it was handed every 0.1 s until it sees the close
+        slave_bus.shutdown()
+        master_bus.shutdown()
