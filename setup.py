@@ -23,7 +23,8 @@ class BuildPyWithData(build_py):
 
 
 setup(
-    cffi_modules=["c_core/vehest_build.py:ffibuilder", "c_core/roll/roll_build.py:ffibuilder"],
+    cffi_modules=["c_core/vehest_build.py:ffibuilder", "c_core/roll/roll_build.py:ffibuilder",
+                  "c_core/xcp/xcp_build.py:ffibuilder"],
     cmdclass={"build_py": BuildPyWithData},
     # The extension uses only the stable ABI (cffi's default): one wheel for CPython 3.11 and later.
     options={"bdist_wheel": {"py_limited_api": "cp311"}},
