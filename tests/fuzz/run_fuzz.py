@@ -55,7 +55,7 @@ def seed_corpus(out: Path, frames_per_seed: int = 64) -> int:
     out.mkdir(parents=True, exist_ok=True)
     line = re.compile(r"\(\S+\) \S+ ([0-9A-Fa-f]+)##\d([0-9A-Fa-f]*)")
     frames = []
-    for text in (ROOT / "tests" / "data" / "chassis_golden.log").read_text().splitlines():
+    for text in (ROOT / "tests" / "tireforce" / "data" / "chassis_golden.log").read_text().splitlines():
         m = line.match(text)
         if m and int(m[1], 16) in RX_INDEX:
             frames.append((int(m[1], 16), bytes.fromhex(m[2])))

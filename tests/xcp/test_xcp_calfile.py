@@ -3,8 +3,7 @@ import json
 
 import pytest
 
-from vehest_can.xcp import DEMO, Slave, load
-from vehest_can.xcp import calfile
+from vehest_can.xcp import DEMO, Slave, calfile, load
 
 
 def test_round_trip_of_what_the_master_wrote(rig, tmp_path):

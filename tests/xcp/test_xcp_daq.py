@@ -15,7 +15,6 @@ from pyxcp.daq_stim import DaqList, DaqOnlinePolicy  # noqa: E402
 from vehest_can.xcp.description import C_TYPES
 
 
-
 class Collect(DaqOnlinePolicy):
     def __init__(self, lists):
         super().__init__(lists, logger=logging.getLogger("xcp-test"))
@@ -49,9 +48,10 @@ def expected(desc, name, tick):
 
 
 def daq_rig(make_rig, fd: bool):
-    from vehest_can.xcp import DEMO, load
-    from vehest_can.xcp.description import from_dict
     import tomllib
+
+    from vehest_can.xcp import DEMO
+    from vehest_can.xcp.description import from_dict
     d = tomllib.loads(DEMO.read_text())
     if fd:
         d["xcp"].update(fd=True, max_cto=64, max_dto=64)

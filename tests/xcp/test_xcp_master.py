@@ -191,6 +191,7 @@ def test_daq_info_names_the_ecu_event_channels(rig):
 
 def test_can_fd_short_download_and_a_matrix_in_two_frames(make_rig):
     import tomllib
+
     from vehest_can.xcp import DEMO
     from vehest_can.xcp.description import from_dict
     d = tomllib.loads(DEMO.read_text())

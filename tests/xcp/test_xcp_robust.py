@@ -7,10 +7,10 @@ from __future__ import annotations
 
 import math
 import struct
-
-from hypothesis import HealthCheck, given, settings, strategies as st
-
 import tomllib
+
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from vehest_can.xcp import DEMO, Slave, key_for, load
 from vehest_can.xcp.description import from_dict

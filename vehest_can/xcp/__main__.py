@@ -24,7 +24,7 @@ def simulate(slave: Slave):
     def step(tick: int) -> None:
         for i, m in enumerate(desc.measurements):
             if m.name == "ecu_tick":
-                v = tick & 0xFFFFFFFF
+                v: float = tick & 0xFFFFFFFF
             elif m.ctype in ("float", "double"):
                 v = 100.0 * math.sin(2 * math.pi * tick / (2000.0 + 100 * i))
             else:

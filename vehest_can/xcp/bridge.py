@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import threading
 import time
-from typing import Callable
+from collections.abc import Callable
 
 import can
 
@@ -69,7 +69,7 @@ class XcpBridge:
                         self.slave.event(ch)
                 self._send()
 
-    def start(self) -> "XcpBridge":
+    def start(self) -> XcpBridge:
         self._notifier = can.Notifier(self.bus, [self.on_message], timeout=0.01)
         return self
 
@@ -101,7 +101,7 @@ class XcpBridge:
             self._notifier.stop()
             self._notifier = None
 
-    def __enter__(self) -> "XcpBridge":
+    def __enter__(self) -> XcpBridge:
         return self.start()
 
     def __exit__(self, *exc) -> None:

@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 # C type -> (vh_xcp_type_t value, size, A2L datatype, pyxcp DAQ type, struct format, raw limits)
@@ -154,7 +154,8 @@ class Description:
 
     @property
     def calibration_size(self) -> int:
-        return max((c.address + c.size for c in self.characteristics), default=self.calibration_address) - self.calibration_address
+        end = max((c.address + c.size for c in self.characteristics), default=self.calibration_address)
+        return end - self.calibration_address
 
     def item(self, name: str) -> Item:
         for it in self.measurements + self.characteristics:
