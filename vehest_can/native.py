@@ -32,4 +32,11 @@ def struct_dtype(ctype: str):
                      "offsets": [f.offset for _, f in fields], "itemsize": ffi.sizeof(ctype)})
 
 
-__all__ = ["ffi", "lib", "check", "struct_dtype"]
+def struct_array(ctype: str, cdata, n: int):
+    """A numpy copy of the first n elements of a cffi array of ``ctype``, laid out by struct_dtype."""
+    import numpy as np
+
+    return np.frombuffer(ffi.buffer(cdata, n * ffi.sizeof(ctype)), dtype=struct_dtype(ctype)).copy()
+
+
+__all__ = ["ffi", "lib", "check", "struct_dtype", "struct_array"]

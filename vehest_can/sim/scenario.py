@@ -217,8 +217,9 @@ def truth_dtype(ffi) -> np.dtype:
 
 def truth_to_numpy(ffi, truth_array, n: int) -> np.ndarray:
     """Copy n ``vh_dlp_truth_t`` from a cffi array into a numpy record array."""
-    return np.frombuffer(ffi.buffer(truth_array, n * ffi.sizeof("vh_dlp_truth_t")),
-                         dtype=truth_dtype(ffi)).copy()
+    from ..native import struct_array
+
+    return struct_array("vh_dlp_truth_t", truth_array, n)
 
 
 # ---- loading -------------------------------------------------------------------------------

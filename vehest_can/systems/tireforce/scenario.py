@@ -310,8 +310,10 @@ def truth_dtype(ffi) -> np.dtype:
 
 
 def truth_to_numpy(ffi, truth_array, n: int) -> np.ndarray:
-    return np.frombuffer(ffi.buffer(truth_array, n * ffi.sizeof("vh_v14_truth_t")),
-                         dtype=truth_dtype(ffi)).copy()
+    """Copy n ``vh_v14_truth_t`` from a cffi array into a numpy record array."""
+    from ...native import struct_array
+
+    return struct_array("vh_v14_truth_t", truth_array, n)
 
 
 # ---- loading -------------------------------------------------------------------------------
