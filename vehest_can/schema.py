@@ -102,5 +102,7 @@ def read_toml(path: Path, error: type[VehestError] = ScenarioError) -> dict:
             return tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
         raise error(f"{path}: (TOML syntax): {exc}") from None
+    except UnicodeDecodeError as exc:  # TOML is UTF-8
+        raise error(f"{path}: not UTF-8 text: {exc}") from None
     except OSError as exc:
         raise error(f"{path}: cannot read: {exc.strerror or exc}") from None

@@ -30,14 +30,14 @@ import fnmatch
 import itertools
 import math
 import re
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
 import numpy as np
 
 from ..errors import ConfigError, ScenarioError
+from ..schema import Checker, read_toml
 
 FAULT = "fault"  # a vary key that is not a scenario key: fault specs, ";"-separated
 DISTS = {"uniform": ("low", "high"), "normal": ("mean", "sd"), "list": ("values",), "grid": ("values",)}
@@ -151,15 +151,11 @@ def set_dotted(doc: dict, key: str, value) -> None:
         node[last] = value
 
 
-def _fail(path: Path, key: str, problem: str) -> NoReturn:
-    raise ScenarioError(f"{path}: {key}: {problem}")
-
-
-def _number(path, value, key, *, integer=False, lo=-math.inf, hi=math.inf):
+def _number(chk: Checker, value, key, *, integer=False, lo=-math.inf, hi=math.inf):
     ok = not isinstance(value, bool) and isinstance(value, int if integer else (int, float))
     if not ok or not math.isfinite(value) or not lo <= value <= hi:
         what = "an integer" if integer else "a finite number"
-        _fail(path, key, f"must be {what} in [{lo:g}, {hi:g}], not {value!r}")
+        chk.fail(key, f"must be {what} in [{lo:g}, {hi:g}], not {value!r}")
     return value
 
 
@@ -167,107 +163,95 @@ def load_campaign(path: str | Path) -> Campaign:
     from .systems import resolve_base
 
     path = Path(path)
-    try:
-        with open(path, "rb") as fh:
-            doc = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{path}: (TOML syntax): {exc}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{path}: cannot read: {getattr(exc, 'strerror', None) or exc}") from None
-    unknown = set(doc) - {"campaign", "vary", "acceptance"}
-    if unknown:
-        _fail(path, sorted(unknown)[0], "unknown key (expected one of: acceptance, campaign, vary)")
+    chk = Checker(path)
+    doc = chk.table(read_toml(path), "", {"campaign", "vary", "acceptance"})
     top: Any = doc.get("campaign")
     if not isinstance(top, dict):
-        _fail(path, "campaign", "missing: a campaign file starts with a [campaign] table")
-    for k in top:
-        if k not in ("name", "base", "runs", "seed", "metrics"):
-            _fail(path, f"campaign.{k}", "unknown key (expected one of: base, metrics, name, runs, seed)")
+        chk.fail("campaign", "missing: a campaign file starts with a [campaign] table")
+    chk.table(top, "campaign", {"name", "base", "runs", "seed", "metrics"})
     for k in ("base", "runs"):
         if k not in top:
-            _fail(path, f"campaign.{k}", "missing (required)")
+            chk.fail(f"campaign.{k}", "missing (required)")
     if not isinstance(top["base"], str):
-        _fail(path, "campaign.base", f"must be a scenario name or path, not {top['base']!r}")
+        chk.fail("campaign.base", f"must be a scenario name or path, not {top['base']!r}")
     base_path, base = resolve_base(top["base"], path.parent)
     vary = []
     lines = doc.get("vary", [])
     if not isinstance(lines, list):
-        _fail(path, "vary", "must be an array of tables ([[vary]])")
+        chk.fail("vary", "must be an array of tables ([[vary]])")
     for i, v in enumerate(lines):
         k = f"vary[{i}]"
         if not isinstance(v, dict):
-            _fail(path, k, "must be a table")
+            chk.fail(k, "must be a table")
         dist = v.get("dist")
         if dist not in DISTS:
-            _fail(path, f"{k}.dist", f"must be one of {', '.join(DISTS)}, not {dist!r}")
+            chk.fail(f"{k}.dist", f"must be one of {', '.join(DISTS)}, not {dist!r}")
         if not isinstance(v.get("key"), str) or not v["key"]:
-            _fail(path, f"{k}.key", "missing: the dotted path of a scenario key (e.g. vehicle.mass_delta_kg)")
+            chk.fail(f"{k}.key", "missing: the dotted path of a scenario key (e.g. vehicle.mass_delta_kg)")
         extra = set(v) - {"key", "dist", *DISTS[dist]}
         if extra:
-            _fail(path, f"{k}.{sorted(extra)[0]}", f"unknown key for dist = {dist!r} (expected {', '.join(DISTS[dist])})")
+            chk.fail(f"{k}.{sorted(extra)[0]}", f"unknown key for dist = {dist!r} (expected {', '.join(DISTS[dist])})")
         for a in DISTS[dist]:
             if a not in v:
-                _fail(path, f"{k}.{a}", f"missing (dist = {dist!r} needs {', '.join(DISTS[dist])})")
+                chk.fail(f"{k}.{a}", f"missing (dist = {dist!r} needs {', '.join(DISTS[dist])})")
         args: tuple
         if dist in ("list", "grid"):
             if not isinstance(v["values"], list) or not v["values"]:
-                _fail(path, f"{k}.values", "must be a non-empty list")
+                chk.fail(f"{k}.values", "must be a non-empty list")
             args = (tuple(v["values"]),)
         else:
-            args = tuple(float(_number(path, v[a], f"{k}.{a}")) for a in DISTS[dist])
+            args = tuple(float(_number(chk, v[a], f"{k}.{a}")) for a in DISTS[dist])
             if dist == "uniform" and not args[0] < args[1]:
-                _fail(path, f"{k}.high", f"must be above low ({args[0]:g}), not {args[1]:g}")
+                chk.fail(f"{k}.high", f"must be above low ({args[0]:g}), not {args[1]:g}")
             if dist == "normal" and args[1] < 0:
-                _fail(path, f"{k}.sd", f"must be >= 0, not {args[1]:g}")
+                chk.fail(f"{k}.sd", f"must be >= 0, not {args[1]:g}")
         vary.append(Vary(v["key"], dist, args))
     for i, v in enumerate(vary):
         if v.key == FAULT:
             if v.dist not in ("list", "grid"):
-                _fail(path, f"vary[{i}].dist", f'the {FAULT} key takes list or grid (of fault strings)')
+                chk.fail(f"vary[{i}].dist", f'the {FAULT} key takes list or grid (of fault strings)')
             from ..faults.spec import parse_fault
 
             for j, text in enumerate(v.args[0]):
                 if not isinstance(text, str):
-                    _fail(path, f"vary[{i}].values[{j}]", f"must be a fault string (\"\" for none), not {text!r}")
+                    chk.fail(f"vary[{i}].values[{j}]", f"must be a fault string (\"\" for none), not {text!r}")
                 for f in (f for f in text.split(";") if f.strip()):
                     try:
                         parse_fault(f)
                     except ConfigError as exc:  # the faults module's own clear message
-                        _fail(path, f"vary[{i}].values[{j}]", str(exc))
+                        chk.fail(f"vary[{i}].values[{j}]", str(exc))
     keys = [v.key for v in vary]
     if len(set(keys)) != len(keys):
-        _fail(path, "vary", f"key {next(k for k in keys if keys.count(k) > 1)!r} is varied twice")
+        chk.fail("vary", f"key {next(k for k in keys if keys.count(k) > 1)!r} is varied twice")
     n_grid = math.prod(len(v.args[0]) for v in vary if v.dist == "grid")
-    runs = _number(path, top["runs"], "campaign.runs", integer=True, lo=1, hi=10**7)
+    runs = _number(chk, top["runs"], "campaign.runs", integer=True, lo=1, hi=10**7)
     if runs % n_grid:
-        _fail(path, "campaign.runs", f"{runs} is not a multiple of the grid's {n_grid} points")
-    seed = _number(path, top.get("seed", 0), "campaign.seed", integer=True, lo=0, hi=2**63 - 1)
+        chk.fail("campaign.runs", f"{runs} is not a multiple of the grid's {n_grid} points")
+    seed = _number(chk, top.get("seed", 0), "campaign.seed", integer=True, lo=0, hi=2**63 - 1)
     metrics = top.get("metrics", [])
     if not isinstance(metrics, list) or not all(isinstance(m, str) for m in metrics):
-        _fail(path, "campaign.metrics", "must be a list of metric names (globs allowed)")
+        chk.fail("campaign.metrics", "must be a list of metric names (globs allowed)")
     acc = []
     for i, a in enumerate(doc.get("acceptance", [])):
         k = f"acceptance[{i}]"
         if not isinstance(a, dict) or not isinstance(a.get("metric"), str):
-            _fail(path, f"{k}.metric", "missing: the dotted name of a metric")
-        extra = set(a) - {"metric", "min", "max"}
-        if extra:
-            _fail(path, f"{k}.{sorted(extra)[0]}", "unknown key (expected one of: max, metric, min)")
+            chk.fail(f"{k}.metric", "missing: the dotted name of a metric")
+        chk.table(a, k, {"metric", "min", "max"})
         if "min" not in a and "max" not in a:
-            _fail(path, k, "needs min, max or both")
-        lo = float(_number(path, a["min"], f"{k}.min")) if "min" in a else None
-        hi = float(_number(path, a["max"], f"{k}.max")) if "max" in a else None
+            chk.fail(k, "needs min, max or both")
+        lo = float(_number(chk, a["min"], f"{k}.min")) if "min" in a else None
+        hi = float(_number(chk, a["max"], f"{k}.max")) if "max" in a else None
         acc.append(Acceptance(a["metric"], lo, hi))
     name = top.get("name", path.stem)
     if not isinstance(name, str) or not name:
-        _fail(path, "campaign.name", "must be a non-empty string")
+        chk.fail("campaign.name", "must be a non-empty string")
     c = Campaign(path, name, base_path, base, int(runs), int(seed), tuple(vary), tuple(metrics), tuple(acc))
     # every dotted key lands where the system's own loader accepts it: check run 0 now, not at run 37
     from .systems import system_for, takes_faults, validate
 
     system = system_for(base)
     if FAULT in keys and not takes_faults(system):
-        _fail(path, f"vary[{keys.index(FAULT)}].key", f"the {system.name} system's runs take no faults (it has no fault study)")
+        chk.fail(f"vary[{keys.index(FAULT)}].key", f"the {system.name} system's runs take no faults (it has no fault study)")
     try:
         validate(system, c.run_doc(0)[0], base_path)
     except ScenarioError as exc:
