@@ -31,10 +31,10 @@ STRICT_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
 OPT_FLAGS = ["-O3"]
 #: the systems of the firmware, one folder each (sources, headers, the system's ECU application)
 SYSTEMS = ("driveline", "tireforce", "camber")
-#: every folder of the firmware: what it shares, the systems, the scheduler
-FIRMWARE_DIRS = [HERE / "common", *(HERE / s for s in SYSTEMS), HERE / "ecu"]
-#: firmware built as cffi modules of their own (vehest_can._roll, vehest_can._xcp), not yet in the ECU's tick
-STANDALONE_DIRS = [HERE / "roll", HERE / "xcp"]
+#: every folder of the firmware: what it shares, the systems, the XCP slave, the scheduler
+FIRMWARE_DIRS = [HERE / "common", *(HERE / s for s in SYSTEMS), HERE / "xcp", HERE / "ecu"]
+#: firmware built as cffi modules of their own (vehest_can._roll; vehest_can._xcp is the slave alone)
+STANDALONE_DIRS = [HERE / "roll"]
 SIM_SRC_DIR = ROOT / "firmware_sim" / "src"
 SIM_INCLUDE_DIR = ROOT / "firmware_sim" / "include"
 #: built into the extension but never flashed (host-side calibration helpers)
@@ -157,6 +157,19 @@ def include_text(gen_dir: Path = GEN_DIR) -> str:
     return "\n".join(f'#include "{h}"' for h in headers)
 
 
+def xcp_generate(gen_dir: Path = GEN_DIR):
+    """The ECU's XCP limit table (c_core/ecu/vh_ecu_xcp_table.inc), A2L and XCP-bus DBC
+    (vehest_can/xcp/) from vehest_can/xcp/ecu.toml, laid out by the structs of the headers
+    (cffi's layout, which the compiled extension is checked against). Written into the source
+    tree only when they change; tests/xcp/test_xcp_ecu.py regenerates them and compares."""
+    sys.path.insert(0, str(ROOT))
+    from vehest_can.xcp import ecu_desc
+
+    ffi = FFI()
+    ffi.cdef(cdef_text(gen_dir))
+    return ecu_desc.generate(ffi)
+
+
 def compile_firmware(out_dir: Path = ROOT / "build" / "obj", extra_flags: list[str] | None = None,
                      gen_dir: Path = GEN_DIR) -> list[str]:
     """Compile every source with the strict flags; returns the object files.
@@ -182,6 +195,7 @@ def compile_firmware(out_dir: Path = ROOT / "build" / "obj", extra_flags: list[s
 
 
 def make_ffi() -> FFI:
+    xcp_generate()  # before compiling: vh_ecu_xcp.c includes the limit table
     objects = compile_firmware()
     ffi = FFI()
     ffi.cdef(cdef_text())

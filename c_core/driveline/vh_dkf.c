@@ -228,7 +228,11 @@ int vh_dkf_step(vh_dkf_t *f, double u, const double z[VH_DKF_NZ], unsigned mask)
     }
 
     memset(f->k, 0, sizeof f->k);
+    memset(f->innov, 0, sizeof f->innov);
     if (nz > 0) {
+        for (j = 0; j < nz; ++j) {
+            f->innov[rows[j]] = z[rows[j]] - xp[rows[j]]; /* z - H x-: measured in the A2L */
+        }
         /* H selects rows, so P- H^T is columns of P- and H P- H^T a sub-block */
         for (i = 0; i < NX; ++i) {
             for (j = 0; j < nz; ++j) {
@@ -256,7 +260,7 @@ int vh_dkf_step(vh_dkf_t *f, double u, const double z[VH_DKF_NZ], unsigned mask)
             for (j = 0; j < nz; ++j) {
                 const double kij = kt[j * NX + i];
                 f->k[i * NZ + rows[j]] = kij;
-                innov_gain += kij * (z[rows[j]] - xp[rows[j]]);
+                innov_gain += kij * f->innov[rows[j]];
             }
             f->x[i] = xp[i] + innov_gain;
         }

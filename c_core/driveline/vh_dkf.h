@@ -59,6 +59,7 @@ typedef struct {
     double x[VH_DKF_NX];
     double p[VH_DKF_NX * VH_DKF_NX];
     double k[VH_DKF_NX * VH_DKF_NZ];  /* last gain; columns of unused rows are zero */
+    double innov[VH_DKF_NZ];          /* last innovation z - H x- per row; 0 for rows not used */
     uint32_t steps;                   /* steps since the last (re)start */
     uint32_t resets;                  /* divergence resets since init */
     uint8_t health;                   /* vh_health_t */

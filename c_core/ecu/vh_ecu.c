@@ -10,6 +10,8 @@
 
 /* Ticks per cycle of a message; the meta headers refuse a cycle that is not whole ticks. */
 #define TICKS(cycle_us) ((cycle_us) / VH_TICK_US)
+/* room in a tick's TX for the XCP frames (vh_ecu_xcp_tx) beside the systems' six */
+typedef char vh_ecu_tx_room_check[(VH_ECU_MAX_TX >= 6 + VH_ECU_XCP_MAX_TX) ? 1 : -1];
 
 int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_params_t *prm)
 {
@@ -90,7 +92,9 @@ void vh_ecu_rx(vh_ecu_t *ecu, const vh_frame_t *frame)
             return;
         }
     }
-    vh_rx_count(&ecu->cnt.unknown_id);
+    if (!vh_ecu_xcp_rx(ecu, frame)) { /* the XCP CRO identifier is configuration, not in the DBC */
+        vh_rx_count(&ecu->cnt.unknown_id);
+    }
 }
 
 /* ---- runnables: each system's step every tick, each TX frame at its DBC cycle ---- */
@@ -115,6 +119,12 @@ static int drv_status(vh_ecu_t *ecu, uint8_t *d)
 static int cmb_tx(vh_ecu_t *ecu, uint8_t *d) { return vh_cmb_app_fill(&ecu->cis, d); }
 static int tf_est(vh_ecu_t *ecu, uint8_t *d) { return vh_tf_app_fill_est(&ecu->chs, ecu->cfg.skf.s, d); }
 static int tf_status(vh_ecu_t *ecu, uint8_t *d) { return vh_tf_app_fill_status(&ecu->chs, d); }
+/* XCP: calibration reaches the systems at the tick boundary, before any of them steps; DAQ
+ * samples after all of them, on the event channels 0 (tick), 1 (1 ms), 2 (10 ms) */
+static void xcp_cal(vh_ecu_t *ecu) { vh_ecu_xcp_tick(ecu); }
+static void xcp_ev_tick(vh_ecu_t *ecu) { vh_ecu_xcp_event(ecu, 0u); }
+static void xcp_ev_1ms(vh_ecu_t *ecu) { vh_ecu_xcp_event(ecu, 1u); }
+static void xcp_ev_10ms(vh_ecu_t *ecu) { vh_ecu_xcp_event(ecu, 2u); }
 
 /* A step (step != NULL) or a TX frame (fill: its payload; 0 = nothing to send this time), run in
  * this order every period_ticks ticks (at tick 0, then each multiple). */
@@ -126,6 +136,7 @@ static const struct {
     uint8_t len, is_fd;
     uint32_t period_ticks;
 } RUNNABLES[] = {
+    {xcp_cal, NULL, 0u, 0u, 0u, 1u},
     {drv_step, NULL, 0u, 0u, 0u, 1u},
     {TX(drv_est, VH_PT_VEHEST_DRIVELINE_EST)},
     {TX(drv_status, VH_PT_VEHEST_STATUS)},
@@ -134,6 +145,9 @@ static const struct {
     {tf_step, NULL, 0u, 0u, 0u, 1u},
     {TX(tf_est, VH_CH_VEHEST_TIRE_FORCE_EST)},
     {TX(tf_status, VH_CH_VEHEST_CHASSIS_STATUS)},
+    {xcp_ev_tick, NULL, 0u, 0u, 0u, 1u},
+    {xcp_ev_1ms, NULL, 0u, 0u, 0u, TICKS(1000u)},
+    {xcp_ev_10ms, NULL, 0u, 0u, 0u, TICKS(10000u)},
 };
 
 size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap)
@@ -152,6 +166,7 @@ size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap)
             }
         }
     }
+    n = vh_ecu_xcp_tx(ecu, tx, n, cap);
     ++ecu->tick;
     return n;
 }

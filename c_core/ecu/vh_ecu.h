@@ -18,12 +18,13 @@
 #include "vh_camber_app.h"
 #include "vh_dkf.h"
 #include "vh_driveline_app.h"
+#include "vh_ecu_xcp.h"
 #include "vh_rx.h"
 #include "vh_skf.h"
 #include "vh_tireforce_app.h"
 #include "vh_types.h"
 
-#define VH_ECU_MAX_TX 6
+#define VH_ECU_MAX_TX 7 /* the systems' 6 + VH_ECU_XCP_MAX_TX */
 
 typedef struct {
     vh_dkf_config_t dkf[VH_ECU_N_DKF]; /* ri is taken from gear_ratio[gear] at run time */
@@ -45,6 +46,7 @@ typedef struct {
     vh_ecu_chs_t chs;
     vh_ecu_counters_t cnt;      /* the powertrain bus's counters (VEHEST_Status); chassis: chs.cnt */
     uint32_t tick;
+    vh_ecu_xcp_t xcp;           /* the XCP slave (vh_ecu_xcp.h); off until vh_ecu_xcp_enable */
 } vh_ecu_t;
 
 /* Host side (vh_ecu_host.c, not flashed): the defaults, and init from a configuration whose
@@ -64,5 +66,18 @@ size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap);
 int vh_ecu_set_camber_calibration(vh_ecu_t *ecu, unsigned wheel, const vh_camber_cal_t *cal);
 /* The daemon's wall-clock scheduler reports ticks that started late; published in VEHEST_Status. */
 void vh_ecu_note_deadline_miss(vh_ecu_t *ecu, uint32_t n);
+
+/* XCP (vh_ecu_xcp.c). Enable the slave on the ECU as configured now (its tuning becomes the
+ * reference page); survives vh_ecu_reset, which keeps the calibration. VH_EINVAL: bad config. */
+int vh_ecu_xcp_enable(vh_ecu_t *ecu, const vh_ecu_xcp_config_t *cfg);
+/* The tuning block of the ECU as configured / into the configuration and the running filters. */
+void vh_ecu_cal_gather(const vh_ecu_t *ecu, vh_ecu_cal_t *cal);
+void vh_ecu_cal_apply(vh_ecu_t *ecu, const vh_ecu_cal_t *cal);
+/* The scheduler's hooks: a CRO frame (1 if it was one), the tick boundary, an event channel,
+ * and the XCP frames after the systems' TX (returns the new count). */
+int vh_ecu_xcp_rx(vh_ecu_t *ecu, const vh_frame_t *f);
+void vh_ecu_xcp_tick(vh_ecu_t *ecu);
+void vh_ecu_xcp_event(vh_ecu_t *ecu, uint16_t channel);
+size_t vh_ecu_xcp_tx(vh_ecu_t *ecu, vh_frame_t *tx, size_t n, size_t cap);
 
 #endif /* VH_ECU_H */

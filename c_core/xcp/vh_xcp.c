@@ -525,7 +525,11 @@ static void download(vh_xcp_t *x, const uint8_t *data, uint8_t n)
             }
             v = element(x->cfg.cal_work + (c->address - x->cfg.cal_address) + e * es, c->type);
             if (!in_limits(c, v)) {
+                const uint32_t eo = (c->address - x->cfg.cal_address) + e * es;
                 memcpy(x->cfg.cal_work + off, undo, n);
+                /* and the element's bytes of earlier DOWNLOADs (a double over classic CAN takes
+                 * two): no part of a refused value stays, the element is the ECU's again */
+                memcpy(x->cfg.cal_work + eo, x->cfg.cal_ecu + eo, es);
                 res_err(x, ERR_OUT_OF_RANGE);
                 return;
             }

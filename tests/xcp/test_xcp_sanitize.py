@@ -53,10 +53,10 @@ def test_slave_compiles_with_the_strict_flags(tmp_path):
 
 @pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
 def test_bench_runs_on_a_tiny_size(tmp_path):
-    """c_core/xcp/bench_xcp.c: the figures are measured, not asserted; here it only has to run."""
+    """c_core/bench/bench_xcp.c: the figures are measured, not asserted; here it only has to run."""
     exe = tmp_path / "bench_xcp"
     build = subprocess.run(["cc", *xcp_build.STRICT_FLAGS, "-O2", f"-I{XCP}", str(XCP / "vh_xcp.c"),
-                            str(XCP / "bench_xcp.c"), "-o", str(exe)], capture_output=True, text=True)
+                            str(XCP.parent / "bench" / "bench_xcp.c"), "-o", str(exe)], capture_output=True, text=True)
     assert build.returncode == 0, build.stderr
     run = subprocess.run([str(exe), "2000"], capture_output=True, text=True, timeout=60)
     assert run.returncode == 0, run.stdout

@@ -1,0 +1,159 @@
+/* vh_ecu_xcp.c - the ECU's XCP application: the slave's memory is the ECU itself, its
+ * calibration segment the tuning block vh_ecu_cal_t (see vh_ecu_xcp.h). */
+#include <string.h>
+
+#include "vh_ecu.h"
+#include "vh_ecu_xcp_table.inc" /* generated: VH_ECU_XCP_CHARS, the limits of the A2L */
+
+#define EXT_BIT 0x80000000u /* XCP-on-CAN convention: bit 31 of an identifier = 29-bit */
+
+void vh_ecu_cal_gather(const vh_ecu_t *ecu, vh_ecu_cal_t *c)
+{
+    int i;
+    memset(c, 0, sizeof *c); /* padding too: the pages compare and upload byte for byte */
+    for (i = 0; i < VH_ECU_N_DKF; ++i) {
+        memcpy(c->dkf[i].q, ecu->cfg.dkf[i].q, sizeof c->dkf[i].q);
+        memcpy(c->dkf[i].r, ecu->cfg.dkf[i].r, sizeof c->dkf[i].r);
+        c->dkf[i].p_max = ecu->cfg.dkf[i].p_max;
+    }
+    memcpy(c->skf.q, ecu->chs.skf.prm.q, sizeof c->skf.q);
+    memcpy(c->skf.r, ecu->chs.skf.prm.r, sizeof c->skf.r);
+    c->we_min = ecu->cfg.we_min;
+    c->camber_still_ww = ecu->cfg.camber_still_ww;
+    c->camber_mag_tol_g = ecu->cfg.camber.mag_tol_g;
+    c->camber_std_max_g = ecu->cfg.camber.std_max_g;
+    c->rx_burst_frames = ecu->cfg.rx_burst_frames;
+}
+
+/* Into the configuration (so vh_ecu_reset keeps it) and into the running filters. The values
+ * are within the A2L limits (the slave checked them), which keep every filter's init checks. */
+void vh_ecu_cal_apply(vh_ecu_t *ecu, const vh_ecu_cal_t *c)
+{
+    int i;
+    for (i = 0; i < VH_ECU_N_DKF; ++i) {
+        vh_dkf_config_t *cfg[2];
+        int k;
+        cfg[0] = &ecu->cfg.dkf[i];
+        cfg[1] = &ecu->dkf[i].cfg;
+        for (k = 0; k < 2; ++k) {
+            memcpy(cfg[k]->q, c->dkf[i].q, sizeof c->dkf[i].q);
+            memcpy(cfg[k]->r, c->dkf[i].r, sizeof c->dkf[i].r);
+            cfg[k]->p_max = c->dkf[i].p_max;
+        }
+    }
+    memcpy(ecu->chs.skf.prm.q, c->skf.q, sizeof c->skf.q); /* vh_tf_app_reset restarts from prm */
+    memcpy(ecu->chs.skf.prm.r, c->skf.r, sizeof c->skf.r);
+    ecu->cfg.we_min = c->we_min;
+    ecu->cfg.camber_still_ww = c->camber_still_ww;
+    ecu->cfg.camber.mag_tol_g = c->camber_mag_tol_g;
+    ecu->cfg.camber.std_max_g = c->camber_std_max_g;
+    for (i = 0; i < VH_ECU_N_WHEELS; ++i) {
+        ecu->cis.cmb[i].cfg.mag_tol_g = c->camber_mag_tol_g;
+        ecu->cis.cmb[i].cfg.std_max_g = c->camber_std_max_g;
+    }
+    ecu->cfg.rx_burst_frames = c->rx_burst_frames;
+}
+
+int vh_ecu_xcp_enable(vh_ecu_t *ecu, const vh_ecu_xcp_config_t *cfg)
+{
+    vh_ecu_xcp_t *a = &ecu->xcp;
+    vh_xcp_config_t s;
+    memset(a, 0, sizeof *a);
+    vh_ecu_cal_gather(ecu, &a->ref);
+    a->region.address = VH_ECU_XCP_MEAS_ADDRESS;
+    a->region.size = (uint32_t)sizeof *ecu;
+    a->region.access = VH_XCP_ACC_READ | VH_XCP_ACC_DAQ;
+    a->region.mem = (const uint8_t *)ecu;
+    /* cycle in units of 10 us (4) or 100 us (5): 500 us, 1 ms, 10 ms */
+    a->events[0].name = "tick";
+    a->events[0].cycle = 50u;
+    a->events[0].unit = 4u;
+    a->events[1].name = "1ms";
+    a->events[1].cycle = 100u;
+    a->events[1].unit = 4u;
+    a->events[2].name = "10ms";
+    a->events[2].cycle = 100u;
+    a->events[2].unit = 5u;
+    memset(&s, 0, sizeof s);
+    s.cro_id = cfg->cro_id;
+    s.dto_id = cfg->dto_id;
+    s.max_cto = cfg->max_cto;
+    s.max_dto = cfg->max_dto;
+    s.fd = cfg->fd;
+    s.protect = VH_XCP_RES_CALPAG | VH_XCP_RES_DAQ;
+    s.secret = cfg->secret;
+    s.tick_us = VH_TICK_US;
+    s.open_ticks = 200u; /* 100 ms: an array edited in the middle commits without its last byte */
+    s.regions = &a->region;
+    s.n_regions = 1u;
+    s.cal_address = VH_ECU_XCP_CAL_ADDRESS;
+    s.cal_size = (uint32_t)sizeof(vh_ecu_cal_t);
+    s.cal_ref = (const uint8_t *)&a->ref;
+    s.cal_work = (uint8_t *)&a->work;
+    s.cal_ecu = (uint8_t *)&a->page;
+    s.chars = VH_ECU_XCP_CHARS;
+    s.n_chars = VH_ECU_XCP_N_CHARS;
+    s.events = a->events;
+    s.n_events = VH_ECU_XCP_N_EVENTS;
+    s.id_ascii = "vehest-can ECU";
+    s.id_a2l = VH_ECU_XCP_A2L_NAME;
+    if ((cfg->cro_id & ~EXT_BIT) == (cfg->dto_id & ~EXT_BIT) || vh_xcp_init(&a->slave, &s) != VH_XCP_OK) {
+        memset(a, 0, sizeof *a);
+        return VH_EINVAL;
+    }
+    a->enabled = 1u;
+    return VH_OK;
+}
+
+int vh_ecu_xcp_rx(vh_ecu_t *ecu, const vh_frame_t *f)
+{
+    vh_ecu_xcp_t *a = &ecu->xcp;
+    const uint32_t id = f->id | (((f->flags & VH_FRAME_EXT) != 0u) ? EXT_BIT : 0u);
+    if (!a->enabled || id != a->slave.cfg.cro_id) {
+        return 0;
+    }
+    vh_xcp_rx(&a->slave, f->data, f->len, a->ticks);
+    return 1;
+}
+
+void vh_ecu_xcp_tick(vh_ecu_t *ecu)
+{
+    vh_ecu_xcp_t *a = &ecu->xcp;
+    if (!a->enabled) {
+        return;
+    }
+    vh_xcp_tick(&a->slave, a->ticks);
+    if (a->slave.n.cal_commits != a->applied || a->slave.page_ecu != a->applied_page) {
+        vh_ecu_cal_apply(ecu, &a->page);
+        a->applied = a->slave.n.cal_commits;
+        a->applied_page = a->slave.page_ecu;
+    }
+}
+
+void vh_ecu_xcp_event(vh_ecu_t *ecu, uint16_t channel)
+{
+    if (ecu->xcp.enabled) {
+        vh_xcp_event(&ecu->xcp.slave, channel);
+    }
+}
+
+size_t vh_ecu_xcp_tx(vh_ecu_t *ecu, vh_frame_t *tx, size_t n, size_t cap)
+{
+    vh_ecu_xcp_t *a = &ecu->xcp;
+    size_t sent = 0u;
+    vh_xcp_frame_t x;
+    if (!a->enabled) {
+        return n;
+    }
+    ++a->ticks;
+    while (n < cap && sent < VH_ECU_XCP_MAX_TX && vh_xcp_tx_pop(&a->slave, &x)) {
+        vh_frame_t *f = &tx[n++];
+        f->id = x.id & ~EXT_BIT;
+        f->len = x.len;
+        f->flags = (uint8_t)((x.ext ? VH_FRAME_EXT : 0u) | (x.fd ? VH_FRAME_FD : 0u));
+        memset(f->data, 0, sizeof f->data);
+        memcpy(f->data, x.data, x.len);
+        ++sent;
+    }
+    return n;
+}

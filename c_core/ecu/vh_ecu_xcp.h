@@ -1,0 +1,80 @@
+/* vh_ecu_xcp.h - the XCP-on-CAN slave (vh_xcp.h) as an application of the ECU.
+ *
+ * Measurement: the master's address space VH_ECU_XCP_MEAS_ADDRESS + offsetof(vh_ecu_t, member)
+ * reads the ECU instance itself (UPLOAD and DAQ): every system's states, covariances,
+ * innovations, health and counters by their C names.
+ *
+ * Calibration: one segment at VH_ECU_XCP_CAL_ADDRESS + offsetof(vh_ecu_cal_t, member), the
+ * tuning of every system gathered in one block. Page 1 (reference, never written) is the tuning
+ * the ECU was configured with; page 0 (working, RAM) is what DOWNLOAD writes, range-checked
+ * against the limits of the generated table (vh_ecu_xcp_table.inc, from
+ * vehest_can/xcp/ecu.toml: the same limits as the A2L). A characteristic reaches `page`, the
+ * block the systems run on, whole at a tick boundary; the ECU then copies it into the filters
+ * (vh_ecu_cal_apply) before any system steps, so a filter never runs on half a matrix.
+ *
+ * Events: 0 every tick (500 us), 1 every 1 ms, 2 every 10 ms, after the systems have stepped.
+ * TX: at most VH_ECU_XCP_MAX_TX frames per tick (the bus budget, docs/xcp.md); the rest wait in
+ * the slave's queue, and a DAQ sample that does not fit it is dropped whole and counted.
+ */
+#ifndef VH_ECU_XCP_H
+#define VH_ECU_XCP_H
+
+#include "vh_dkf.h"
+#include "vh_driveline_app.h"
+#include "vh_skfq.h"
+#include "vh_xcp.h"
+
+#define VH_ECU_XCP_MEAS_ADDRESS 0x10000000
+#define VH_ECU_XCP_CAL_ADDRESS 0x20000000
+#define VH_ECU_XCP_N_EVENTS 3
+#define VH_ECU_XCP_MAX_TX 1 /* XCP frames per tick: one 64-byte DTO per 500 us is the budget */
+
+/* The driveline filters' tuning: -> dkf[i].cfg.q, .r, .p_max */
+typedef struct {
+    double q[VH_DKF_NX]; /* diagonal of Q */
+    double r[VH_DKF_NZ]; /* diagonal of R, z = [w_o, w_w, T_o] */
+    double p_max;        /* divergence limit on a P diagonal */
+} vh_ecu_cal_dkf_t;
+
+/* The fixed-point SKFMEC's tuning: -> chs.skf.prm.q, .r */
+typedef struct {
+    int32_t q[VH_SKFQ_NX]; /* process noise Q* (VH_SKFQ_FP) */
+    int32_t r[VH_SKFQ_NY]; /* measurement noise R* (VH_SKFQ_FU) */
+} vh_ecu_cal_skf_t;
+
+/* Every system's tuning the master may change (the calibration segment). */
+typedef struct {
+    vh_ecu_cal_dkf_t dkf[VH_ECU_N_DKF];
+    vh_ecu_cal_skf_t skf;
+    double we_min;            /* -> cfg.we_min [rad/s] */
+    double camber_still_ww;   /* -> cfg.camber_still_ww [rad/s] */
+    float camber_mag_tol_g;   /* -> cfg.camber.mag_tol_g and each window's */
+    float camber_std_max_g;   /* -> cfg.camber.std_max_g and each window's */
+    uint8_t rx_burst_frames;  /* -> cfg.rx_burst_frames */
+} vh_ecu_cal_t;
+
+/* What the integrator chooses (the rest is fixed by the ECU). */
+typedef struct {
+    uint32_t cro_id;  /* bit 31: 29-bit identifier */
+    uint32_t dto_id;
+    uint8_t max_cto;  /* 8 .. 64 (above 8: fd) */
+    uint8_t max_dto;
+    uint8_t fd;
+    uint32_t secret;  /* seed & key */
+} vh_ecu_xcp_config_t;
+
+typedef struct {
+    vh_xcp_t slave;
+    vh_ecu_cal_t ref;    /* page 1: the configured tuning; the slave never writes it */
+    vh_ecu_cal_t work;   /* page 0 */
+    vh_ecu_cal_t page;   /* what the systems run on; only vh_xcp_tick writes it */
+    vh_xcp_region_t region;
+    vh_xcp_event_t events[VH_ECU_XCP_N_EVENTS];
+    uint32_t ticks;      /* never reset: the slave's clock and DAQ timestamps survive vh_ecu_reset */
+    uint32_t applied;    /* slave.n.cal_commits already copied into the systems */
+    uint8_t applied_page;
+    uint8_t stale;       /* the systems were re-initialised: copy the tuning again */
+    uint8_t enabled;
+} vh_ecu_xcp_t;
+
+#endif /* VH_ECU_XCP_H */

@@ -1,0 +1,311 @@
+"""The XCP slave inside the ECU firmware: its CRO through the ECU's dispatch, its frames in the
+ECU's TX, the ECU's own memory and tuning, the build's A2L and limit table never stale.
+
+These drive the firmware with raw CRO frames (command codes of ASAM MCD-1 XCP Part 2) so a
+failure points at the firmware; pyxcp, the independent master, runs against the daemon in
+tests/service/test_daemon_xcp.py."""
+from __future__ import annotations
+
+import re
+import shutil
+import struct
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import can
+import numpy as np
+import pytest
+
+from vehest_can.native import ffi
+from vehest_can.sim.scenario import load_scenario
+from vehest_can.sim.session import drive_from_scenario, run_inprocess
+from vehest_can.systems.ecu import Ecu, EcuConfig
+from vehest_can.xcp import ecu as xcp_ecu
+from vehest_can.xcp import ecu_desc
+
+ROOT = Path(__file__).resolve().parents[2]
+ERR = 0xFE
+ERR_OUT_OF_RANGE, ERR_WRITE_PROTECTED, ERR_ACCESS_DENIED, ERR_ACCESS_LOCKED = 0x22, 0x23, 0x24, 0x25
+
+
+class Cro:
+    """CRO frames into an ECU, one tick per command (the RES comes out of that tick's TX)."""
+
+    def __init__(self, ecu: Ecu, **kw):
+        self.ecu = ecu
+        self.desc = xcp_ecu.enable(ecu, **kw)
+        self.other: list[can.Message] = []
+
+    def __call__(self, *data: int) -> bytes:
+        self.ecu.rx(can.Message(arbitration_id=self.desc.cro_id, is_extended_id=False, is_fd=self.desc.fd,
+                                data=bytes(data)))
+        out = self.ecu.step()
+        res = [m for m in out if m.arbitration_id == self.desc.dto_id]
+        self.other += [m for m in out if m.arbitration_id != self.desc.dto_id]
+        assert len(res) == 1, res
+        return bytes(res[0].data)
+
+    def connect_unlocked(self) -> None:
+        assert self(0xFF, 0)[0] == 0xFF                    # CONNECT
+        for resource in (0x01, 0x04):                      # CAL/PAG, DAQ
+            seed = self(0xF8, 0, resource)                 # GET_SEED
+            assert self(0xF7, 4, *xcp_ecu.key_for(seed[2:6]))[0] == 0xFF  # UNLOCK
+
+    def set_mta(self, address: int) -> bytes:
+        return self(0xF6, 0, 0, 0, *struct.pack("<I", address))
+
+    def download(self, address: int, raw: bytes) -> bytes:
+        """DOWNLOAD in chunks of MAX_CTO - 2; the last answer."""
+        assert self.set_mta(address)[0] == 0xFF
+        step = self.desc.max_cto - 2
+        for i in range(0, len(raw), step):
+            chunk = raw[i:i + step]
+            r = self(0xF0, len(chunk), *chunk)
+            if r[0] != 0xFF:
+                return r
+        return r
+
+    def upload(self, address: int, n: int) -> bytes:
+        r = self(0xF4, n, 0, 0, *struct.pack("<I", address))  # SHORT_UPLOAD
+        assert r[0] == 0xFF, r.hex()
+        return r[1:1 + n]
+
+
+def torque_r(desc) -> int:
+    """Address of dkf[0].r[2], the driveline filter's torque-sensor variance."""
+    return desc.item("cal.dkf[0].r").address + 2 * 8
+
+
+# ---- the description, the A2L and the limit table: from the C structs, never stale --------
+
+def test_the_limit_table_a2l_and_dbc_are_the_build_output_of_these_structs():
+    """Regenerated from the compiled module's structs: equal to what the build wrote and the
+    firmware was compiled with (c_core/ecu/vh_ecu_xcp_table.inc), so none of them is stale."""
+    outputs = ecu_desc.outputs(xcp_ecu.description())
+    assert ecu_desc.TABLE in outputs and ecu_desc.SHIPPED_A2L in outputs
+    for target, text in outputs.items():
+        assert target.read_text() == text, f"{target} is stale: rebuild (make install) and commit it"
+
+
+def test_addresses_are_the_c_offsets_and_names_the_c_members():
+    desc = xcp_ecu.description()
+    ecu = Ecu()
+    base = int(ffi.cast("uintptr_t", ecu.c))
+    assert desc.item("dkf[0].x[2]").address - desc.measurement_address == \
+        int(ffi.cast("uintptr_t", ffi.addressof(ecu.c.dkf[0], "x"))) + 16 - base
+    assert desc.item("cal.skf.r").address - desc.calibration_address == ffi.offsetof("vh_ecu_cal_t", "skf", "r")
+    names = {it.name for it in desc.measurements}
+    for system in ("dkf[0].x[3]", "dkf[1].p[15]", "dkf[0].innov[2]", "dkf[0].health",  # driveline
+                   "chs.skf.x[6]", "chs.skf.p[48]", "chs.skf.innov[3]", "chs.skf.health",  # tyre force
+                   "cis.last[3].theta_rad",                                              # camber
+                   "cnt.crc_error", "chs.cnt.saturation", "xcp.slave.n.err_range"):      # counters
+        assert system in names
+    assert {it.name for it in desc.characteristics} >= {
+        "cal.dkf[0].q", "cal.dkf[0].r", "cal.dkf[1].r", "cal.skf.q", "cal.skf.r", "cal.we_min",
+        "cal.camber_mag_tol_g", "cal.rx_burst_frames"}
+    assert len(desc.measurements) >= 20
+
+
+def test_a_member_that_is_not_in_the_structs_is_refused(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(ecu_desc.ECU_TOML.read_text().replace('c = "dkf[0].x"', 'c = "dkf[0].xx"'))
+    with pytest.raises(ecu_desc.DescriptionError, match="no member"):
+        ecu_desc.describe(ffi, bad)
+
+
+def test_pya2l_and_a2ltool_open_it_without_errors():
+    parser = pytest.importorskip("pya2l.parser")
+    desc = xcp_ecu.description()
+    text = ecu_desc.SHIPPED_A2L.read_bytes()
+    with parser.A2lParser() as p:
+        tree = p.tree_from_a2l(text)
+        # pya2l 0.4's quirk inside IF_DATA (see test_xcp_a2l.py); nothing else
+        assert all("may be used at most once" in w for w in p.warnings), p.warnings
+        m = tree.PROJECT.MODULE[0]
+        assert {x.Name.Value: x.ECU_ADDRESS.Address.Value for x in m.MEASUREMENT} == \
+            {x.name: x.address for x in desc.measurements}
+        assert {x.Name.Value for x in m.CHARACTERISTIC} == {x.name for x in desc.characteristics}
+        p.tree_from_a2l(re.sub(rb"/begin IF_DATA.*?/end IF_DATA", b"", text, flags=re.S), enforce_version_check=True)
+        assert p.warnings == []
+    a2ltool = shutil.which("a2ltool") or str(Path(sys.executable).with_name("a2ltool"))
+    if Path(a2ltool).exists():
+        r = subprocess.run([a2ltool, "--check", "--strict", str(ecu_desc.SHIPPED_A2L)], capture_output=True, text=True)
+        assert r.returncode == 0 and "No problems found" in r.stdout, r.stdout + r.stderr
+
+
+def test_the_reference_page_is_the_configuration_and_within_the_limits():
+    ecu = Ecu()
+    xcp_ecu.enable(ecu)
+    for it in xcp_ecu.description().characteristics:
+        lo, hi = it.phys_limits()
+        vals = np.atleast_1d(xcp_ecu.read(ecu, it.name, "ref"))
+        assert np.all((vals >= lo) & (vals <= hi)), it.name
+        assert list(np.atleast_1d(xcp_ecu.read(ecu, it.name, "page"))) == list(vals)
+    assert xcp_ecu.read(ecu, "cal.dkf[0].r", "ref") == list(ecu.c.cfg.dkf[0].r)
+
+
+# ---- measurement: the ECU's own memory ------------------------------------------------------
+
+def test_upload_reads_the_running_filters():
+    ecu = Ecu()
+    cro = Cro(ecu, max_cto=64)  # CAN FD: a double in one SHORT_UPLOAD (at most MAX_CTO - 1 bytes)
+    cro(0xFF, 0)
+    drive = drive_from_scenario(load_scenario("launch_2nd"), 0.3)
+    run_inprocess(drive, ecu)  # the filters have run: the states are not zero
+    desc = cro.desc
+    # the innovation first: the ticks of the commands have no sensor frame (prediction only)
+    for name, value in (("dkf[0].innov[0]", lambda: ecu.c.dkf[0].innov[0]), ("dkf[0].x[2]", lambda: ecu.c.dkf[0].x[2]),
+                        ("dkf[0].p[5]", lambda: ecu.c.dkf[0].p[5])):
+        value = value()  # now: each command is a tick (the filters predict on)
+        assert value != 0.0
+        assert struct.unpack("<d", cro.upload(desc.item(name).address, 8))[0] == value
+    assert struct.unpack("<I", cro.upload(desc.item("tick").address, 4))[0] == ecu.tick - 1
+
+
+# ---- calibration: range-checked, at the tick boundary, bit-exact ----------------------------
+
+def test_a_write_reaches_the_filter_at_the_next_tick_boundary_and_survives_a_reset():
+    ecu = Ecu()
+    cro = Cro(ecu)
+    cro.connect_unlocked()
+    raw = struct.pack("<d", 1234.5)
+    assert cro.download(torque_r(cro.desc) - 16 + 16, raw[:6])[0] == 0xFF
+    assert ecu.c.dkf[0].cfg.r[2] != 1234.5  # half a double written: nothing reaches the filter
+    r = cro(0xF0, 2, *raw[6:])               # the last byte: due at the next tick boundary ...
+    assert r[0] == 0xFF and ecu.c.dkf[0].cfg.r[2] == 1234.5  # ... which this command's tick was
+    assert xcp_ecu.read(ecu, "cal.dkf[0].r", "ref")[2] != 1234.5  # the reference page never changes
+    ecu.reset()
+    assert ecu.c.dkf[0].cfg.r[2] == 1234.5 and ecu.c.cfg.dkf[0].r[2] == 1234.5
+
+
+def test_out_of_range_locked_and_reference_page_writes_are_refused_and_counted():
+    ecu = Ecu()
+    cro = Cro(ecu)
+    assert cro(0xFF, 0)[0] == 0xFF
+    a = torque_r(cro.desc)
+    before = ecu.c.dkf[0].cfg.r[2]
+    assert cro.download(a, struct.pack("<d", 5.0)[:6])[:2] == bytes([ERR, ERR_ACCESS_LOCKED])
+    cro.connect_unlocked()
+    for bad in (-1.0, 2e9, float("nan")):  # below 1e-6, above 1e9, NaN: the A2L's limits
+        assert cro.download(a, struct.pack("<d", bad))[:2] == bytes([ERR, ERR_OUT_OF_RANGE])
+    assert cro(0xEB, 0x83, 0, 1)[0] == 0xFF   # SET_CAL_PAGE: the master on the reference page
+    assert cro.download(a, struct.pack("<d", 5.0))[:2] == bytes([ERR, ERR_WRITE_PROTECTED])
+    assert cro.download(cro.desc.calibration_address + ffi.sizeof("vh_ecu_cal_t") + 8, b"\0")[:2] == \
+        bytes([ERR, ERR_ACCESS_DENIED])
+    for _ in range(3):
+        ecu.step()
+    assert ecu.c.dkf[0].cfg.r[2] == before
+    n = xcp_ecu.counters(ecu)
+    assert n["err_locked"] == 1 and n["err_range"] == 3 and n["err_access"] == 2 and n["cal_commits"] == 0
+
+
+def test_a_refused_value_written_in_two_downloads_leaves_no_byte_behind():
+    """A double over classic-size CTOs takes two DOWNLOADs; the second completes it out of range:
+    the first one's six bytes go too (found against the daemon: the mix of the old value's last
+    bytes and the refused value's first ones was in range and would have been committed)."""
+    ecu = Ecu()
+    cro = Cro(ecu)
+    cro.connect_unlocked()
+    a = torque_r(cro.desc)
+    assert cro.download(a, struct.pack("<d", 1.0e8))[0] == 0xFF
+    assert cro.download(a, struct.pack("<d", -5.0))[:2] == bytes([ERR, ERR_OUT_OF_RANGE])
+    for _ in range(250):  # past open_ticks: nothing is left open to commit
+        ecu.step()
+    assert xcp_ecu.read(ecu, "cal.dkf[0].r", "work")[2] == 1.0e8 == ecu.c.dkf[0].cfg.r[2]
+    assert xcp_ecu.counters(ecu)["cal_dropped"] == 0
+
+
+def test_the_ecu_runs_on_the_reference_page_when_switched_to_it():
+    ecu = Ecu()
+    cro = Cro(ecu)
+    cro.connect_unlocked()
+    cro.download(torque_r(cro.desc), struct.pack("<d", 777.0))
+    ecu.step()
+    assert ecu.c.dkf[0].cfg.r[2] == 777.0
+    assert cro(0xEB, 0x01, 0, 1)[0] == 0xFF   # SET_CAL_PAGE for the ECU: page 1
+    ecu.step()
+    assert ecu.c.dkf[0].cfg.r[2] == xcp_ecu.read(ecu, "cal.dkf[0].r", "ref")[2]
+
+
+def _estimates(session) -> np.ndarray:
+    from vehest_can.bus.frames import frame_id
+    est = frame_id("VEHEST_DrivelineEst")
+    f = session.frames
+    return f[f["id"] == est]
+
+
+def test_a_calibration_write_is_bit_exact_with_the_same_value_set_at_start():
+    """Lockstep: the torque-sensor variance written through XCP before the drive gives the same
+    estimate frames, bit for bit, as an ECU configured with that value; and not the default's."""
+    drive = drive_from_scenario(load_scenario("launch_2nd"), 1.0)
+    value = 4.0 * Ecu().c.cfg.dkf[0].r[2]
+    cfg = EcuConfig.default()
+    started = Ecu(replace(cfg, dkf_t=replace(cfg.dkf_t, r=(cfg.dkf_t.r[0], cfg.dkf_t.r[1], value))))
+    assert started.c.cfg.dkf[0].r[2] == value
+    calibrated = Ecu()
+    cro = Cro(calibrated)
+    cro.connect_unlocked()
+    assert cro.download(torque_r(cro.desc), struct.pack("<d", value))[0] == 0xFF
+    calibrated.reset()  # the session's reset (SIM_Sync RESET): the calibration stays
+    a, b, default = (_estimates(run_inprocess(drive, e)) for e in (started, calibrated, Ecu()))
+    assert len(a) == len(b) > 1000
+    assert a.tobytes() == b.tobytes()
+    assert a.tobytes() != default.tobytes()
+
+
+def test_xcp_idle_changes_no_frame_of_the_systems():
+    drive = drive_from_scenario(load_scenario("launch_2nd"), 0.5)
+    with_xcp = Ecu()
+    xcp_ecu.enable(with_xcp)
+    a, b = run_inprocess(drive, Ecu()).frames, run_inprocess(drive, with_xcp).frames
+    assert a.tobytes() == b.tobytes()
+
+
+# ---- bad input and the TX budget -------------------------------------------------------------
+
+def test_bad_cro_frames_are_errors_never_a_crash():
+    ecu = Ecu()
+    cro = Cro(ecu)
+    cro(0xFF, 0)
+    assert cro(0x42)[:2] == bytes([ERR, 0x20])          # ERR_CMD_UNKNOWN
+    assert cro(0xF6)[:2] == bytes([ERR, 0x21])          # SET_MTA without its address: ERR_CMD_SYNTAX
+    assert cro(0xF4, 4, 0, 0, 0, 0, 0, 0x30)[:2] == bytes([ERR, ERR_ACCESS_DENIED])  # outside described memory
+    # a DAQ list over the capacities (ALLOC_DAQ 200 > VH_XCP_MAX_DAQ) while locked / unlocked
+    assert cro(0xD5, 0, 200, 0)[:2] == bytes([ERR, ERR_ACCESS_LOCKED])
+    cro.connect_unlocked()
+    assert cro(0xD6)[0] == 0xFF
+    assert cro(0xD5, 0, 200, 0)[:2] == bytes([ERR, 0x30])  # ERR_MEMORY_OVERFLOW
+    n = xcp_ecu.counters(ecu)
+    assert n["err_unknown"] == 1 and n["err_syntax"] == 1 and n["err_access"] == 1 and n["err_daq"] == 1
+
+
+def test_at_most_one_xcp_frame_per_tick_and_dtos_carry_the_tick():
+    """DAQ of 20 doubles on the tick event (4 DTOs per tick of 48 bytes) is more than the budget
+    of one XCP frame per tick: the ECU never sends more, the queue overruns, whole samples are
+    dropped and counted."""
+    ecu = Ecu()
+    cro = Cro(ecu)
+    cro.connect_unlocked()
+    desc = cro.desc
+    doubles = [it for it in desc.measurements if it.ctype == "double"][:20]
+    per_odt = (desc.max_dto - 1) // 8
+    odts = [doubles[i:i + per_odt] for i in range(0, len(doubles), per_odt)]
+    assert cro(0xD6)[0] == 0xFF                                   # FREE_DAQ
+    assert cro(0xD5, 0, 1, 0)[0] == 0xFF                          # ALLOC_DAQ 1
+    assert cro(0xD4, 0, 0, 0, len(odts))[0] == 0xFF               # ALLOC_ODT
+    for i, odt in enumerate(odts):
+        assert cro(0xD3, 0, 0, 0, i, len(odt))[0] == 0xFF         # ALLOC_ODT_ENTRY
+    for i, odt in enumerate(odts):
+        assert cro(0xE2, 0, 0, 0, i, 0)[0] == 0xFF                # SET_DAQ_PTR
+        for it in odt:
+            assert cro(0xE1, 0xFF, 8, 0, *struct.pack("<I", it.address))[0] == 0xFF  # WRITE_DAQ
+    assert cro(0xE0, 0x00, 0, 0, 0, 0, 1, 0)[0] == 0xFF           # SET_DAQ_LIST_MODE: event 0, prescaler 1
+    assert cro(0xDE, 0x01, 0, 0)[0] == 0xFF                       # START_STOP_DAQ_LIST: start
+    per_tick = []
+    for _ in range(400):
+        per_tick.append(sum(m.arbitration_id == desc.dto_id for m in ecu.step()))
+    assert max(per_tick) == 1 and sum(per_tick) == 400
+    n = xcp_ecu.counters(ecu)
+    assert n["dto_overrun"] > 0 and n["dto"] % len(odts) == 0  # whole samples or none

@@ -1,0 +1,127 @@
+"""The XCP slave inside the ECU firmware (``c_core/ecu/vh_ecu_xcp.h``), seen from Python.
+
+``enable(ecu)`` switches it on in a :class:`vehest_can.systems.ecu.Ecu`: from then on the CRO
+frames handed to ``ecu.rx`` reach it through the ECU's own dispatch and its RES/ERR/DTO frames
+come out of ``ecu.step`` with the systems' frames, so every way of driving the ECU (in-process,
+lockstep, real time, the daemon) serves XCP without more code. The layout is the C structs';
+``description()`` is the same Description the build wrote the A2L and the limit table from.
+"""
+from __future__ import annotations
+
+import struct
+from functools import lru_cache
+
+from ..errors import ConfigError
+from ..native import ffi, lib
+from ..systems.ecu import Ecu
+from . import ecu_desc
+from .description import C_TYPES, Description, Item
+
+#: the bench's seed & key secret (a bench algorithm: a production ECU derives keys in its HSM)
+SECRET = 0x5EC0DE42
+COUNTERS = [f[0] for f in ffi.typeof("vh_xcp_counters_t").fields]
+PAGES = ("page", "work", "ref")  # what the systems run on, the working page, the reference page
+
+
+@lru_cache(maxsize=1)
+def description() -> Description:
+    """The ECU's XCP description, laid out by the compiled extension's structs."""
+    return ecu_desc.describe(ffi)
+
+
+def key_for(seed: bytes, secret: int = SECRET) -> bytes:
+    """The key the slave expects for a 4-byte seed (vh_xcp_key, the firmware's own function)."""
+    (s,) = struct.unpack("<I", seed)
+    return struct.pack("<I", lib.vh_xcp_key(s, secret))
+
+
+def enable(ecu: Ecu, *, cro_id: int | None = None, dto_id: int | None = None, max_cto: int | None = None,
+           max_dto: int | None = None, fd: bool | None = None, secret: int = SECRET) -> Description:
+    """Switch the slave on (the ECU's tuning as configured now becomes the reference page).
+    Identifiers, MAX_CTO/MAX_DTO and CAN FD default to the description's; ConfigError if the
+    firmware refuses them. Returns the description with the values in use."""
+    from dataclasses import replace
+
+    desc = description()
+    desc = replace(desc, cro_id=desc.cro_id if cro_id is None else cro_id,
+                   dto_id=desc.dto_id if dto_id is None else dto_id,
+                   max_cto=desc.max_cto if max_cto is None else max_cto,
+                   max_dto=desc.max_dto if max_dto is None else max_dto,
+                   fd=desc.fd if fd is None else fd)
+    c = ffi.new("vh_ecu_xcp_config_t *")
+    c.cro_id, c.dto_id, c.max_cto, c.max_dto, c.fd, c.secret = (
+        desc.cro_id, desc.dto_id, desc.max_cto, desc.max_dto, int(desc.fd), secret)
+    if lib.vh_ecu_xcp_enable(ecu.c, c) != lib.VH_OK:
+        raise ConfigError(f"XCP configuration refused by the ECU: CRO 0x{desc.cro_id:X}, DTO 0x{desc.dto_id:X}, "
+                          f"MAX_CTO {desc.max_cto}, MAX_DTO {desc.max_dto}, fd={desc.fd} "
+                          "(8..64, above 8 only with CAN FD, CRO and DTO apart)")
+    return desc
+
+
+def enabled(ecu: Ecu) -> bool:
+    return bool(ecu.c.xcp.enabled)
+
+
+def counters(ecu: Ecu) -> dict[str, int]:
+    return {name: int(getattr(ecu.c.xcp.slave.n, name)) for name in COUNTERS}
+
+
+def _unpack(item: Item, raw: bytes):
+    vals = struct.unpack("<" + C_TYPES[item.ctype][4] * item.count, raw)
+    phys = [item.raw_to_phys(v) for v in vals]
+    return phys if item.shape else phys[0]
+
+
+def read(ecu: Ecu, name: str, page: str = "page"):
+    """Physical value(s) of a measurement, or of a characteristic on one of the three pages."""
+    desc = description()
+    item = desc.item(name)
+    if item.kind == "measurement":
+        off = item.address - desc.measurement_address
+        return _unpack(item, bytes(ffi.buffer(ecu.c, ffi.sizeof("vh_ecu_t"))[off:off + item.size]))
+    if page not in PAGES:
+        raise ConfigError(f"page must be one of {', '.join(PAGES)}, not {page!r}")
+    off = item.address - desc.calibration_address
+    buf = ffi.buffer(ffi.addressof(ecu.c.xcp, page), ffi.sizeof("vh_ecu_cal_t"))
+    return _unpack(item, bytes(buf[off:off + item.size]))
+
+
+# ---- the daemon's configuration (vehest-can daemon) -------------------------------------------
+
+def _int(text: str) -> int:
+    try:
+        return int(text, 0)
+    except ValueError:
+        raise ConfigError(f"{text!r} is not a number (decimal or 0x hex)") from None
+
+
+def add_arguments(parser) -> None:
+    """The daemon's XCP flags: the slave is on unless --xcp off; identifiers, sizes and CAN FD are
+    configuration (defaults: vehest_can/xcp/ecu.toml, the A2L's)."""
+    d = description()
+    g = parser.add_argument_group("XCP on CAN (the ECU's measurement and calibration slave, docs/xcp.md)")
+    g.add_argument("--xcp", choices=("on", "off"), default="on", help="serve XCP on the bus (default on)")
+    g.add_argument("--xcp-cro-id", metavar="ID", help=f"master->slave identifier (default 0x{d.cro_id:X}; "
+                   "add 0x80000000 for a 29-bit one)")
+    g.add_argument("--xcp-dto-id", metavar="ID", help=f"slave->master identifier (default 0x{d.dto_id:X})")
+    g.add_argument("--xcp-max-cto", metavar="N", help=f"MAX_CTO 8..64 (default {d.max_cto})")
+    g.add_argument("--xcp-max-dto", metavar="N", help=f"MAX_DTO 8..64 (default {d.max_dto}; above 8 needs CAN FD)")
+    g.add_argument("--xcp-fd", choices=("on", "off"), help=f"XCP frames as CAN FD (default {'on' if d.fd else 'off'})")
+
+
+def from_args(args, ecu: Ecu) -> Description | None:
+    """Enable the slave on `ecu` as the flags say; None with --xcp off."""
+    if getattr(args, "xcp", "off") != "on":
+        return None
+    opt = {k: _int(v) for k, v in (("cro_id", args.xcp_cro_id), ("dto_id", args.xcp_dto_id),
+                                   ("max_cto", args.xcp_max_cto), ("max_dto", args.xcp_max_dto)) if v is not None}
+    for k in ("cro_id", "dto_id"):
+        if k in opt and not 0 <= opt[k] & 0x7FFFFFFF <= (0x1FFFFFFF if opt[k] & 0x80000000 else 0x7FF):
+            raise ConfigError(f"--xcp-{k.replace('_', '-')} 0x{opt[k]:X} is not a CAN identifier")
+    fd = None if args.xcp_fd is None else args.xcp_fd == "on"
+    return enable(ecu, fd=fd, **opt)
+
+
+def summary(ecu: Ecu) -> str:
+    n = {k: v for k, v in counters(ecu).items() if v}
+    return "xcp: " + (", ".join(f"{k}={v}" for k, v in n.items()) if n else "no traffic")
