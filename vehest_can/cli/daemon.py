@@ -14,6 +14,7 @@ from ..service import sdnotify
 from ..service.daemon import EcuDaemon
 from ..systems.camber.api import load_calibrations
 from ..systems.ecu import Ecu, EcuConfig
+from ..xcp import ecu as xcp_ecu
 
 
 def add_subparser(subparsers) -> None:
@@ -33,6 +34,7 @@ def add_subparser(subparsers) -> None:
     p.add_argument("--stats", metavar="FILE", help="write the run's statistics as JSON on exit")
     p.add_argument("--idle-timeout", type=float, metavar="S", help="lockstep: stop after S seconds without a frame")
     sdnotify.add_log_level(p)
+    xcp_ecu.add_arguments(p)  # the XCP slave in the ECU (its own flags, docs/xcp.md)
     busmod.add_arguments(p)
     p.set_defaults(func=run)
 
@@ -44,6 +46,7 @@ def run(args) -> int:
     ecu = Ecu(replace(EcuConfig.default(), rx_burst_frames=args.rx_burst_limit))
     if args.camber_cal:
         ecu.set_camber_calibrations(load_calibrations(args.camber_cal))
+    xcp = xcp_ecu.from_args(args, ecu)
     config = busmod.bus_config(args)
     bus = busmod.open_bus(config)
     print(f"vehest-can daemon: bus {busmod.describe_bus(bus, config)}", file=sys.stderr, flush=True)
@@ -57,6 +60,8 @@ def run(args) -> int:
         else:
             stats = daemon.serve_realtime(duration=args.duration)
     print("\n".join(stats.lines()), file=sys.stderr)
+    if xcp is not None:
+        print(xcp_ecu.summary(ecu), file=sys.stderr)
     if args.stats:
         Path(args.stats).write_text(json.dumps(asdict(stats), indent=2) + "\n")
     return 0
