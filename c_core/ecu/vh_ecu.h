@@ -73,7 +73,7 @@ int vh_ecu_xcp_enable(vh_ecu_t *ecu, const vh_ecu_xcp_config_t *cfg);
 /* The tuning block of the ECU as configured / into the configuration and the running filters. */
 void vh_ecu_cal_gather(const vh_ecu_t *ecu, vh_ecu_cal_t *cal);
 void vh_ecu_cal_apply(vh_ecu_t *ecu, const vh_ecu_cal_t *cal);
-/* The scheduler's hooks: a CRO frame (1 if it was one), the tick boundary, an event channel,
+/* The scheduler's hooks: a frame on the CRO or DTO identifier (1 if it was one), the tick boundary, an event channel,
  * and the XCP frames after the systems' TX (returns the new count). */
 int vh_ecu_xcp_rx(vh_ecu_t *ecu, const vh_frame_t *f);
 void vh_ecu_xcp_tick(vh_ecu_t *ecu);

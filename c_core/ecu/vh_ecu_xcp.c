@@ -109,10 +109,12 @@ int vh_ecu_xcp_rx(vh_ecu_t *ecu, const vh_frame_t *f)
 {
     vh_ecu_xcp_t *a = &ecu->xcp;
     const uint32_t id = f->id | (((f->flags & VH_FRAME_EXT) != 0u) ? EXT_BIT : 0u);
-    if (!a->enabled || id != a->slave.cfg.cro_id) {
+    if (!a->enabled || (id != a->slave.cfg.cro_id && id != a->slave.cfg.dto_id)) {
         return 0;
     }
-    vh_xcp_rx(&a->slave, f->data, f->len, a->ticks);
+    if (id == a->slave.cfg.cro_id) {
+        vh_xcp_rx(&a->slave, f->data, f->len, a->ticks);
+    } /* else our own RES/DTO heard back (a loopback bus): known, not input, like our DBC TX */
     return 1;
 }
 

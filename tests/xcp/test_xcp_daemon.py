@@ -155,6 +155,7 @@ def test_pyxcp_measures_the_running_daemon_on_its_event_channels(rig):
           f"of ECU time, none lost; slave counters {n}")
     assert policy.daq_lists[0].odt_count == 2 if hasattr(policy.daq_lists[0], "odt_count") else True
     assert n["dto_overrun"] == 0
+    assert r.ecu.counters()["unknown_id"] == 0  # its own XCP frames heard back are not unknown input
     torque = [p[col["dkf[0].x[2]"]] for p in fast_s]
     assert max(torque) > 10.0  # the car drives: the estimate moves
     assert r.stats.get("d") is None  # the daemon still serving

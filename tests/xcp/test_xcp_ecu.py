@@ -279,6 +279,10 @@ def test_bad_cro_frames_are_errors_never_a_crash():
     assert cro(0xD5, 0, 200, 0)[:2] == bytes([ERR, 0x30])  # ERR_MEMORY_OVERFLOW
     n = xcp_ecu.counters(ecu)
     assert n["err_unknown"] == 1 and n["err_syntax"] == 1 and n["err_access"] == 1 and n["err_daq"] == 1
+    # our own DTO identifier heard back (udp_multicast loops frames back) is known, not input
+    cro_before = n["cro"]
+    ecu.rx(can.Message(arbitration_id=cro.desc.dto_id, is_extended_id=False, is_fd=True, data=b"\xff"))
+    assert ecu.counters()["unknown_id"] == 0 and xcp_ecu.counters(ecu)["cro"] == cro_before
 
 
 def test_at_most_one_xcp_frame_per_tick_and_dtos_carry_the_tick():
