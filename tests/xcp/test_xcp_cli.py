@@ -1,0 +1,71 @@
+"""``vehest-can xcp``: the A2L, the item list, and get/set against a running daemon on the
+project's default bus (a private udp_multicast port)."""
+from __future__ import annotations
+
+import threading
+import time
+
+import pytest
+
+from vehest_can.bus import bus as busmod
+from vehest_can.cli import main
+from vehest_can.service.daemon import EcuDaemon
+from vehest_can.systems.ecu import Ecu
+from vehest_can.xcp import ecu as xcp_ecu
+from vehest_can.xcp import ecu_desc
+
+
+def test_a2l_is_written_and_items_listed(tmp_path, capsys):
+    out = tmp_path / "ecu.a2l"
+    assert main(["xcp", "a2l", "-o", str(out)]) == 0
+    assert out.read_text() == ecu_desc.SHIPPED_A2L.read_text()
+    assert main(["xcp", "list", "cal.dkf[[]0].*"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert [ln.split()[1] for ln in lines] == ["cal.dkf[0].q", "cal.dkf[0].r", "cal.dkf[0].p_max"]
+
+
+@pytest.fixture
+def daemon_bus():
+    config = busmod.private_multicast()
+    bus = busmod.open_bus(config)
+    ecu = Ecu()
+    xcp_ecu.enable(ecu)
+    daemon = EcuDaemon(bus, ecu)
+    t = threading.Thread(target=daemon.serve_realtime, daemon=True)
+    t.start()
+    time.sleep(0.2)
+    yield ecu, ["-i", "udp_multicast", "-c", config["channel"], "--fd", "--bus-kwargs", f"port={config['port']}"]
+    daemon.stop_event.set()
+    t.join(10)
+    bus.shutdown()
+
+
+@pytest.mark.multicast
+def test_get_and_set_against_the_running_daemon(daemon_bus, capsys):
+    ecu, flags = daemon_bus
+    assert main(["xcp", "set", "cal.dkf[0].r", "3000", "--index", "2", *flags]) == 0
+    assert capsys.readouterr().out.strip() == "cal.dkf[0].r = [415, 27, 3000]"
+    assert ecu.c.dkf[0].cfg.r[2] == 3000.0  # in the running filter
+    assert main(["xcp", "get", "tick", "dkf[0].health", *flags]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("tick = ") and int(out[0].split()[-1]) > 0
+    assert main(["xcp", "set", "cal.we_min", "500", *flags]) == 1
+    err = capsys.readouterr().err
+    assert "ERR_OUT_OF_RANGE" in err and "[0, 200] rad/s" in err and "nothing written" in err
+    assert ecu.c.cfg.we_min == 40.0
+
+
+def test_bad_arguments_are_clear_errors(capsys):
+    flags = ["-i", "virtual", "-c", "xcp-cli-nobody", "--timeout", "0.2"]
+    assert main(["xcp", "get", "no_such", *flags]) == 1
+    assert "no XCP item named 'no_such'" in capsys.readouterr().err
+    assert main(["xcp", "set", "tick", "1", *flags]) == 1
+    assert "is a measurement" in capsys.readouterr().err
+    assert main(["xcp", "set", "cal.we_min", "fast", *flags]) == 1
+    assert "values must be numbers" in capsys.readouterr().err
+    assert main(["xcp", "set", "cal.we_min", "1", "2", *flags]) == 1
+    assert "do not fit" in capsys.readouterr().err
+    assert main(["xcp", "get", "tick", "--cro-id", "0xZZ", *flags]) == 1
+    assert "--cro-id" in capsys.readouterr().err
+    assert main(["xcp", "get", "tick", *flags]) == 1  # nobody on that bus
+    assert "no XCP answer to CONNECT" in capsys.readouterr().err

@@ -1,0 +1,151 @@
+"""``vehest-can xcp``: the ECU's XCP description, its A2L, and a small master for named items.
+
+    vehest-can xcp a2l [-o FILE]          the A2L of the ECU (the build's, from the C structs)
+    vehest-can xcp list [PATTERN]         measurements and characteristics: type, unit, limits
+    vehest-can xcp get NAME...            read them from a running daemon (its bus: python-can flags)
+    vehest-can xcp set NAME VALUE...      calibrate one (seed & key done for you), read it back
+"""
+from __future__ import annotations
+
+import fnmatch
+import math
+import shutil
+import sys
+
+from ..bus import bus as busmod
+from ..errors import ConfigError
+
+
+def add_subparser(subparsers) -> None:
+    p = subparsers.add_parser("xcp", help="the ECU's XCP: its A2L, its items, read and calibrate them on a bus",
+                              description="The ECU's XCP-on-CAN slave (docs/xcp.md): write its A2L, list what it "
+                                          "measures and calibrates, read or write an item by its C name on the "
+                                          "bus of a running `vehest-can daemon`.")
+    sub = p.add_subparsers(dest="action", metavar="ACTION")
+    sub.required = True
+    a = sub.add_parser("a2l", help="write the ECU's A2L")
+    a.add_argument("-o", "--output", metavar="FILE", help="where (default: print it)")
+    a.set_defaults(func=run_a2l)
+    ls = sub.add_parser("list", help="list the measurements and characteristics")
+    ls.add_argument("pattern", nargs="?", default="*", help="shell pattern on the names, e.g. 'cal.dkf*'")
+    ls.set_defaults(func=run_list)
+    for name, hlp, func in (("get", "read items from the running ECU", run_get),
+                            ("set", "write a characteristic of the running ECU and read it back", run_set)):
+        q = sub.add_parser(name, help=hlp)
+        if name == "get":
+            q.add_argument("names", nargs="+", metavar="NAME")
+        else:
+            q.add_argument("name", metavar="NAME")
+            q.add_argument("values", nargs="+", metavar="VALUE", help="physical value(s), from element --index on")
+            q.add_argument("--index", type=int, default=0, help="first element to write (default 0)")
+        q.add_argument("--cro-id", metavar="ID", help="master->slave identifier (default: the A2L's)")
+        q.add_argument("--dto-id", metavar="ID", help="slave->master identifier (default: the A2L's)")
+        q.add_argument("--timeout", type=float, default=1.0, metavar="S", help="per answer (default 1 s)")
+        busmod.add_arguments(q)
+        q.set_defaults(func=func)
+
+
+def _description():
+    from ..xcp import ecu as xcp_ecu
+    return xcp_ecu.description()
+
+
+def _item(desc, name: str):
+    try:
+        return desc.item(name)
+    except KeyError:
+        close = [n for n in (i.name for i in desc.measurements + desc.characteristics) if name in n][:5]
+        hint = f" (did you mean {', '.join(close)}?)" if close else " (`vehest-can xcp list` shows them)"
+        raise ConfigError(f"no XCP item named {name!r}{hint}") from None
+
+
+def run_a2l(args) -> int:
+    from ..xcp import ecu_desc
+    if args.output:
+        shutil.copyfile(ecu_desc.SHIPPED_A2L, args.output)
+        print(f"wrote {args.output}", file=sys.stderr)
+    else:
+        sys.stdout.write(ecu_desc.SHIPPED_A2L.read_text())
+    return 0
+
+
+def run_list(args) -> int:
+    desc = _description()
+    for it in desc.measurements + desc.characteristics:
+        if fnmatch.fnmatchcase(it.name, args.pattern):
+            lo, hi = it.phys_limits()
+            shape = f"[{it.count}]" if it.shape else ""
+            limits = f"  [{lo:g}, {hi:g}]" if it.kind == "characteristic" else ""
+            print(f"{it.kind[:4]}  {it.name:28s} {it.ctype}{shape:5s} {it.unit:10s}{limits}  {it.comment}")
+    return 0
+
+
+def _master(args):
+    from dataclasses import replace
+
+    from ..xcp.master import Master
+
+    desc = _description()
+    ids = {}
+    for key in ("cro_id", "dto_id"):
+        text = getattr(args, key)
+        if text is not None:
+            try:
+                ids[key] = int(text, 0)
+            except ValueError:
+                raise ConfigError(f"--{key.replace('_', '-')} {text!r} is not a number (decimal or 0x hex)") from None
+    if args.timeout <= 0 or not math.isfinite(args.timeout):
+        raise ConfigError("--timeout must be a positive number of seconds")
+    desc = replace(desc, **ids)
+    config = busmod.bus_config(args)
+    return Master(busmod.open_bus(config), desc, timeout=args.timeout), desc
+
+
+def _show(item, values) -> str:
+    text = ", ".join(f"{v:g}" for v in values)
+    return f"{item.name} = {'[' + text + ']' if item.shape else text} {item.unit}".rstrip()
+
+
+def run_get(args) -> int:
+    desc = _description()
+    items = [_item(desc, n) for n in args.names]
+    m, _ = _master(args)
+    try:
+        m.connect()
+        for it in items:
+            print(_show(it, m.read(it)))
+        m.disconnect()
+    finally:
+        m.bus.shutdown()
+    return 0
+
+
+def run_set(args) -> int:
+    from ..xcp import ecu as xcp_ecu
+    from ..xcp.master import XcpError
+
+    desc = _description()
+    it = _item(desc, args.name)
+    if it.kind != "characteristic":
+        raise ConfigError(f"{it.name} is a measurement; only characteristics (cal.*) can be written")
+    try:
+        values = [float(v) for v in args.values]
+    except ValueError:
+        raise ConfigError(f"values must be numbers, got {' '.join(args.values)}") from None
+    if not 0 <= args.index or args.index + len(values) > it.count:
+        raise ConfigError(f"{it.name} has {it.count} element(s): {len(values)} value(s) from --index {args.index} do not fit")
+    m, _ = _master(args)
+    try:
+        m.connect(key_for=lambda seed: xcp_ecu.key_for(seed))
+        try:
+            m.write(it, values, args.index)
+        except XcpError as exc:
+            if "OUT_OF_RANGE" in str(exc):
+                lo, hi = it.phys_limits()
+                raise XcpError(f"{exc}: {it.name} takes [{lo:g}, {hi:g}] {it.unit}".rstrip() + "; nothing written") from None
+            raise
+        print(_show(it, m.read(it)))
+        m.disconnect()
+    finally:
+        m.bus.shutdown()
+    return 0
