@@ -285,6 +285,40 @@ def test_bad_cro_frames_are_errors_never_a_crash():
     assert ecu.counters()["unknown_id"] == 0 and xcp_ecu.counters(ecu)["cro"] == cro_before
 
 
+def start_daq(cro: Cro, odts: list, event: int, timestamp: bool = True) -> None:
+    """One dynamic DAQ list of the given ODTs (lists of Items) on an event channel, started."""
+    assert cro(0xD6)[0] == 0xFF                                   # FREE_DAQ
+    assert cro(0xD5, 0, 1, 0)[0] == 0xFF                          # ALLOC_DAQ 1
+    assert cro(0xD4, 0, 0, 0, len(odts))[0] == 0xFF               # ALLOC_ODT
+    for i, odt in enumerate(odts):
+        assert cro(0xD3, 0, 0, 0, i, len(odt))[0] == 0xFF         # ALLOC_ODT_ENTRY
+    for i, odt in enumerate(odts):
+        assert cro(0xE2, 0, 0, 0, i, 0)[0] == 0xFF                # SET_DAQ_PTR
+        for it in odt:
+            assert cro(0xE1, 0xFF, it.size, 0, *struct.pack("<I", it.address))[0] == 0xFF  # WRITE_DAQ
+    mode = 0x10 if timestamp else 0x00
+    assert cro(0xE0, mode, 0, 0, event, 0, 1, 0)[0] == 0xFF       # SET_DAQ_LIST_MODE, prescaler 1
+    assert cro(0xDE, 0x01, 0, 0)[0] == 0xFF                       # START_STOP_DAQ_LIST: start
+
+
+def test_the_event_channels_fire_every_tick_every_1ms_and_every_10ms():
+    for event, period in ((0, 1), (1, 2), (2, 20)):
+        ecu = Ecu()
+        cro = Cro(ecu)
+        cro.connect_unlocked()
+        start_daq(cro, [[cro.desc.item("tick")]], event)
+        stamps, ticks = [], []
+        for _ in range(200):
+            for m in ecu.step():
+                if m.arbitration_id == cro.desc.dto_id and m.data[0] == 0:  # PID 0: the list's ODT
+                    stamps.append(struct.unpack("<I", m.data[1:5])[0])
+                    ticks.append(struct.unpack("<I", m.data[5:9])[0])
+        assert len(ticks) >= 200 // period - 1
+        assert {b - a for a, b in zip(ticks, ticks[1:])} == {period}, event
+        assert all(t % period == 0 for t in ticks)                      # at the runnable's rate
+        assert [s - t for s, t in zip(stamps, ticks)] == [stamps[0] - ticks[0]] * len(ticks)  # timestamp = tick
+
+
 def test_at_most_one_xcp_frame_per_tick_and_dtos_carry_the_tick():
     """DAQ of 20 doubles on the tick event (4 DTOs per tick of 48 bytes) is more than the budget
     of one XCP frame per tick: the ECU never sends more, the queue overruns, whole samples are
@@ -296,17 +330,7 @@ def test_at_most_one_xcp_frame_per_tick_and_dtos_carry_the_tick():
     doubles = [it for it in desc.measurements if it.ctype == "double"][:20]
     per_odt = (desc.max_dto - 1) // 8
     odts = [doubles[i:i + per_odt] for i in range(0, len(doubles), per_odt)]
-    assert cro(0xD6)[0] == 0xFF                                   # FREE_DAQ
-    assert cro(0xD5, 0, 1, 0)[0] == 0xFF                          # ALLOC_DAQ 1
-    assert cro(0xD4, 0, 0, 0, len(odts))[0] == 0xFF               # ALLOC_ODT
-    for i, odt in enumerate(odts):
-        assert cro(0xD3, 0, 0, 0, i, len(odt))[0] == 0xFF         # ALLOC_ODT_ENTRY
-    for i, odt in enumerate(odts):
-        assert cro(0xE2, 0, 0, 0, i, 0)[0] == 0xFF                # SET_DAQ_PTR
-        for it in odt:
-            assert cro(0xE1, 0xFF, 8, 0, *struct.pack("<I", it.address))[0] == 0xFF  # WRITE_DAQ
-    assert cro(0xE0, 0x00, 0, 0, 0, 0, 1, 0)[0] == 0xFF           # SET_DAQ_LIST_MODE: event 0, prescaler 1
-    assert cro(0xDE, 0x01, 0, 0)[0] == 0xFF                       # START_STOP_DAQ_LIST: start
+    start_daq(cro, odts, event=0, timestamp=False)
     per_tick = []
     for _ in range(400):
         per_tick.append(sum(m.arbitration_id == desc.dto_id for m in ecu.step()))

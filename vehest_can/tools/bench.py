@@ -6,7 +6,9 @@ plant + sensor node + ECU >= 100x faster than real time. Tyre-force estimators (
 SKFMEC step in fixed point and in double and the plain EKF step in a C loop, against the numpy
 reference step (skf_ref) on the same inputs; the ECU tick with the chassis estimator active
 (DLS_Sensors + CHS_Sensors in every tick) <= 10 µs median; the 14-DOF chassis plant alone
->= 200x real time. Medians of repeated runs; ratios are against baselines timed in the same run.
+>= 200x real time. XCP (issue 16): the ECU tick with the slave off, on and idle, and with a
+20-signal DAQ list on the 1 ms event, three ECUs stepped in turn on the same frames. Medians of
+repeated runs; ratios are against baselines timed in the same run.
 """
 from __future__ import annotations
 
@@ -44,9 +46,9 @@ def _data(n: int, seed: int = 0):
     return np.full(n, 170.0), z
 
 
-def c_loop() -> dict[str, tuple[float, float]] | None:
-    """Build c_core/bench/vh_bench.c with the extension's flags and run it: {name: (median_ns, p99_ns)}."""
-    src = ROOT / "c_core" / "bench" / "vh_bench.c"
+def c_loop(bench: str = "vh_bench.c") -> dict[str, tuple[float, float]] | None:
+    """Build c_core/bench/<bench> with the extension's flags and run it: {name: (median_ns, p99_ns)}."""
+    src = ROOT / "c_core" / "bench" / bench
     cc = shutil.which("cc") or shutil.which("gcc")
     if not src.exists() or cc is None:
         return None
@@ -115,6 +117,7 @@ def run(quick: bool = False) -> dict:
 
         res["filterpy_ns"] = _median_time(filterpy_run, max(1, repeats // 2)) / m * 1e9
     res["c_loop"] = c_loop()
+    res["ecu_xcp"] = c_loop("vh_bench_ecu_xcp.c")  # the ECU tick with the XCP slave beside without
     res["tireforce"] = tireforce(c_samples=4000 if quick else 40000, ref_steps=100 if quick else 400,
                                  repeats=1 if quick else 3)
     res["chassis_plant"] = chassis_plant(seconds=1.0 if quick else 10.0, repeats=3 if quick else 9)
@@ -189,6 +192,17 @@ def table(res: dict, lockstep: dict[str, float] | None = None) -> str:
     if "ecu_tick_chassis" in c:
         lines.append(f"{'ECU tick + CHS frame + fixed SKFMEC, C loop':<44}{c['ecu_tick_chassis'][0] / 1000:>9.2f} µs/tick"
                      f"   p99 {c['ecu_tick_chassis'][1] / 1000:.2f} µs (target <= 10 µs)")
+    x = res.get("ecu_xcp") or {}
+    if "ecu_tick_no_xcp" in x:
+        base = x["ecu_tick_no_xcp"][0]
+        for key, name in (("ecu_tick_no_xcp", "ECU tick, XCP off (same run)"),
+                          ("ecu_tick_xcp_idle", "ECU tick, XCP on, connected, idle"),
+                          ("ecu_tick_xcp_daq", "ECU tick, XCP 20-signal DAQ at 1 ms")):
+            lines.append(f"{name:<44}{x[key][0] / 1000:>9.2f} µs/tick   p99 {x[key][1] / 1000:.2f} µs, "
+                         f"{x[key][0] / base:.2f}x the tick without XCP")
+        if "xcp_daq_dtos" in x:  # "xcp_daq_dtos ticks dtos overruns": the DAQ ran within its budget
+            lines.append(f"{'  XCP DAQ in that run':<44}{x['xcp_daq_dtos'][0]:>9.0f} DTOs, "
+                         f"{x['xcp_daq_dtos'][1]:.0f} samples dropped")
     tf = res.get("tireforce") or {}
     tc, ref = tf.get("c_loop") or {}, tf.get("numpy_ref_ns")
     for key, name in (("skfmec_fixed_step", "SKFMEC fixed-point step, C loop"),
