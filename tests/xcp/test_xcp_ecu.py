@@ -24,6 +24,7 @@ from vehest_can.sim.session import drive_from_scenario, run_inprocess
 from vehest_can.systems.ecu import Ecu, EcuConfig
 from vehest_can.xcp import ecu as xcp_ecu
 from vehest_can.xcp import ecu_desc
+from vehest_can.xcp.description import C_TYPES
 
 ROOT = Path(__file__).resolve().parents[2]
 ERR = 0xFE
@@ -317,6 +318,45 @@ def test_the_event_channels_fire_every_tick_every_1ms_and_every_10ms():
         assert {b - a for a, b in zip(ticks, ticks[1:])} == {period}, event
         assert all(t % period == 0 for t in ticks)                      # at the runnable's rate
         assert [s - t for s, t in zip(stamps, ticks)] == [stamps[0] - ticks[0]] * len(ticks)  # timestamp = tick
+
+
+def test_daq_values_equal_what_the_ecu_publishes_on_its_estimate_frames():
+    """A DAQ list on the tick event through a whole in-process launch (its DTOs are frames of the
+    session like any other): each sample equals that tick's VEHEST_DrivelineEst signals, exactly
+    for the health, within the DBC's resolution (0.25 Nm) for the torques."""
+    from vehest_can.sim.report import decode
+
+    ecu = Ecu()
+    cro = Cro(ecu)
+    cro.connect_unlocked()
+    names = ["tick", "dkf[0].x[2]", "dkf[0].x[3]", "dkf[1].x[2]", "dkf[1].x[3]", "dkf[0].health", "dkf[1].health"]
+    items = [cro.desc.item(n) for n in names]
+    start_daq(cro, [items], event=0)
+    first = ecu.tick  # the session runs on from here (the commands took ticks)
+    session = run_inprocess(drive_from_scenario(load_scenario("launch_2nd"), 1.0), ecu)
+    est = decode(session, "VEHEST_DrivelineEst")
+    fmt = "<" + "".join(C_TYPES[it.ctype][4] for it in items)
+    dtos = session.frames[session.frames["id"] == cro.desc.dto_id]
+    rows = [struct.unpack(fmt, bytes(f["data"][5:5 + struct.calcsize(fmt)])) for f in dtos if f["data"][0] == 0]
+    # the START's answer took one tick's slot: at one sample per tick (the whole budget) the
+    # stream runs one sample behind, so the first is from the tick before the session
+    assert rows[0][0] == first - 1
+    rows = rows[1:]
+    assert len(rows) == len(session.truth) - 1  # one sample per tick, none lost
+    cols = {"dkf[0].x[2]": "DkfT_ShaftTorque", "dkf[0].x[3]": "DkfT_RoadLoadErr", "dkf[1].x[2]": "DkfS_ShaftTorque",
+            "dkf[1].x[3]": "DkfS_RoadLoadErr", "dkf[0].health": "DkfT_Health", "dkf[1].health": "DkfS_Health"}
+    ticks = np.array([r[0] for r in rows]) - first  # the session's tick of each sample
+    assert list(ticks) == list(range(len(rows)))
+    moving = 0
+    for name, sig in cols.items():
+        daq = np.array([r[names.index(name)] for r in rows])
+        frame = est[sig][ticks]
+        if "health" in name:
+            assert np.array_equal(daq, frame), name
+        else:
+            assert np.all(np.abs(daq - frame) <= 0.125 + 1e-9), (name, np.max(np.abs(daq - frame)))
+            moving += np.ptp(daq) > 100.0
+    assert moving >= 2  # the launch moves the torques: not a comparison of zeros
 
 
 def test_at_most_one_xcp_frame_per_tick_and_dtos_carry_the_tick():
