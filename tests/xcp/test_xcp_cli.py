@@ -9,6 +9,7 @@ import pytest
 
 from vehest_can.bus import bus as busmod
 from vehest_can.cli import main
+from vehest_can.errors import ConfigError
 from vehest_can.service.daemon import EcuDaemon
 from vehest_can.systems.ecu import Ecu
 from vehest_can.xcp import ecu as xcp_ecu
@@ -69,3 +70,49 @@ def test_bad_arguments_are_clear_errors(capsys):
     assert "--cro-id" in capsys.readouterr().err
     assert main(["xcp", "get", "tick", *flags]) == 1  # nobody on that bus
     assert "no XCP answer to CONNECT" in capsys.readouterr().err
+
+
+@pytest.mark.multicast
+def test_save_and_load_a_calibration_file_of_the_running_daemon(daemon_bus, tmp_path, capsys):
+    import json
+
+    ecu, flags = daemon_bus
+    assert main(["xcp", "set", "cal.we_min", "55", *flags]) == 0
+    f = tmp_path / "ecu_cal.json"
+    assert main(["xcp", "save", str(f), *flags]) == 0
+    doc = json.loads(f.read_text())
+    assert doc["description"] == "VEHEST_ECU" and doc["values"]["cal.we_min"] == 55.0
+    assert doc["values"]["cal.skf.r"] == [v * 2.0 ** -24 for v in ecu.c.chs.skf.prm.r]  # Q7.24 -> physical
+    doc["values"]["cal.dkf[0].r"][2] = 12345.0
+    f.write_text(json.dumps(doc))
+    assert main(["xcp", "load", str(f), *flags]) == 0
+    assert ecu.c.dkf[0].cfg.r[2] == 12345.0 and ecu.c.cfg.we_min == 55.0
+    doc["values"]["cal.dkf[0].r"][2] = -1.0
+    f.write_text(json.dumps(doc))
+    capsys.readouterr()
+    assert main(["xcp", "load", str(f), *flags]) == 1  # checked whole before the bus: nothing written
+    assert "cal.dkf[0].r: -1.0 outside" in capsys.readouterr().err
+    assert ecu.c.dkf[0].cfg.r[2] == 12345.0
+
+
+def test_the_daemon_starts_on_a_calibration_file(tmp_path):
+    import argparse
+    import json
+
+    ecu = Ecu()
+    xcp_ecu.enable(ecu)
+    f = tmp_path / "cal.json"
+    xcp_ecu.save_calibration(ecu, f)
+    doc = json.loads(f.read_text())
+    doc["values"]["cal.dkf[0].r"][2] = 999.0
+    f.write_text(json.dumps(doc))
+    parser = argparse.ArgumentParser()
+    xcp_ecu.add_arguments(parser)
+    fresh = Ecu()
+    xcp_ecu.from_args(parser.parse_args(["--xcp-cal", str(f)]), fresh)
+    assert fresh.c.dkf[0].cfg.r[2] == 999.0 == xcp_ecu.read(fresh, "cal.dkf[0].r", "ref")[2]  # as if flashed
+    f.write_text("{}")
+    with pytest.raises(ConfigError, match="not an XCP calibration file"):
+        xcp_ecu.from_args(parser.parse_args(["--xcp-cal", str(f)]), Ecu())
+    with pytest.raises(ConfigError, match="needs the XCP slave"):
+        xcp_ecu.from_args(parser.parse_args(["--xcp", "off", "--xcp-cal", str(f)]), Ecu())

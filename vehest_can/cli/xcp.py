@@ -4,6 +4,9 @@
     vehest-can xcp list [PATTERN]         measurements and characteristics: type, unit, limits
     vehest-can xcp get NAME...            read them from a running daemon (its bus: python-can flags)
     vehest-can xcp set NAME VALUE...      calibrate one (seed & key done for you), read it back
+    vehest-can xcp save FILE              the running ECU's working page as a calibration file
+    vehest-can xcp load FILE              a calibration file (checked whole first) into the running ECU
+(`vehest-can daemon --xcp-cal FILE` starts the ECU on one.)
 """
 from __future__ import annotations
 
@@ -30,10 +33,14 @@ def add_subparser(subparsers) -> None:
     ls.add_argument("pattern", nargs="?", default="*", help="shell pattern on the names, e.g. 'cal.dkf*'")
     ls.set_defaults(func=run_list)
     for name, hlp, func in (("get", "read items from the running ECU", run_get),
-                            ("set", "write a characteristic of the running ECU and read it back", run_set)):
+                            ("set", "write a characteristic of the running ECU and read it back", run_set),
+                            ("save", "save the running ECU's working page as a calibration file", run_save),
+                            ("load", "write a calibration file into the running ECU's working page", run_load)):
         q = sub.add_parser(name, help=hlp)
         if name == "get":
             q.add_argument("names", nargs="+", metavar="NAME")
+        elif name in ("save", "load"):
+            q.add_argument("file", metavar="FILE")
         else:
             q.add_argument("name", metavar="NAME")
             q.add_argument("values", nargs="+", metavar="VALUE", help="physical value(s), from element --index on")
@@ -148,4 +155,42 @@ def run_set(args) -> int:
         m.disconnect()
     finally:
         m.bus.shutdown()
+    return 0
+
+
+def run_save(args) -> int:
+    from ..xcp import calfile
+
+    desc = _description()
+    m, _ = _master(args)
+    try:
+        m.connect()
+        raw = {it.name: m.read_raw(it) for it in desc.characteristics}
+        m.disconnect()
+    finally:
+        m.bus.shutdown()
+    calfile.save_values(desc, calfile.values_of(desc, lambda n: raw[n] if desc.item(n).shape else raw[n][0]), args.file)
+    print(f"wrote {args.file}: {len(raw)} characteristics of {desc.name}", file=sys.stderr)
+    return 0
+
+
+def run_load(args) -> int:
+    from ..xcp import calfile
+    from ..xcp import ecu as xcp_ecu
+
+    desc = _description()
+    try:  # every check of the file before anything goes on the bus
+        _, vals = calfile.load_image(desc, args.file, bytes(desc.calibration_size))
+    except calfile.CalFileError as exc:
+        raise ConfigError(str(exc)) from None
+    m, _ = _master(args)
+    try:
+        m.connect(key_for=lambda seed: xcp_ecu.key_for(seed))
+        for it in desc.characteristics:
+            v = vals[it.name]
+            m.write(it, [x for row in v for x in (row if isinstance(row, list) else [row])] if it.shape else [v])
+        m.disconnect()
+    finally:
+        m.bus.shutdown()
+    print(f"loaded {args.file}: {len(vals)} characteristics into the running ECU", file=sys.stderr)
     return 0

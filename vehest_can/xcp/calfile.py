@@ -20,7 +20,7 @@ from pathlib import Path
 
 from vehest_can._xcp import ffi
 
-from .description import C_TYPES, DescriptionError, Item
+from .description import C_TYPES, Description, DescriptionError, Item
 from .slave import Slave, raw_limits_for_c
 
 FORMAT = "vehest-can/xcp-calibration"
@@ -53,16 +53,25 @@ def _shape_of(v) -> tuple[int, ...]:
 
 def values(slave: Slave, page: str = "work") -> dict:
     """Physical values of every characteristic on a page (``work``, ``ecu`` or ``ref``)."""
+    return values_of(slave.desc, lambda name: slave.read(name, page))
+
+
+def values_of(desc: Description, read_raw) -> dict:
+    """{name: physical value(s)} of every characteristic, from `read_raw(name)` (raw value(s))."""
     out = {}
-    for c in slave.desc.characteristics:
-        raw = slave.read(c.name, page)
+    for c in desc.characteristics:
+        raw = read_raw(c.name)
         flat = [c.raw_to_phys(r) for r in (raw if isinstance(raw, list) else [raw])]
         out[c.name] = _nest(flat, c.shape) if c.shape else flat[0]
     return out
 
 
 def save(slave: Slave, path, page: str = "work") -> None:
-    doc = {"format": FORMAT, "version": VERSION, "description": slave.desc.name, "values": values(slave, page)}
+    save_values(slave.desc, values(slave, page), path)
+
+
+def save_values(desc: Description, vals: dict, path) -> None:
+    doc = {"format": FORMAT, "version": VERSION, "description": desc.name, "values": vals}
     path = Path(path)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
     with os.fdopen(fd, "w") as f:
@@ -92,25 +101,33 @@ def _raw(item: Item, phys: float, path) -> float | int:
 
 def load(slave: Slave, path) -> dict:
     """Validates the file against the slave's description and applies it; returns the values."""
+    image, vals = load_image(slave.desc, path, bytes(ffi.buffer(slave.cal_work)))
+    ffi.buffer(slave.cal_work)[:] = image
+    ffi.buffer(slave.cal_ecu)[:] = image
+    return vals
+
+
+def load_image(desc: Description, path, image: bytes) -> tuple[bytes, dict]:
+    """The calibration segment `image` with the file's values, every check passed; and the values."""
     try:
         doc = json.loads(Path(path).read_text())
-    except (OSError, json.JSONDecodeError) as e:
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
         raise CalFileError(f"{path}: cannot read: {e}") from e
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise CalFileError(f"{path}: not an XCP calibration file (format must be {FORMAT!r})")
     if doc.get("version") != VERSION:
         raise CalFileError(f"{path}: unsupported version {doc.get('version')!r}; this reads version {VERSION}")
-    if doc.get("description") != slave.desc.name:
-        raise CalFileError(f"{path}: written for {doc.get('description')!r}, not {slave.desc.name!r}")
+    if doc.get("description") != desc.name:
+        raise CalFileError(f"{path}: written for {doc.get('description')!r}, not {desc.name!r}")
     unknown = set(doc) - {"format", "version", "description", "values"}
     vals = doc.get("values")
     if unknown or not isinstance(vals, dict):
         raise CalFileError(f"{path}: unknown keys {sorted(unknown)} or no 'values' table")
-    names = {c.name for c in slave.desc.characteristics}
+    names = {c.name for c in desc.characteristics}
     if set(vals) != names:
         raise CalFileError(f"{path}: unknown {sorted(set(vals) - names)}, missing {sorted(names - set(vals))}")
-    image = bytearray(ffi.buffer(slave.cal_work))
-    for c in slave.desc.characteristics:
+    out = bytearray(image)
+    for c in desc.characteristics:
         v = vals[c.name]
         try:
             shape = _shape_of(v)
@@ -119,7 +136,5 @@ def load(slave: Slave, path) -> dict:
         if shape != c.shape:
             raise CalFileError(f"{path}: {c.name}: shape {shape}, expected {c.shape}")
         raws = [_raw(c, p, path) for p in _flatten(v)]
-        struct.pack_into("<" + C_TYPES[c.ctype][4] * c.count, image, c.address - slave.desc.calibration_address, *raws)
-    ffi.buffer(slave.cal_work)[:] = bytes(image)
-    ffi.buffer(slave.cal_ecu)[:] = bytes(image)
-    return vals
+        struct.pack_into("<" + C_TYPES[c.ctype][4] * c.count, out, c.address - desc.calibration_address, *raws)
+    return bytes(out), vals

@@ -15,7 +15,7 @@ from ..errors import ConfigError
 from ..native import ffi, lib
 from ..systems.ecu import Ecu
 from . import ecu_desc
-from .description import C_TYPES, Description, Item
+from .description import C_TYPES, Description
 
 #: the bench's seed & key secret (a bench algorithm: a production ECU derives keys in its HSM)
 SECRET = 0x5EC0DE42
@@ -66,24 +66,54 @@ def counters(ecu: Ecu) -> dict[str, int]:
     return {name: int(getattr(ecu.c.xcp.slave.n, name)) for name in COUNTERS}
 
 
-def _unpack(item: Item, raw: bytes):
-    vals = struct.unpack("<" + C_TYPES[item.ctype][4] * item.count, raw)
-    phys = [item.raw_to_phys(v) for v in vals]
-    return phys if item.shape else phys[0]
-
-
-def read(ecu: Ecu, name: str, page: str = "page"):
-    """Physical value(s) of a measurement, or of a characteristic on one of the three pages."""
+def read_raw(ecu: Ecu, name: str, page: str = "page"):
+    """Raw value(s) of a measurement, or of a characteristic on one of the three pages."""
     desc = description()
     item = desc.item(name)
     if item.kind == "measurement":
         off = item.address - desc.measurement_address
-        return _unpack(item, bytes(ffi.buffer(ecu.c, ffi.sizeof("vh_ecu_t"))[off:off + item.size]))
-    if page not in PAGES:
-        raise ConfigError(f"page must be one of {', '.join(PAGES)}, not {page!r}")
-    off = item.address - desc.calibration_address
-    buf = ffi.buffer(ffi.addressof(ecu.c.xcp, page), ffi.sizeof("vh_ecu_cal_t"))
-    return _unpack(item, bytes(buf[off:off + item.size]))
+        raw = bytes(ffi.buffer(ecu.c, ffi.sizeof("vh_ecu_t"))[off:off + item.size])
+    else:
+        if page not in PAGES:
+            raise ConfigError(f"page must be one of {', '.join(PAGES)}, not {page!r}")
+        off = item.address - desc.calibration_address
+        raw = bytes(ffi.buffer(ffi.addressof(ecu.c.xcp, page), ffi.sizeof("vh_ecu_cal_t"))[off:off + item.size])
+    vals = list(struct.unpack("<" + C_TYPES[item.ctype][4] * item.count, raw))
+    return vals if item.shape else vals[0]
+
+
+def read(ecu: Ecu, name: str, page: str = "page"):
+    """Physical value(s) of a measurement, or of a characteristic on one of the three pages."""
+    item = description().item(name)
+    raw = read_raw(ecu, name, page)
+    return [item.raw_to_phys(v) for v in raw] if item.shape else item.raw_to_phys(raw)
+
+
+def save_calibration(ecu: Ecu, path, page: str = "work") -> None:
+    """A page as a calibration file (calfile.py: versioned JSON, physical values, written atomically)."""
+    from . import calfile
+
+    desc = description()
+    calfile.save_values(desc, calfile.values_of(desc, lambda name: read_raw(ecu, name, page)), path)
+
+
+def load_calibration(ecu: Ecu, path) -> dict:
+    """Start the ECU on a calibration file: every check of calfile.py (format, version, names,
+    shapes, limits, resolution), then it is the reference, working and running page at once and
+    in the filters, as if flashed. Before the first tick; CalFileError and nothing changed if bad."""
+    from . import calfile
+
+    if not enabled(ecu):
+        raise ConfigError("enable XCP on the ECU before loading a calibration file")
+    size = ffi.sizeof("vh_ecu_cal_t")
+    try:
+        image, vals = calfile.load_image(description(), path, bytes(ffi.buffer(ffi.addressof(ecu.c.xcp, "ref"), size)))
+    except calfile.CalFileError as exc:
+        raise ConfigError(str(exc)) from None
+    for page in PAGES:
+        ffi.buffer(ffi.addressof(ecu.c.xcp, page), size)[:] = image
+    lib.vh_ecu_cal_apply(ecu.c, ffi.addressof(ecu.c.xcp, "page"))
+    return vals
 
 
 # ---- the daemon's configuration (vehest-can daemon) -------------------------------------------
@@ -107,11 +137,14 @@ def add_arguments(parser) -> None:
     g.add_argument("--xcp-max-cto", metavar="N", help=f"MAX_CTO 8..64 (default {d.max_cto})")
     g.add_argument("--xcp-max-dto", metavar="N", help=f"MAX_DTO 8..64 (default {d.max_dto}; above 8 needs CAN FD)")
     g.add_argument("--xcp-fd", choices=("on", "off"), help=f"XCP frames as CAN FD (default {'on' if d.fd else 'off'})")
+    g.add_argument("--xcp-cal", metavar="FILE", help="start on this calibration file (`vehest-can xcp save` writes one)")
 
 
 def from_args(args, ecu: Ecu) -> Description | None:
     """Enable the slave on `ecu` as the flags say; None with --xcp off."""
     if getattr(args, "xcp", "off") != "on":
+        if getattr(args, "xcp_cal", None):
+            raise ConfigError("--xcp-cal needs the XCP slave (--xcp on)")
         return None
     opt = {k: _int(v) for k, v in (("cro_id", args.xcp_cro_id), ("dto_id", args.xcp_dto_id),
                                    ("max_cto", args.xcp_max_cto), ("max_dto", args.xcp_max_dto)) if v is not None}
@@ -119,7 +152,10 @@ def from_args(args, ecu: Ecu) -> Description | None:
         if k in opt and not 0 <= opt[k] & 0x7FFFFFFF <= (0x1FFFFFFF if opt[k] & 0x80000000 else 0x7FF):
             raise ConfigError(f"--xcp-{k.replace('_', '-')} 0x{opt[k]:X} is not a CAN identifier")
     fd = None if args.xcp_fd is None else args.xcp_fd == "on"
-    return enable(ecu, fd=fd, **opt)
+    desc = enable(ecu, fd=fd, **opt)
+    if args.xcp_cal:
+        load_calibration(ecu, args.xcp_cal)
+    return desc
 
 
 def summary(ecu: Ecu) -> str:

@@ -74,9 +74,11 @@ class Master:
             self._cmd("DOWNLOAD", 0xF0, len(chunk), *chunk)
 
     # -- named items ----------------------------------------------------------------------------
+    def read_raw(self, item: Item) -> list:
+        return list(struct.unpack("<" + C_TYPES[item.ctype][4] * item.count, self.upload(item.address, item.size)))
+
     def read(self, item: Item) -> list[float]:
-        raw = struct.unpack("<" + C_TYPES[item.ctype][4] * item.count, self.upload(item.address, item.size))
-        return [item.raw_to_phys(v) for v in raw]
+        return [item.raw_to_phys(v) for v in self.read_raw(item)]
 
     def write(self, item: Item, values: list[float], index: int = 0) -> None:
         """Physical values from element `index` on, converted to raw (rounded for integer types)."""
