@@ -24,7 +24,7 @@ class BuildPyWithData(build_py):
 
 setup(
     cffi_modules=["c_core/vehest_build.py:ffibuilder", "c_core/roll/roll_build.py:ffibuilder",
-                  "c_core/xcp/xcp_build.py:ffibuilder"],
+                  "c_core/xcp/xcp_build.py:ffibuilder", "c_core/secoc/secoc_build.py:ffibuilder"],
     cmdclass={"build_py": BuildPyWithData},
     # The extension uses only the stable ABI (cffi's default): one wheel for CPython 3.11 and later.
     options={"bdist_wheel": {"py_limited_api": "cp311"}},

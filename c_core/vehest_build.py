@@ -33,8 +33,8 @@ OPT_FLAGS = ["-O3"]
 SYSTEMS = ("driveline", "tireforce", "camber")
 #: every folder of the firmware: what it shares, the systems, the XCP slave, the scheduler
 FIRMWARE_DIRS = [HERE / "common", *(HERE / s for s in SYSTEMS), HERE / "xcp", HERE / "ecu"]
-#: firmware built as cffi modules of their own (vehest_can._roll; vehest_can._xcp is the slave alone)
-STANDALONE_DIRS = [HERE / "roll"]
+#: firmware built as cffi modules of their own (vehest_can._roll, vehest_can._secoc; vehest_can._xcp is the slave alone)
+STANDALONE_DIRS = [HERE / "roll", HERE / "secoc"]
 SIM_SRC_DIR = ROOT / "firmware_sim" / "src"
 SIM_INCLUDE_DIR = ROOT / "firmware_sim" / "include"
 #: built into the extension but never flashed (host-side calibration helpers)

@@ -80,6 +80,9 @@ void vh_drv_app_rx(vh_drv_app_t *a, const double gear_ratio[VH_ECU_N_GEARS], vh_
          vh_pt_dls_sensors_engine_speed_decode(m.engine_speed), &d->we, SIG_WE);
     take(d, cnt, m.qf_turbine_speed && m.turbine_speed != VH_PT_DLS_SENSORS_TURBINE_SPEED_SNA_CHOICE,
          vh_pt_dls_sensors_turbine_speed_decode(m.turbine_speed), &d->wt, SIG_WT);
+    if ((d->valid & (1u << SIG_WWL)) && (d->valid & (1u << SIG_WWR))) {
+        d->still_lp += VH_DRV_STILL_LP * (fmax(fabs(d->wwl), fabs(d->wwr)) - d->still_lp);
+    }
     if (m.gear_engaged >= VH_ECU_N_GEARS || (m.gear_engaged > 0u && !(gear_ratio[m.gear_engaged] > 0.0))) {
         if (m.gear_engaged != GEAR_SNA) {
             vh_rx_count(&cnt->signal_invalid); /* a gear the ECU has no ratio for */
@@ -162,8 +165,7 @@ void vh_drv_app_step(vh_drv_app_t *a, vh_dkf_t dkf[VH_ECU_N_DKF], double we_min,
 int vh_drv_app_still(const vh_drv_app_t *a, double lim)
 {
     const vh_ecu_dls_t *d = &a->dls;
-    return !d->rx.timed_out && (d->valid & (1u << SIG_WWL)) && (d->valid & (1u << SIG_WWR)) && fabs(d->wwl) < lim &&
-           fabs(d->wwr) < lim;
+    return !d->rx.timed_out && (d->valid & (1u << SIG_WWL)) && (d->valid & (1u << SIG_WWR)) && d->still_lp < lim;
 }
 
 int vh_drv_app_fill_est(vh_drv_app_t *a, const vh_dkf_t dkf[VH_ECU_N_DKF], uint8_t *data)

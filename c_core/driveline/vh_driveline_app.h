@@ -14,6 +14,12 @@
 #include "vh_rx.h"
 #include "vh_types.h"
 
+/* The stationary gate's low-pass: 1/32 per DLS frame, tau = 16 ms at 2 kHz. One sample of
+ * wheel-speed noise above the limit must not make a parked car "moving" (the ABS sensor's noise
+ * at standstill reaches 0.6 rad/s in a few seconds, against a 0.5 rad/s gate); the filter cuts it
+ * ~8x and costs a rolling car (0.5 rad/s and up) under 2 ms. */
+#define VH_DRV_STILL_LP (1.0 / 32.0)
+
 /* The two driveline filters: T = speeds + torque transducer, S = speeds only. */
 enum { VH_ECU_DKF_T = 0, VH_ECU_DKF_S = 1, VH_ECU_N_DKF = 2 };
 #define VH_ECU_N_GEARS 6 /* index = GearEngaged 1..5; 0 = neutral */
@@ -21,6 +27,7 @@ enum { VH_ECU_DKF_T = 0, VH_ECU_DKF_S = 1, VH_ECU_N_DKF = 2 };
 /* Last good driveline sensor sample (physical units) with per-signal validity. */
 typedef struct {
     double wo, wwl, wwr, to, we, wt;
+    double still_lp; /* max(|wwl|, |wwr|) low-passed over frames (VH_DRV_STILL_LP): the stationary gate */
     uint8_t valid;   /* bit i: signal i valid (order as above) */
     uint8_t gear;    /* 0..14, 15 = SNA */
     vh_ecu_rxmsg_t rx;

@@ -329,3 +329,24 @@ def test_faults_on_a_system_that_takes_none_are_refused(tmp_path):
     with pytest.raises(ScenarioError, match="the tireforce system's runs take no faults"):
         load_campaign(spec(tmp_path, "[campaign]\nbase = 'chassis_relation_70kph'\nruns = 1\n[[vary]]\n"
                                      "key = 'fault'\ndist = 'list'\nvalues = ['']\n"))
+
+
+def test_runs_without_a_value_are_counted_not_hidden(tmp_path):
+    """A run that ran but gave NaN (e.g. a camber wheel without a result) is not in the median/p95/
+    worst; the summary and the table say how many there were, and a metric without any value says so."""
+    import pyarrow as pa
+
+    from vehest_can.campaign.report import table_text
+
+    c = load_campaign(short(tmp_path, runs=4))
+    t = pa.table({"run": [0, 1, 2, 3], "error": [None, None, None, "boom"],
+                  "metric.speeds+torque.rms_est_minus_truth_nm": [1.0, float("nan"), 2.0, float("nan")],
+                  "metric.never": [float("nan")] * 4, "param.duration_s": [1.5] * 4})
+    s = summarize(c, t)
+    m = s["metrics"]["speeds+torque.rms_est_minus_truth_nm"]
+    assert m["no_value"] == 1 and m["worst"] == 2.0 and m["median"] == 1.5
+    assert s["metrics"]["never"] == {"no_value": 3}
+    text = table_text(s)
+    assert "(1 runs without a value, not in these figures)" in text
+    assert "never" in text and "no value in any of the 3 runs" in text
+    assert s["acceptance"][0]["passed"] == 2  # the two finite runs; NaN and the failed run never pass

@@ -22,10 +22,12 @@ def summarize(campaign: Campaign, table) -> dict:
     for c in (c for c in cols if c.startswith("metric.")):
         v = np.asarray(table.column(c).to_pylist(), dtype=np.float64)
         good = ok & np.isfinite(v)
+        no_value = int((ok & ~np.isfinite(v)).sum())  # runs that ran but gave no figure: shown, never hidden
         if not good.any():
+            out["metrics"][c[7:]] = {"no_value": no_value}
             continue
         w = int(np.flatnonzero(good)[np.argmax(v[good])])
-        out["metrics"][c[7:]] = {
+        out["metrics"][c[7:]] = {"no_value": no_value,
             "median": float(np.median(v[good])), "p95": float(np.percentile(v[good], 95)),
             "worst": float(v[w]), "worst_run": int(runs[w]),
             "worst_params": {p[6:]: table.column(p)[w].as_py() for p in params},
@@ -61,8 +63,12 @@ def table_text(summary: dict) -> str:
         w = max(len(k) for k in summary["metrics"])
         lines.append(f"{'metric':<{w}}  {'median':>10} {'p95':>10} {'worst':>10}  worst run")
         for k, m in summary["metrics"].items():
+            if "median" not in m:
+                lines.append(f"{k:<{w}}  no value in any of the {m['no_value']} runs")
+                continue
             lines.append(f"{k:<{w}}  {m['median']:10.4g} {m['p95']:10.4g} {m['worst']:10.4g}  #{m['worst_run']} "
-                         + ", ".join(f"{p}={_fmt(v)}" for p, v in m["worst_params"].items()))
+                         + ", ".join(f"{p}={_fmt(v)}" for p, v in m["worst_params"].items())
+                         + (f"  ({m['no_value']} runs without a value, not in these figures)" if m["no_value"] else ""))
     if summary["acceptance"]:
         lines.append("acceptance (pass rate over all runs; a failed run does not pass):")
         for a in summary["acceptance"]:
@@ -98,7 +104,7 @@ def plots(campaign: Campaign, table, summary: dict, out: Path) -> list[Path]:
     names = [a.metric for a in campaign.acceptance] or list(summary["metrics"])[:6]
     for name in dict.fromkeys(names):
         col = f"metric.{name}"
-        if col not in table.column_names or name not in summary["metrics"]:
+        if col not in table.column_names or "median" not in summary["metrics"].get(name, {}):
             continue
         v = np.asarray(table.column(col).to_pylist(), dtype=np.float64)
         good = ok & np.isfinite(v)

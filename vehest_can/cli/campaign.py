@@ -103,7 +103,7 @@ def run(args) -> int:
     worst = {}
     for a in campaign.acceptance:
         m = summary["metrics"].get(a.metric)
-        if m is not None and m["worst_run"] not in worst:
+        if m is not None and "worst_run" in m and m["worst_run"] not in worst:
             worst[m["worst_run"]] = write_run_scenario(campaign, m["worst_run"], out / f"worst_run{m['worst_run']:05d}.toml")
     summary["worst_run_scenarios"] = {str(k): str(v) for k, v in worst.items()}
     if not args.no_plots:

@@ -13,6 +13,7 @@ from .. import Setup
 from ..ecu import Ecu
 from . import inspection
 from .api import WHEELS, Calibration, load_calibrations, save_calibrations
+from .campaign import CAMPAIGN
 
 
 class Camber:
@@ -20,6 +21,7 @@ class Camber:
     kinds: tuple[str, ...] = ()   # a driveline scenario file with a [camber] table
     realtime = False
     faults = None
+    campaign = CAMPAIGN  # vehest-can campaign
 
     def scenario_dir(self) -> Path:
         return scenario_dir()

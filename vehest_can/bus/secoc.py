@@ -1,0 +1,246 @@
+"""SecOC-style authenticated frames on the host: key files, persisted freshness, and the C
+protector/verifier (``vehest_can._secoc``, ``c_core/secoc/``) over python-can messages.
+
+A secured frame is its authentic part followed by a 4-byte tail: the freshness value's 8 least
+significant bits and the 24 most significant bits of CMAC-AES-128(key, data ID | authentic part |
+full 64-bit FV) — AUTOSAR SecOC's profile-1 layout. docs/secoc.md has the whole design.
+
+Key file (TOML, outside the repository, readable by its owner only; ``vehest-can secoc keygen``
+writes one)::
+
+    [keys]            # one AES-128 key per sending node of the DBCs, 32 hex digits
+    DLS = "9f0c…"
+    VEHEST = "…"
+
+Keys are never logged or printed: :class:`Key` shows only its node name and a fingerprint.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+import secrets
+import stat
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import ConfigError
+from ..schema import Checker, read_toml
+
+TAIL_BYTES = 4
+SYNC_AUTHENTIC = 8
+# A sender persists its next FV this far ahead, so a restart resumes above every FV it sent
+# (one state-file write per block, not per frame: 65536 frames is 33 s of a 2 kHz frame).
+RESERVE_BLOCK = 1 << 16
+_HEX_KEY = re.compile(r"[0-9a-fA-F]{32}")
+
+RESULTS = {0: "ok", 1: "bad_mac", 2: "replayed", 3: "unsynced", 4: "length", 5: "exhausted"}
+
+
+def _lib():
+    try:
+        from .. import _secoc
+    except ImportError as e:  # an install without the extension: say so, never a traceback
+        raise ConfigError(f"SecOC is not built into this install ({e})") from None
+    return _secoc.ffi, _secoc.lib
+
+
+@dataclass(frozen=True)
+class Key:
+    node: str
+    raw: bytes = field(repr=False)
+
+    @property
+    def fingerprint(self) -> str:
+        """What logs and status may show: 8 hex digits of SHA-256 of the key, not the key."""
+        return hashlib.sha256(b"vehest-can secoc key\0" + self.raw).hexdigest()[:8]
+
+    def __repr__(self) -> str:
+        return f"Key({self.node}, fp={self.fingerprint})"
+
+
+def check_private(path: Path) -> None:
+    """Refuses a key file that others may read or write (as ssh does with a private key)."""
+    try:
+        st = path.stat()
+    except OSError as e:
+        raise ConfigError(f"{path}: cannot read key file: {e.strerror}") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise ConfigError(f"{path}: key file is not a regular file")
+    if st.st_mode & 0o077:
+        raise ConfigError(f"{path}: key file permissions {stat.S_IMODE(st.st_mode):04o} are too open "
+                          f"(others can read it); chmod 600 {path}")
+
+
+def load_keys(path: Path | str) -> dict[str, Key]:
+    """The key file's keys by node name; every problem a clear ConfigError naming the key, never its value."""
+    path = Path(path)
+    check_private(path)
+    doc = read_toml(path, ConfigError)
+    ck = Checker(path, ConfigError)
+    ck.table(doc, "", {"keys"})
+    keys = doc.get("keys", {})
+    if not isinstance(keys, dict):
+        ck.fail("keys", "must be a table ([keys])")
+    if not keys:
+        ck.fail("keys", "no keys")
+    out = {}
+    for node, value in keys.items():
+        if not isinstance(value, str) or not _HEX_KEY.fullmatch(value):
+            ck.fail(f"keys.{node}", "must be 32 hexadecimal digits (an AES-128 key)")
+        out[node] = Key(node, bytes.fromhex(value))
+    return out
+
+
+def write_dev_keys(path: Path | str, nodes: list[str]) -> dict[str, Key]:
+    """A new key file of random keys (mode 600, never overwrites): the development keys of a bench."""
+    path = Path(path)
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    except FileExistsError:
+        raise ConfigError(f"{path}: exists; not overwritten (remove it to make new keys)") from None
+    except OSError as e:
+        raise ConfigError(f"{path}: cannot create: {e.strerror}") from None
+    keys = {n: Key(n, secrets.token_bytes(16)) for n in nodes}
+    with os.fdopen(fd, "w") as f:
+        f.write("# vehest-can SecOC development keys: one AES-128 key per sending node.\n"
+                "# Keep this file out of the repository, readable by its owner only.\n[keys]\n")
+        for k in keys.values():
+            f.write(f'{k.node} = "{k.raw.hex()}"\n')
+    return keys
+
+
+class FreshnessStore:
+    """The persisted freshness state of one node: its own sender's reservation bound and the latest
+    FV it accepted from each sender (JSON, written whole: temp file, fsync, rename)."""
+
+    def __init__(self, path: Path | str):
+        self.path = Path(path)
+        self.reserved = 1  # senders start at FV 1 (a receiver without state has latest 0)
+        self.latest: dict[str, int] = {}
+        if self.path.exists():
+            try:
+                doc = json.loads(self.path.read_text())
+                self.reserved = int(doc["reserved"])
+                self.latest = {str(k): int(v) for k, v in doc.get("latest", {}).items()}
+            except (ValueError, KeyError, TypeError, OSError, UnicodeDecodeError) as e:
+                raise ConfigError(f"{self.path}: not a freshness state file ({e})") from None
+            if self.reserved < 1 or any(v < 0 for v in self.latest.values()):
+                raise ConfigError(f"{self.path}: freshness values must be positive")
+
+    def save(self) -> None:
+        tmp = self.path.with_suffix(self.path.suffix + ".tmp")
+        with open(tmp, "w") as f:
+            json.dump({"reserved": self.reserved, "latest": self.latest}, f)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, self.path)
+
+
+class Sender:
+    """Secures one node's frames: one FV counter for all of them, persisted a block ahead."""
+
+    def __init__(self, key: Key, store: FreshnessStore | None = None):
+        self.ffi, self.lib = _lib()
+        self.key = key
+        self._cmac = self.ffi.new("vh_cmac_key_t *")
+        if self.lib.vh_cmac_init(self._cmac, key.raw) != 0:
+            raise ConfigError(f"SecOC: the AES backend refused the key of {key.node}")
+        self.store = store
+        self.tx = self.ffi.new("vh_secoc_tx_t *")
+        start = store.reserved if store else 1
+        self.lib.vh_secoc_tx_init(self.tx, start, start)
+        self._reserve()
+
+    def _reserve(self) -> None:
+        until = self.tx.fv + RESERVE_BLOCK
+        if self.store is not None:
+            self.store.reserved = until
+            self.store.save()  # stored before any FV below it is used
+        self.lib.vh_secoc_tx_reserve(self.tx, until)
+
+    def protect(self, data_id: int, authentic: bytes) -> bytes:
+        """The secured frame's data: authentic part + tail."""
+        if len(authentic) > self.lib.VH_SECOC_MAX_AUTHENTIC:
+            raise ConfigError(f"SecOC: {len(authentic)} authentic bytes do not fit a CAN FD frame with the tail")
+        if self.tx.reserved_until - self.tx.fv <= RESERVE_BLOCK // 2:
+            self._reserve()
+        buf = self.ffi.new("uint8_t[]", len(authentic) + TAIL_BYTES)
+        self.ffi.memmove(buf, authentic, len(authentic))
+        r = self.lib.vh_secoc_protect(self.tx, self._cmac, data_id & 0xFFFF, buf, len(authentic))
+        if r != 0:
+            raise ConfigError(f"SecOC: cannot protect: {RESULTS.get(r, r)}")
+        return bytes(self.ffi.buffer(buf))
+
+    def sync_frame(self, data_id: int) -> bytes:
+        if self.tx.reserved_until - self.tx.fv <= RESERVE_BLOCK // 2:
+            self._reserve()
+        buf = self.ffi.new("uint8_t[]", SYNC_AUTHENTIC + TAIL_BYTES)
+        r = self.lib.vh_secoc_sync_build(self.tx, self._cmac, data_id & 0xFFFF, buf)
+        if r != 0:
+            raise ConfigError(f"SecOC: cannot build a sync frame: {RESULTS.get(r, r)}")
+        return bytes(self.ffi.buffer(buf))
+
+    @property
+    def fv(self) -> int:
+        return int(self.tx.fv)
+
+
+class Receiver:
+    """Checks one sender's secured frames; counts every verdict. Nothing of a frame that is not ok
+    may be used."""
+
+    def __init__(self, key: Key, store: FreshnessStore | None = None):
+        self.ffi, self.lib = _lib()
+        self.key = key
+        self.store = store
+        self._cmac = self.ffi.new("vh_cmac_key_t *")
+        if self.lib.vh_cmac_init(self._cmac, key.raw) != 0:
+            raise ConfigError(f"SecOC: the AES backend refused the key of {key.node}")
+        self.rx = self.ffi.new("vh_secoc_rx_t *")
+        latest = store.latest.get(key.node) if store else None
+        self.lib.vh_secoc_rx_init(self.rx, latest or 0, latest is not None)
+
+    def verify(self, data_id: int, data: bytes) -> tuple[str, bytes | None]:
+        """("ok", authentic part) or (the reason, None)."""
+        n = len(data) - TAIL_BYTES
+        if n < 0 or n > self.lib.VH_SECOC_MAX_AUTHENTIC:
+            self.rx.bad_mac = min(self.rx.bad_mac + 1, 2**32 - 1)
+            return "length", None
+        r = self.lib.vh_secoc_verify(self.rx, self._cmac, data_id & 0xFFFF, data, n, self.ffi.NULL)
+        return RESULTS[r], (bytes(data[:n]) if r == 0 else None)
+
+    def accept_sync(self, data_id: int, data: bytes) -> str:
+        if len(data) != SYNC_AUTHENTIC + TAIL_BYTES:
+            self.rx.bad_mac = min(self.rx.bad_mac + 1, 2**32 - 1)
+            return "length"
+        return RESULTS[self.lib.vh_secoc_sync_accept(self.rx, self._cmac, data_id & 0xFFFF, data)]
+
+    def remember(self) -> None:
+        """Stores the latest accepted FV (a restart then resumes synchronised)."""
+        if self.store is not None:
+            self.store.latest[self.key.node] = int(self.rx.latest)
+            self.store.save()
+
+    @property
+    def counts(self) -> dict[str, int]:
+        r = self.rx
+        return {"accepted": r.accepted, "bad_mac": r.bad_mac, "replayed": r.replayed,
+                "unsynced": r.unsynced, "resyncs": r.resyncs}
+
+    @property
+    def synced(self) -> bool:
+        return bool(self.rx.synced)
+
+
+def cmac(key: bytes, msg: bytes) -> bytes:
+    """The full AES-CMAC of msg (RFC 4493) through the C, for checks and tools."""
+    ffi, lib = _lib()
+    k = ffi.new("vh_cmac_key_t *")
+    if lib.vh_cmac_init(k, key) != 0:
+        raise ConfigError("SecOC: the AES backend refused the key")
+    tag = ffi.new("uint8_t[16]")
+    lib.vh_cmac(k, msg, len(msg), tag)
+    lib.vh_cmac_wipe(k)
+    return bytes(tag)
