@@ -11,10 +11,10 @@ import sys
 import time
 from pathlib import Path
 
-import can
 import numpy as np
 
 from ..bus import bus as busmod
+from ..bus.log import FORMATS, SessionLog
 from ..errors import VehestError
 from ..progress import Progress
 from ..sim.report import realtime_summary, write_metrics
@@ -33,6 +33,10 @@ def add_subparser(subparsers) -> None:
     p.add_argument("-o", "--out", default="out/demo", metavar="DIR", help="output folder (default: out/demo)")
     p.add_argument("--realtime", type=float, default=0.0, metavar="S",
                    help="also run S seconds in real time (2 kHz wall clock on both sides)")
+    p.add_argument("--log-format", choices=[k[1:] for k in FORMATS], default="log",
+                   help="format of each scenario's session log (default: log, candump -L)")
+    p.add_argument("--log-per-bus", action="store_true",
+                   help="one session log per bus (session-pt.log, session-ch.log) instead of one with a channel per bus")
     busmod.add_arguments(p)
     p.set_defaults(func=run)
 
@@ -77,7 +81,8 @@ def run(args, systems: list[System] | None = None) -> int:
                 sdir = out / sc.name
                 sdir.mkdir(parents=True, exist_ok=True)
                 progress = Progress(f"{sc.name} (lockstep)")
-                with can.Logger(str(sdir / "session.log")) as writer:
+                # the ECU's view of the session (its frames Tx), as the daemon would log it
+                with SessionLog(sdir / f"session.{args.log_format}", {"VEHEST"}, per_bus=args.log_per_bus) as writer:
                     master = SimMaster(bus, system.car(sc), log_writer=writer, progress=progress)
                     session = master.run_lockstep(end=False)
                 progress.done(f"{session.stats['realtime_factor']:.1f}x real time over the bus")
@@ -111,7 +116,8 @@ def run(args, systems: list[System] | None = None) -> int:
     if tables:
         print("\n\n".join(tables))
     print(f"\nplots: {', '.join(str(p) for p in sorted(out.glob('*/*.png')))}")
-    print(f"metrics: {out / 'metrics.json'}; candump logs: {', '.join(str(p) for p in sorted(out.glob('*/session.log')))}")
+    logs = sorted(out.glob(f"*/session*.{args.log_format}"))
+    print(f"metrics: {out / 'metrics.json'}; session logs: {', '.join(str(p) for p in logs)}")
     return 0
 
 
