@@ -29,9 +29,11 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 import can
+import numpy as np
 
 from ..errors import ConfigError
-from .frames import BUSES, database, sent_by
+from ..native import ffi, lib
+from .frames import BUSES, FRAME_DTYPE, database, sent_by
 
 #: what --log writes, by extension (python-can's writers)
 FORMATS = {
@@ -172,3 +174,86 @@ def iter_log(path: str | Path) -> Iterator[can.Message]:
 
 def read_log(path: str | Path) -> list[can.Message]:
     return list(iter_log(path))
+
+
+#: frames per batch of :func:`iter_log_arrays` (18 MB of frames)
+CHUNK_FRAMES = 1 << 18
+_BLOCK_BYTES = 16 << 20
+
+
+def iter_log_arrays(path: str | Path, chunk: int = CHUNK_FRAMES, progress=None,
+                    copy: bool = True) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """The data frames of a log in batches of up to `chunk`: (FRAME_DTYPE array, timestamps),
+    in file order, in bounded memory. candump -L (``.log``) is parsed in C (``vh_candump_parse``,
+    the rules of python-can's reader); other formats go through python-can's readers.
+    `progress(done, total)` is called with bytes read. With copy=False a batch is valid only until
+    the next one is asked for (no copy of each batch)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"{path}: no such log file")
+    total = path.stat().st_size
+    if path.suffix.lower() != ".log":
+        batch: list[can.Message] = []
+        for m in iter_log(path):
+            batch.append(m)
+            if len(batch) == chunk:
+                yield messages_to_arrays(batch)
+                batch = []
+        if batch:
+            yield messages_to_arrays(batch)
+        if progress:
+            progress(total, total)
+        return
+    frames = np.zeros(chunk, dtype=FRAME_DTYPE)
+    ts = np.zeros(chunk, dtype=np.float64)
+    c_frames = ffi.cast("vh_frame_t *", ffi.from_buffer(frames))
+    c_ts = ffi.cast("double *", ffi.from_buffer(ts))
+    n_out, used, lines, skipped = (ffi.new("size_t *") for _ in range(4))
+    line_no = 0  # lines before `buf`
+    done = 0
+    buf = b""
+    with path.open("rb") as f:
+        eof = False
+        while True:
+            if not eof:
+                more = f.read(_BLOCK_BYTES)
+                eof = not more
+                buf += more
+            pos = 0
+            while True:
+                view = ffi.from_buffer(buf)
+                rc = lib.vh_candump_parse(view + pos, len(buf) - pos, int(eof), c_frames, c_ts, chunk,
+                                          n_out, used, lines, skipped)
+                line_no += lines[0]
+                if rc != lib.VH_OK:
+                    bad = buf[pos + used[0]:].split(b"\n", 1)[0][:80]
+                    raise ConfigError(f"{path}: line {line_no + 1}: not a candump -L frame: "
+                                      f"{bad.decode('utf-8', 'replace')!r}")
+                pos += used[0]
+                if n_out[0]:
+                    yield ((frames[: n_out[0]].copy(), ts[: n_out[0]].copy()) if copy
+                           else (frames[: n_out[0]], ts[: n_out[0]]))
+                if n_out[0] < chunk:
+                    break
+            done += pos
+            buf = buf[pos:]
+            if progress:
+                progress(done, total)
+            if eof:
+                return
+
+
+def messages_to_arrays(messages: list[can.Message]) -> tuple[np.ndarray, np.ndarray]:
+    """Data frames (error and remote frames dropped) as a FRAME_DTYPE array and their timestamps."""
+    msgs = [m for m in messages if not (m.is_error_frame or m.is_remote_frame)]
+    out = np.zeros(len(msgs), dtype=FRAME_DTYPE)
+    if not msgs:
+        return out, np.zeros(0)
+    data = [bytes(m.data or b"")[:64] for m in msgs]
+    out["id"] = np.fromiter((m.arbitration_id for m in msgs), dtype=np.uint32, count=len(msgs))
+    out["len"] = np.fromiter(map(len, data), dtype=np.uint8, count=len(msgs))
+    out["flags"] = np.fromiter(((lib.VH_FRAME_EXT if m.is_extended_id else 0) | (lib.VH_FRAME_FD if m.is_fd else 0)
+                                | (lib.VH_FRAME_BRS if m.bitrate_switch else 0) for m in msgs),
+                               dtype=np.uint8, count=len(msgs))
+    out["data"] = np.frombuffer(b"".join(d.ljust(64, b"\0") for d in data), dtype=np.uint8).reshape(-1, 64)
+    return out, np.fromiter((m.timestamp for m in msgs), dtype=np.float64, count=len(msgs))
