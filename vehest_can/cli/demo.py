@@ -17,7 +17,7 @@ from ..bus import bus as busmod
 from ..bus.log import FORMATS, SessionLog
 from ..errors import VehestError
 from ..progress import Progress
-from ..sim.report import realtime_summary, write_metrics
+from ..sim.report import FAIL, checks_of, checks_text, realtime_summary, write_junit, write_metrics
 from ..sim.session import SimMaster, run_inprocess
 from ..systems import Setup, System, load_any_scenario, registered, shipped_scenarios
 from ..systems.ecu import Ecu
@@ -33,6 +33,9 @@ def add_subparser(subparsers) -> None:
     p.add_argument("-o", "--out", default="out/demo", metavar="DIR", help="output folder (default: out/demo)")
     p.add_argument("--realtime", type=float, default=0.0, metavar="S",
                    help="also run S seconds in real time (2 kHz wall clock on both sides)")
+    p.add_argument("--check", action="store_true",
+                   help="exit 4 when an acceptance line fails (FAIL), for CI and make targets")
+    p.add_argument("--junit", metavar="FILE", help="write the acceptance lines as a JUnit XML report")
     p.add_argument("--log-format", choices=[k[1:] for k in FORMATS], default="log",
                    help="format of each scenario's session log (default: log, candump -L)")
     p.add_argument("--log-per-bus", action="store_true",
@@ -115,9 +118,19 @@ def run(args, systems: list[System] | None = None) -> int:
     tables = [t for s in systems for t in s.tables([m for r, m in results if r is s])]
     if tables:
         print("\n\n".join(tables))
+    checks = [c for system, m in results for c in checks_of(m, f"{system.name}.{m.get('scenario', '?')}")]
+    if checks:
+        print("\nacceptance:\n" + checks_text(checks))
+    if args.junit:
+        write_junit(checks, Path(args.junit))
+        print(f"JUnit report: {args.junit}")
     print(f"\nplots: {', '.join(str(p) for p in sorted(out.glob('*/*.png')))}")
     logs = sorted(out.glob(f"*/session*.{args.log_format}"))
     print(f"metrics: {out / 'metrics.json'}; session logs: {', '.join(str(p) for p in logs)}")
+    failed = [c for c in checks if not c["passed"]]
+    if args.check and failed:
+        print(f"demo --check: {len(failed)} acceptance line(s) {FAIL}", file=sys.stderr)
+        return 4
     return 0
 
 
