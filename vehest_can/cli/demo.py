@@ -21,6 +21,7 @@ from ..sim.report import FAIL, checks_of, checks_text, realtime_summary, write_j
 from ..sim.session import SimMaster, run_inprocess
 from ..systems import Setup, System, load_any_scenario, registered, shipped_scenarios
 from ..systems.ecu import Ecu
+from ._common import check_seconds
 
 
 def add_subparser(subparsers) -> None:
@@ -60,6 +61,7 @@ def _stop(proc: subprocess.Popen) -> str:
 
 
 def run(args, systems: list[System] | None = None) -> int:
+    check_seconds(args.realtime, "--realtime", zero=True)
     systems = registered() if systems is None else systems
     paths = [Path(p) for p in args.scenarios] or shipped_scenarios(systems)
     runs = [load_any_scenario(p, systems) for p in paths]

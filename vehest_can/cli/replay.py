@@ -2,9 +2,11 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 from ..bus.log import SessionLog, check_log_path
 from ..errors import ConfigError
+from ..progress import Progress
 from ..service.replay import MAX_GAP_S, replay_file
 
 
@@ -27,7 +29,9 @@ def run(args) -> int:
         raise ConfigError(f"--max-gap must be a positive number of seconds, not {args.max_gap}")
     writer = SessionLog(check_log_path(args.output), {"VEHEST"}) if args.output else None
     try:
-        result = replay_file(args.log, writer=writer, max_gap_s=args.max_gap)
+        progress = Progress(f"replay {Path(args.log).name}", unit="B")
+        result = replay_file(args.log, writer=writer, max_gap_s=args.max_gap, progress=progress)
+        progress.done()
     finally:
         if writer is not None:
             writer.stop()

@@ -8,7 +8,7 @@ from ..errors import ConfigError
 from ..progress import Progress
 from ..sim.scenario import load_scenario
 from ..sim.session import CAR_NODES, SimMaster, drive_from_scenario
-from ._common import add_log_arguments, check_log_arguments, open_session_log
+from ._common import add_log_arguments, check_log_arguments, check_seconds, open_session_log
 
 
 def add_subparser(subparsers) -> None:
@@ -34,8 +34,7 @@ def run(args) -> int:
         from dataclasses import replace
 
         sc = replace(sc, camber=replace(sc.camber, pose=args.pose))
-    if args.duration is not None and args.duration <= 0:
-        raise ConfigError("--duration must be positive")
+    check_seconds(args.duration, "--duration")
     check_log_arguments(args)
     drive = drive_from_scenario(sc, duration_s=args.duration)
     config = busmod.bus_config(args)
