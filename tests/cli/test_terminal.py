@@ -162,3 +162,13 @@ def test_deeply_nested_calibration_json_is_an_error(tmp_path, capsys):
     cal.write_text("[" * 100_000 + "]" * 100_000)
     rc, _, err = cli(["daemon", "--camber-cal", str(cal)], capsys)
     assert rc == 1 and "nested too deeply" in err
+
+
+def test_the_driveline_table_fits_100_columns():
+    from vehest_can.systems.driveline.report import table
+
+    sets = [{"measurement_set": "speeds+torque", "rms_meas_minus_est_nm": 123.45, "paper_rms_meas_minus_est_nm": 6.7,
+             "rms_est_minus_truth_nm": 1234.5, "sensor_noise_rms_nm": 99.9, "gain_settling_steps": 12345,
+             "paper_gain_settling_steps": 100, "no_input_mean_bias_nm": -1234.5}]
+    text = table([{"scenario": "tip_in_tip_out", "sets": sets}])
+    assert max(map(len, text.splitlines())) <= 100 and "123.45" in text
