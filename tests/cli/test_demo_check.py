@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from vehest_can.bus.log import read_log
 from vehest_can.cli import build_parser
 from vehest_can.sim.report import LEGEND, verdict_word
 from vehest_can.sim.scenario import load_scenario
@@ -79,8 +80,12 @@ def test_check_fails_on_a_failed_line_and_junit_says_which(tmp_path, capsys):
 
 @pytest.mark.multicast
 def test_check_passes_when_every_line_passes(tmp_path, capsys):
-    assert demo(tmp_path, 1, "--check") == 0
+    assert demo(tmp_path, 1, "--check", "--log-format", "asc", "--log-per-bus") == 0
     assert "3 PASS, 0 FAIL" in capsys.readouterr().out
+    # the session logs as asked: ASC, one per bus (this car has only powertrain frames)
+    pt = read_log(tmp_path / "out" / "one" / "session-pt.asc")
+    assert pt and {m.channel for m in pt} == {0} and any(not m.is_rx for m in pt)
+    assert read_log(tmp_path / "out" / "one" / "session-ch.asc") == []
 
 
 def test_verdict_words():

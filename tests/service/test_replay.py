@@ -208,3 +208,19 @@ def test_replay_memory_is_bounded_by_the_batch(tmp_path, session):
     r = replay_file(tmp_path / "ls.log")
     assert r.produced == [] and r.logged == [] and r.n_logged == r.n_produced > 0
     assert np.isfinite(r.ticks)
+
+
+def test_streams_far_apart_are_not_compared(session, tmp_path, monkeypatch):
+    """A log whose ECU frames cannot line up with the replay's (here: one ECU frame in a sensor
+    capture): once one side is COMPARE_WINDOW frames ahead, the replay stops holding frames and
+    says DIFFERENT, where the comparison stopped."""
+    from vehest_can.service import replay as replay_mod
+
+    monkeypatch.setattr(replay_mod, "COMPARE_WINDOW", 50)
+    msgs = [m for m in session.messages() if m.arbitration_id not in ECU_TX]
+    ecu_frame = next(m for m in session.messages() if m.arbitration_id in ECU_TX)
+    ecu_frame.timestamp = msgs[-1].timestamp
+    write(tmp_path / "far.log", msgs + [ecu_frame])
+    r = replay_file(tmp_path / "far.log")
+    assert r.n_logged == 1 and r.n_produced > 1000
+    assert r.identical is False and r.first_difference() in (0, 1)

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..native import ffi, lib
-from .frames import BUSES, FRAME_DTYPE, database, sent_by
+from .frames import BUSES, FRAME_DTYPE, TICK_S, database, sent_by
 
 #: what --log writes, by extension (python-can's writers)
 FORMATS = {
@@ -121,7 +121,7 @@ class SessionLog(can.Listener):
             "epoch": self.epoch,
             "epoch_utc": time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(self.epoch)) if self.epoch else None,
             "time": "epoch + session time (simulated time in lockstep, the node's clock in real time)",
-            "tick_s": _tick_s(),
+            "tick_s": TICK_S,
             "tx_nodes": self.nodes,
             "channels": {b: (b if self._base is None else BUSES.index(b) + self._base) for b in BUSES},
             "files": {b: str(p) for b, p in self.paths.items()},
@@ -140,12 +140,6 @@ class SessionLog(can.Listener):
 
     def __exit__(self, *exc) -> None:
         self.stop()
-
-
-def _tick_s() -> float:
-    from .frames import TICK_S
-
-    return TICK_S
 
 
 def iter_log(path: str | Path) -> Iterator[can.Message]:

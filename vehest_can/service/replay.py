@@ -100,7 +100,8 @@ class Replayer:
         self.skipped = self.gaps = self.out_of_order = 0
         self.n_logged = self.n_produced = self._compared = 0
         self.first_mismatch: int | None = None
-        self._aligned = True
+        self._aligned = True          # False once one side ran COMPARE_WINDOW frames ahead
+        self._compared_until = 0      # ... and how far the comparison got then
         self._qlog = np.zeros(0, FRAME_DTYPE)
         self._qprod = np.zeros(0, FRAME_DTYPE)
         self.produced: list[can.Message] = []
@@ -135,8 +136,7 @@ class Replayer:
             self._qlog, self._qprod = self._qlog[m:], self._qprod[m:]
         if max(len(self._qlog), len(self._qprod)) > COMPARE_WINDOW:
             self._aligned = False  # one side ran far ahead: nothing more to compare
-            if self.first_mismatch is None:
-                self._compared_until = self._compared
+            self._compared_until = self._compared
             self._qlog = self._qprod = np.zeros(0, FRAME_DTYPE)
 
     # -- the ECU ------------------------------------------------------------------------------
@@ -234,7 +234,7 @@ class Replayer:
         if self._aligned:
             self._compare()
         elif self.first_mismatch is None:
-            self.first_mismatch = getattr(self, "_compared_until", self._compared)
+            self.first_mismatch = self._compared_until
         return ReplayResult(
             self.frames_in, self.ecu.tick, self.produced, self.logged, self.ecu.counters(), self.paced_by or "timestamps",
             n_produced=self.n_produced, n_logged=self.n_logged, first_mismatch=self.first_mismatch,
