@@ -27,6 +27,11 @@ $(STAMP): $(SOURCES)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test]'
+	# the runtime dependencies as wheels, for the test that installs the built wheel in a clean venv
+	# offline (tests/test_wheel.py; CI runs the suite without network)
+	mkdir -p build
+	$(BIN)/python -c "import tomllib; print(*tomllib.load(open('pyproject.toml', 'rb'))['project']['dependencies'], sep='\n')" > build/runtime-requirements.txt
+	$(BIN)/python -m pip download --quiet --dest build/wheelhouse -r build/runtime-requirements.txt
 	touch $@
 
 clean:

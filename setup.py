@@ -7,7 +7,8 @@ from setuptools.command.build_py import build_py
 
 DATA = {"dbc": ("dbc", "*.dbc"), "scenarios": ("firmware_sim/scenarios", "*.toml"),
         "scenarios/chassis": ("firmware_sim/scenarios/chassis", "*.toml"),
-        "campaigns": ("firmware_sim/campaigns", "*.toml")}
+        "campaigns": ("firmware_sim/campaigns", "*.toml"),
+        "examples/hil": ("examples/hil", "*.toml"), "examples/systemd": ("examples/systemd", "*")}
 
 
 class BuildPyWithData(build_py):
@@ -18,7 +19,7 @@ class BuildPyWithData(build_py):
         for name, (src, pattern) in DATA.items():
             dest = Path(self.build_lib) / "vehest_can" / name
             dest.mkdir(parents=True, exist_ok=True)
-            for f in sorted(Path(src).glob(pattern)):
+            for f in sorted(p for p in Path(src).glob(pattern) if p.is_file()):
                 shutil.copy2(f, dest / f.name)
 
 

@@ -22,6 +22,11 @@ def shipped_file(name_or_path: str | Path, directory: Path, suffix: str = ".toml
     return directory / f"{p.name}{suffix}"
 
 
+def examples_dir() -> Path:
+    """The shipped examples: HIL bench configurations (hil/), the systemd unit (systemd/)."""
+    return shipped_dir("examples", "examples", "*/*")
+
+
 def dbc_dir() -> Path:
     return shipped_dir("dbc", "dbc", "*.dbc")
 

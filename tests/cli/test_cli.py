@@ -1,10 +1,13 @@
 """The console script: demo end to end on a short scenario, and clear errors for bad input."""
 import json
 import random
+import time
 from pathlib import Path
 
 import pytest
 
+from vehest_can.bus.frames import sent_by
+from vehest_can.bus.log import read_log
 from vehest_can.cli import main
 
 
@@ -37,6 +40,13 @@ def test_demo_end_to_end(tmp_path, capsys):
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics[0]["bus_equals_inprocess"] is True
     assert {s["measurement_set"] for s in metrics[0]["sets"]} == {"speeds+torque", "speeds"}
+    # the session log is the ECU's: its frames Tx, the car's Rx, absolute time, the pt channel
+    msgs = read_log(out / "short" / "session.log")
+    ecu = sent_by({"VEHEST"})
+    assert msgs and all(m.is_rx == (m.arbitration_id not in ecu) for m in msgs)
+    assert any(not m.is_rx for m in msgs) and {m.channel for m in msgs} == {"pt"}
+    assert abs(msgs[0].timestamp - time.time()) < 600
+    assert msgs[-1].timestamp - msgs[0].timestamp == pytest.approx(1.5, abs=0.01)
 
 
 @pytest.mark.multicast

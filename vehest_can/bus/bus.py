@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import ipaddress
 import logging
+import math
 import os
 import random
 import signal
@@ -34,9 +35,41 @@ DEFAULT_INTERFACE = "udp_multicast"
 DEFAULT_CHANNEL = "239.74.163.2"  # python-can's UdpMulticastBus.DEFAULT_GROUP_IPv4
 
 
+def parse_bitrate(text: str | None, option: str = "bitrate") -> int | None:
+    """'500000', '500k', '4M', '2.5M' -> bit/s; BusError for anything else or a rate <= 0. The one
+    bitrate parser of every verb (python-can's -b/--data-bitrate take it too)."""
+    if text is None:
+        return None
+    body = str(text).strip()
+    scale = {"k": 1e3, "m": 1e6}.get(body[-1:].lower(), 1.0)
+    if scale != 1.0:
+        body = body[:-1]
+    try:
+        value = float(body) * scale
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value) or value <= 0 or value != round(value) or value > 1e9:
+        raise BusError(f"{option} {text!r}: expected a positive number of bit/s such as 500000, 500k or 4M")
+    return int(round(value))
+
+
+def _bitrate_type(text: str) -> int:
+    try:
+        return int(parse_bitrate(text) or 0)
+    except BusError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a positive number of bit/s such as 500000, 500k "
+                                         "or 4M") from None
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """python-can's own bus flags (-i/-c/-b/--fd/--data-bitrate/--bus-kwargs ...) plus a config file."""
+    """python-can's own bus flags (-i/-c/-b/--fd/--data-bitrate/--bus-kwargs ...) plus a config file;
+    -b and --data-bitrate take 500k / 2M as well as plain bit/s."""
     add_bus_arguments(parser)
+    for action in parser._actions:
+        if action.dest in ("bitrate", "data_bitrate"):
+            action.type = _bitrate_type
+            action.metavar = "BITRATE" if action.dest == "bitrate" else "DATA_BITRATE"
+            action.help = (action.help or "") + " (bit/s: 500000, 500k, 2M)"
     group = parser.add_argument_group("bus configuration file")
     group.add_argument(
         "--bus-config", metavar="FILE",

@@ -1,18 +1,251 @@
-"""CAN log files: whatever python-can's LogReader reads (candump -L, .asc, .blf, .csv, .trc ...)."""
+"""CAN log files, written and read.
+
+Written (:class:`SessionLog`): a session's frames as other tools expect them, in the format of the
+file's extension through python-can's writers (``.log`` candump -L, ``.asc``, ``.blf``;
+``.mf4`` through asammdf, the ``mf4`` extra). Not ``.trc``: python-can's TRC writer drops CAN FD
+frames, and both buses are CAN FD; not ``.csv``: it keeps no channel, direction or FD flag.
+
+* absolute time: the session starts at a wall-clock epoch (``time.time()`` when its first frame
+  is logged, minus that frame's session time) and advances by the session's own clock (simulated
+  time in lockstep, the node's clock in real time), like ``candump -l``; the epoch and the tick
+  are recorded beside the log (``<log>.json``), so a lockstep log still maps back to ticks;
+* direction: the frames the logging node sent are Tx (``is_rx=False``), the rest Rx;
+* one channel per bus, named as the bus configuration names it (``pt``, ``ch``: the DBC a frame's
+  ID belongs to); formats whose channels are numbers (ASC, BLF, MF4) write ``pt`` as 1 and
+  ``ch`` as 2. One log with both channels, or one log per bus (``per_bus``: ``x.log`` becomes
+  ``x-pt.log`` and ``x-ch.log``).
+
+Read (:func:`read_log`): whatever python-can's ``LogReader`` reads; any reader's failure on a
+malformed file is a :class:`ConfigError` naming the file.
+"""
 from __future__ import annotations
 
+import json
+import time
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 import can
+import numpy as np
 
 from ..errors import ConfigError
+from ..native import ffi, lib
+from .frames import BUSES, FRAME_DTYPE, TICK_S, database, sent_by
+
+#: what --log writes, by extension (python-can's writers)
+FORMATS = {
+    ".log": "candump -L (can-utils)",
+    ".asc": "Vector ASC",
+    ".blf": "Vector BLF",
+    ".mf4": "ASAM MDF 4 (needs the mf4 extra: asammdf)",
+}
+#: formats whose channels are numbers: python-can counts those from 0 and writes 1, 2 ... (MF4
+#: writes the number as given, so it gets the 1-based one itself)
+_NUMBERED = {".asc": 0, ".blf": 0, ".mf4": 1}
+MAX_EXT_ID = 0x1FFFFFFF
 
 
-def read_log(path: str | Path) -> list[can.Message]:
+def bus_of_id() -> dict[int, str]:
+    """Standard frame ID -> the bus (DBC) it belongs to; IDs are unique across the buses."""
+    return {m.frame_id: b for b in BUSES for m in database(b).messages if not m.is_extended_frame}
+
+
+def check_log_path(path: str | Path) -> Path:
+    """A path --log can write: a known extension, not a folder, in a folder that exists."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if path.is_dir():
+        raise ConfigError(f"{path}: is a folder, not a log file")
+    if suffix not in FORMATS:
+        known = ", ".join(f"{k} ({v})" for k, v in FORMATS.items())
+        raise ConfigError(f"{path}: unknown log format {suffix or '(no extension)'!r}; the extension chooses one of {known}")
+    if not path.parent.is_dir():
+        raise ConfigError(f"{path}: folder {path.parent} does not exist")
+    if suffix == ".mf4":
+        try:
+            import asammdf  # noqa: F401
+        except ImportError:
+            raise ConfigError(f"{path}: MF4 logs need asammdf: pip install 'vehest-can[mf4]'") from None
+    return path
+
+
+def bus_log_path(path: Path, bus: str) -> Path:
+    return path.with_name(f"{path.stem}-{bus}{path.suffix}")
+
+
+class SessionLog(can.Listener):
+    """A log of one node's view of a session (see the module). Messages come in with their session
+    time in ``timestamp`` (seconds from the session's start); they are written with absolute time,
+    their direction and their bus's channel."""
+
+    def __init__(self, path: str | Path, nodes: Iterable[str], *, per_bus: bool = False,
+                 epoch: float | None = None, default_bus: str = BUSES[0]):
+        """`nodes`: the DBC nodes the logging process plays (their frames are Tx). Frames of an ID
+        in no DBC are logged on `default_bus`."""
+        self.path = check_log_path(path)
+        self.nodes = sorted(nodes)
+        self.per_bus = per_bus
+        self.epoch = epoch
+        self.default_bus = default_bus
+        self._sent = sent_by(frozenset(self.nodes))
+        self._bus = bus_of_id()
+        self._base = _NUMBERED.get(self.path.suffix.lower())
+        self.paths = {b: bus_log_path(self.path, b) for b in BUSES} if per_bus else {b: self.path for b in BUSES}
+        self._writers: dict[Path, can.Listener] = {}
+        try:
+            for p in dict.fromkeys(self.paths.values()):
+                self._writers[p] = can.Logger(str(p))
+        except (OSError, ValueError, ImportError) as exc:
+            self.stop()
+            raise ConfigError(f"{self.path}: cannot write the log ({exc})") from exc
+        self.frames = 0
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if self.epoch is None:
+            self.epoch = time.time() - (msg.timestamp or 0.0)
+        bus = self._bus.get(msg.arbitration_id, self.default_bus) if not msg.is_extended_id else self.default_bus
+        out = can.Message(
+            timestamp=self.epoch + (msg.timestamp or 0.0), arbitration_id=msg.arbitration_id,
+            is_extended_id=msg.is_extended_id, is_remote_frame=msg.is_remote_frame, is_error_frame=msg.is_error_frame,
+            is_fd=msg.is_fd, bitrate_switch=msg.bitrate_switch, error_state_indicator=msg.error_state_indicator,
+            dlc=msg.dlc, data=msg.data, check=False,
+            is_rx=msg.is_extended_id or msg.arbitration_id not in self._sent,
+            channel=bus if self._base is None else BUSES.index(bus) + self._base,
+        )
+        self._writers[self.paths[bus]].on_message_received(out)
+        self.frames += 1
+
+    def metadata(self) -> dict:
+        return {
+            "format": FORMATS[self.path.suffix.lower()],
+            "epoch": self.epoch,
+            "epoch_utc": time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(self.epoch)) if self.epoch else None,
+            "time": "epoch + session time (simulated time in lockstep, the node's clock in real time)",
+            "tick_s": TICK_S,
+            "tx_nodes": self.nodes,
+            "channels": {b: (b if self._base is None else BUSES.index(b) + self._base) for b in BUSES},
+            "files": {b: str(p) for b, p in self.paths.items()},
+            "frames": self.frames,
+        }
+
+    def stop(self) -> None:
+        for w in self._writers.values():
+            w.stop()
+        if self._writers and self.epoch is not None:
+            self.path.with_name(self.path.name + ".json").write_text(json.dumps(self.metadata(), indent=2) + "\n")
+        self._writers = {}
+
+    def __enter__(self) -> SessionLog:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+
+def iter_log(path: str | Path) -> Iterator[can.Message]:
+    """The data frames of a log, one by one (error and remote frames skipped); a malformed file or
+    an ID beyond 29 bits is a ConfigError."""
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"{path}: no such log file")
     try:
-        return [m for m in can.LogReader(str(path)) if not (m.is_error_frame or m.is_remote_frame)]
-    except (ValueError, KeyError, IndexError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{path}: not a readable CAN log ({exc})") from exc
+        for i, m in enumerate(can.LogReader(str(path))):
+            if m.is_error_frame or m.is_remote_frame:
+                continue
+            if not 0 <= m.arbitration_id <= (MAX_EXT_ID if m.is_extended_id else 0x7FF) or len(m.data) > 64:
+                raise ConfigError(f"{path}: frame {i + 1}: ID 0x{m.arbitration_id:X} or length {len(m.data)} "
+                                  f"does not fit a CAN frame ({'29' if m.is_extended_id else '11'}-bit ID, <= 64 bytes)")
+            yield m
+    except ConfigError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - third-party readers of an untrusted file raise anything
+        # (BLFParseError, sqlite3.DatabaseError, asammdf's MdfException, struct.error, zlib.error ...);
+        # the cause stays chained for --debug
+        raise ConfigError(f"{path}: not a readable CAN log ({type(exc).__name__}: {exc})") from exc
+
+
+def read_log(path: str | Path) -> list[can.Message]:
+    return list(iter_log(path))
+
+
+#: frames per batch of :func:`iter_log_arrays` (18 MB of frames)
+CHUNK_FRAMES = 1 << 18
+_BLOCK_BYTES = 16 << 20
+
+
+def iter_log_arrays(path: str | Path, chunk: int = CHUNK_FRAMES, progress=None,
+                    copy: bool = True) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """The data frames of a log in batches of up to `chunk`: (FRAME_DTYPE array, timestamps),
+    in file order, in bounded memory. candump -L (``.log``) is parsed in C (``vh_candump_parse``,
+    the rules of python-can's reader); other formats go through python-can's readers.
+    `progress(done, total)` is called with bytes read. With copy=False a batch is valid only until
+    the next one is asked for (no copy of each batch)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"{path}: no such log file")
+    total = path.stat().st_size
+    if path.suffix.lower() != ".log":
+        batch: list[can.Message] = []
+        for m in iter_log(path):
+            batch.append(m)
+            if len(batch) == chunk:
+                yield messages_to_arrays(batch)
+                batch = []
+        if batch:
+            yield messages_to_arrays(batch)
+        if progress:
+            progress(total, total)
+        return
+    frames = np.zeros(chunk, dtype=FRAME_DTYPE)
+    ts = np.zeros(chunk, dtype=np.float64)
+    c_frames = ffi.cast("vh_frame_t *", ffi.from_buffer(frames))
+    c_ts = ffi.cast("double *", ffi.from_buffer(ts))
+    n_out, used, lines, skipped = (ffi.new("size_t *") for _ in range(4))
+    line_no = 0  # lines before `buf`
+    done = 0
+    buf = b""
+    with path.open("rb") as f:
+        eof = False
+        while True:
+            if not eof:
+                more = f.read(_BLOCK_BYTES)
+                eof = not more
+                buf += more
+            pos = 0
+            while True:
+                view = ffi.from_buffer(buf)
+                rc = lib.vh_candump_parse(view + pos, len(buf) - pos, int(eof), c_frames, c_ts, chunk,
+                                          n_out, used, lines, skipped)
+                line_no += lines[0]
+                if rc != lib.VH_OK:
+                    bad = buf[pos + used[0]:].split(b"\n", 1)[0][:80]
+                    raise ConfigError(f"{path}: line {line_no + 1}: not a candump -L frame: "
+                                      f"{bad.decode('utf-8', 'replace')!r}")
+                pos += used[0]
+                if n_out[0]:
+                    yield ((frames[: n_out[0]].copy(), ts[: n_out[0]].copy()) if copy
+                           else (frames[: n_out[0]], ts[: n_out[0]]))
+                if n_out[0] < chunk:
+                    break
+            done += pos
+            buf = buf[pos:]
+            if progress:
+                progress(done, total)
+            if eof:
+                return
+
+
+def messages_to_arrays(messages: list[can.Message]) -> tuple[np.ndarray, np.ndarray]:
+    """Data frames (error and remote frames dropped) as a FRAME_DTYPE array and their timestamps."""
+    msgs = [m for m in messages if not (m.is_error_frame or m.is_remote_frame)]
+    out = np.zeros(len(msgs), dtype=FRAME_DTYPE)
+    if not msgs:
+        return out, np.zeros(0)
+    data = [bytes(m.data or b"")[:64] for m in msgs]
+    out["id"] = np.fromiter((m.arbitration_id for m in msgs), dtype=np.uint32, count=len(msgs))
+    out["len"] = np.fromiter(map(len, data), dtype=np.uint8, count=len(msgs))
+    out["flags"] = np.fromiter(((lib.VH_FRAME_EXT if m.is_extended_id else 0) | (lib.VH_FRAME_FD if m.is_fd else 0)
+                                | (lib.VH_FRAME_BRS if m.bitrate_switch else 0) for m in msgs),
+                               dtype=np.uint8, count=len(msgs))
+    out["data"] = np.frombuffer(b"".join(d.ljust(64, b"\0") for d in data), dtype=np.uint8).reshape(-1, 64)
+    return out, np.fromiter((m.timestamp for m in msgs), dtype=np.float64, count=len(msgs))

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..sim.report import FAIL, LEGEND, PASS
 from .spec import Campaign
 
 
@@ -72,8 +73,9 @@ def table_text(summary: dict) -> str:
     if summary["acceptance"]:
         lines.append("acceptance (pass rate over all runs; a failed run does not pass):")
         for a in summary["acceptance"]:
-            verdict = "pass " if a["passed"] == a["of"] else "SHORT"
-            lines.append(f"  [{verdict}] {a['line']}: {a['passed']} of {a['of']} ({100 * a['rate']:.1f} %)")
+            verdict = PASS if a["passed"] == a["of"] else FAIL
+            lines.append(f"  {verdict}  {a['line']}: {a['passed']} of {a['of']} ({100 * a['rate']:.1f} %)")
+        lines.append(f"  {LEGEND}")
     for f in summary["failures"]:
         lines.append(f"  run #{f['run']} failed: {f['error']}")
     return "\n".join(lines)

@@ -3,9 +3,10 @@ from __future__ import annotations
 
 import json
 
+from ..errors import ConfigError
 from ..sim.scenario import load_scenario, scenario_dir
 from ..sim.session import drive_from_scenario
-from ..tools import bench
+from ..tools import bench, replay_bench
 
 
 def add_subparser(subparsers) -> None:
@@ -13,16 +14,32 @@ def add_subparser(subparsers) -> None:
                               description=bench.__doc__)
     p.add_argument("--quick", action="store_true", help="fewer steps and repeats (for a smoke run)")
     p.add_argument("--json", action="store_true", help="print the raw figures as JSON too")
+    p.add_argument("--replay-frames", type=int, default=10_000_000, metavar="N",
+                   help="frames of the generated log of the replay benchmark (default 10,000,000; --quick 1,000,000; "
+                        "0 = no replay benchmark)")
+    p.add_argument("--replay-only", action="store_true", help="only the replay benchmark")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    if args.replay_frames < 0:
+        raise ConfigError("--replay-frames must be 0 or more")
+    frames = min(args.replay_frames, 1_000_000) if args.quick else args.replay_frames
+    rep = replay_bench.run(frames, repeats=1 if args.quick else 3) if frames else None
+    if args.replay_only:
+        if rep:
+            print(replay_bench.table(rep))
+            if args.json:
+                print(json.dumps({"replay": rep}, indent=2))
+        return 0
     res = bench.run(quick=args.quick)
     factors = {}
     for path in sorted(scenario_dir().glob("*.toml")):
         sc = load_scenario(path)
         factors[sc.name] = bench.lockstep_factor(lambda sc=sc: drive_from_scenario(sc), repeats=1 if args.quick else 3)
     print(bench.table(res, factors))
+    if rep:
+        print(replay_bench.table(rep))
     if args.json:
-        print(json.dumps({**res, "lockstep_realtime_factor": factors}, indent=2))
+        print(json.dumps({**res, "lockstep_realtime_factor": factors, "replay": rep}, indent=2))
     return 0

@@ -6,8 +6,9 @@ import math
 import sys
 from dataclasses import asdict
 
+from ..bus import bus as busmod
 from ..bus.busload import BusLoad, FrameLoad, bus_load
-from ..errors import ConfigError
+from ..errors import BusError, ConfigError
 
 
 def add_subparser(subparsers) -> None:
@@ -34,20 +35,11 @@ def add_subparser(subparsers) -> None:
 
 
 def parse_bitrate(text: str | None, option: str) -> int | None:
-    """'500000', '500k', '4M', '2.5M' -> bit/s; ConfigError for anything else or a rate <= 0."""
-    if text is None:
-        return None
-    body = text.strip()
-    scale = {"k": 1e3, "m": 1e6}.get(body[-1:].lower(), 1.0)
-    if scale != 1.0:
-        body = body[:-1]
+    """The one bitrate parser (bus.parse_bitrate), its error a ConfigError naming the option."""
     try:
-        value = float(body) * scale
-    except ValueError:
-        value = math.nan
-    if not math.isfinite(value) or value <= 0 or value != round(value):
-        raise ConfigError(f"{option} {text!r}: expected a positive number of bit/s such as 500000, 500k or 4M")
-    return int(round(value))
+        return busmod.parse_bitrate(text, option)
+    except BusError as exc:
+        raise ConfigError(str(exc)) from None
 
 
 def _percent(text: str) -> float:
@@ -132,7 +124,7 @@ def run(args) -> int:
             notes = [*bus.notes, *(f"{f.name}: {n}" for f in bus.frames for n in f.notes if not f.event
                                    or not n.startswith("event frame"))]
             for note in notes:
-                print(f"note: {bus.bus}: {note}")
+                print(f"note: {bus.bus}: {note}", file=sys.stderr)
 
     over = [b for b in buses if b.worst_pct > limit]
     for b in over:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 
 from ..bus import bus as busmod
@@ -9,6 +10,7 @@ from ..bus.log import read_log
 from ..errors import ConfigError
 from ..systems.camber import inspection
 from ..systems.camber.api import WHEELS, save_calibrations
+from ._common import DeprecatedAlias, check_plot_path
 
 
 def add_subparser(subparsers) -> None:
@@ -33,7 +35,9 @@ def add_subparser(subparsers) -> None:
 
     m = sub.add_parser("measure", help="per-wheel camber, misalignment and error bound from the ECU",
                        description="Print the ECU's camber results (VEHEST_Camber) from a log or the live bus.")
-    m.add_argument("--log", metavar="LOG", help="read a log instead of the bus")
+    m.add_argument("--from-log", metavar="LOG", help="read a recorded log instead of the bus")
+    m.add_argument("--log", dest="from_log", metavar="LOG", action=DeprecatedAlias, new="--from-log",
+                   help="deprecated name of --from-log")
     m.add_argument("--timeout", type=float, default=5.0, metavar="S", help="live: listen for S seconds (5)")
     m.add_argument("--json", action="store_true", help="print JSON")
     busmod.add_arguments(m)
@@ -81,8 +85,8 @@ def calibrate_cmd(args) -> int:
 
 
 def measure_cmd(args) -> int:
-    if args.log:
-        messages = read_log(args.log)
+    if args.from_log:
+        messages = read_log(args.from_log)
     else:
         import time
 
@@ -106,10 +110,12 @@ def measure_cmd(args) -> int:
 
 
 def bound_cmd(args) -> int:
-    if not args.lsb_mg > 0:
+    if args.plot:
+        check_plot_path(args.plot)
+    if not (math.isfinite(args.lsb_mg) and args.lsb_mg > 0):
         raise ConfigError("--lsb-mg must be positive")
     print(f"worst-case camber error at camber 0 with {args.lsb_mg:g} mg per axis: "
           f"{inspection.min_worst_case_deg(args.lsb_mg):.4f} deg (paper, 4 mg: 0.2292 deg)")
     if args.plot:
-        print(f"plot: {inspection.bound_plot(__import__('pathlib').Path(args.plot), args.lsb_mg)}")
+        print(f"plot: {inspection.bound_plot(check_plot_path(args.plot), args.lsb_mg)}")
     return 0

@@ -6,8 +6,6 @@ import sys
 from dataclasses import asdict, replace
 from pathlib import Path
 
-import can
-
 from ..bus import bus as busmod
 from ..errors import ConfigError
 from ..service import sdnotify
@@ -15,6 +13,7 @@ from ..service.daemon import EcuDaemon
 from ..systems.camber.api import load_calibrations
 from ..systems.ecu import Ecu, EcuConfig
 from ..xcp import ecu as xcp_ecu
+from ._common import add_log_arguments, check_log_arguments, open_session_log
 
 
 def add_subparser(subparsers) -> None:
@@ -22,7 +21,7 @@ def add_subparser(subparsers) -> None:
                               description="Run the ECU firmware on a python-can bus until SIGINT/SIGTERM.")
     p.add_argument("--mode", choices=("lockstep", "realtime"), default="realtime",
                    help="lockstep: step on the simulator's SIM_Sync frames; realtime: own 2 kHz clock (default)")
-    p.add_argument("--log", metavar="FILE", help="log every frame (candump -L for .log; any python-can format)")
+    add_log_arguments(p)
     p.add_argument("--duration", type=float, metavar="S", help="realtime: stop after S seconds")
     p.add_argument("--exit-on-end", action="store_true", help="lockstep: stop when the simulator sends END")
     p.add_argument("--camber-cal", metavar="FILE",
@@ -42,6 +41,7 @@ def add_subparser(subparsers) -> None:
 def run(args) -> int:
     if args.duration is not None and args.duration <= 0:
         raise ConfigError("--duration must be positive")
+    check_log_arguments(args)
     sdnotify.apply_log_level(args.log_level)
     ecu = Ecu(replace(EcuConfig.default(), rx_burst_frames=args.rx_burst_limit))
     if args.camber_cal:
@@ -50,10 +50,8 @@ def run(args) -> int:
     config = busmod.bus_config(args)
     bus = busmod.open_bus(config)
     print(f"vehest-can daemon: bus {busmod.describe_bus(bus, config)}", file=sys.stderr, flush=True)
-    writer = can.Logger(args.log) if args.log else None
-    daemon = EcuDaemon(bus, ecu, log_writer=writer,
-                       log_channel=config.get("channel") if config["interface"] == "socketcan" else "vcan0",
-                       notifier=sdnotify.Notifier.from_env())
+    writer = open_session_log(args, {"VEHEST"})  # the log sets each frame's channel (its bus)
+    daemon = EcuDaemon(bus, ecu, log_writer=writer, notifier=sdnotify.Notifier.from_env())
     with busmod.serving(bus, writer, daemon.stop_event.set):
         if args.mode == "lockstep":
             stats = daemon.serve_lockstep(exit_on_end=args.exit_on_end, idle_timeout=args.idle_timeout)

@@ -11,16 +11,17 @@ import sys
 import time
 from pathlib import Path
 
-import can
 import numpy as np
 
 from ..bus import bus as busmod
+from ..bus.log import FORMATS, SessionLog
 from ..errors import VehestError
 from ..progress import Progress
-from ..sim.report import realtime_summary, write_metrics
+from ..sim.report import FAIL, checks_of, checks_text, realtime_summary, write_junit, write_metrics
 from ..sim.session import SimMaster, run_inprocess
 from ..systems import Setup, System, load_any_scenario, registered, shipped_scenarios
 from ..systems.ecu import Ecu
+from ._common import check_seconds
 
 
 def add_subparser(subparsers) -> None:
@@ -33,6 +34,13 @@ def add_subparser(subparsers) -> None:
     p.add_argument("-o", "--out", default="out/demo", metavar="DIR", help="output folder (default: out/demo)")
     p.add_argument("--realtime", type=float, default=0.0, metavar="S",
                    help="also run S seconds in real time (2 kHz wall clock on both sides)")
+    p.add_argument("--check", action="store_true",
+                   help="exit 4 when an acceptance line fails (FAIL), for CI and make targets")
+    p.add_argument("--junit", metavar="FILE", help="write the acceptance lines as a JUnit XML report")
+    p.add_argument("--log-format", choices=[k[1:] for k in FORMATS], default="log",
+                   help="format of each scenario's session log (default: log, candump -L)")
+    p.add_argument("--log-per-bus", action="store_true",
+                   help="one session log per bus (session-pt.log, session-ch.log) instead of one with a channel per bus")
     busmod.add_arguments(p)
     p.set_defaults(func=run)
 
@@ -53,6 +61,7 @@ def _stop(proc: subprocess.Popen) -> str:
 
 
 def run(args, systems: list[System] | None = None) -> int:
+    check_seconds(args.realtime, "--realtime", zero=True)
     systems = registered() if systems is None else systems
     paths = [Path(p) for p in args.scenarios] or shipped_scenarios(systems)
     runs = [load_any_scenario(p, systems) for p in paths]
@@ -77,7 +86,8 @@ def run(args, systems: list[System] | None = None) -> int:
                 sdir = out / sc.name
                 sdir.mkdir(parents=True, exist_ok=True)
                 progress = Progress(f"{sc.name} (lockstep)")
-                with can.Logger(str(sdir / "session.log")) as writer:
+                # the ECU's view of the session (its frames Tx), as the daemon would log it
+                with SessionLog(sdir / f"session.{args.log_format}", {"VEHEST"}, per_bus=args.log_per_bus) as writer:
                     master = SimMaster(bus, system.car(sc), log_writer=writer, progress=progress)
                     session = master.run_lockstep(end=False)
                 progress.done(f"{session.stats['realtime_factor']:.1f}x real time over the bus")
@@ -110,8 +120,19 @@ def run(args, systems: list[System] | None = None) -> int:
     tables = [t for s in systems for t in s.tables([m for r, m in results if r is s])]
     if tables:
         print("\n\n".join(tables))
+    checks = [c for system, m in results for c in checks_of(m, f"{system.name}.{m.get('scenario', '?')}")]
+    if checks:
+        print("\nacceptance:\n" + checks_text(checks))
+    if args.junit:
+        write_junit(checks, Path(args.junit))
+        print(f"JUnit report: {args.junit}")
     print(f"\nplots: {', '.join(str(p) for p in sorted(out.glob('*/*.png')))}")
-    print(f"metrics: {out / 'metrics.json'}; candump logs: {', '.join(str(p) for p in sorted(out.glob('*/session.log')))}")
+    logs = sorted(out.glob(f"*/session*.{args.log_format}"))
+    print(f"metrics: {out / 'metrics.json'}; session logs: {', '.join(str(p) for p in logs)}")
+    failed = [c for c in checks if not c["passed"]]
+    if args.check and failed:
+        print(f"demo --check: {len(failed)} acceptance line(s) {FAIL}", file=sys.stderr)
+        return 4
     return 0
 
 

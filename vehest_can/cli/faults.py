@@ -14,6 +14,7 @@ from ..faults.spec import DESCRIPTIONS, FaultConfig, faults_from_cli, load_fault
 from ..paths import dbc_path
 from ..progress import Progress
 from ..systems import load_any_scenario
+from ._common import check_seconds
 
 
 def add_subparser(subparsers) -> None:
@@ -67,8 +68,8 @@ def _config(args) -> FaultConfig | None:
 
 
 def run(args) -> int:
-    if not args.duration > 0:
-        raise ConfigError(f"--duration {args.duration}: must be positive")
+    check_seconds(args.duration, "--duration")
+    check_seconds(args.bus_run, "--bus-run")
     if args.tx_queue < 1:
         raise ConfigError(f"--tx-queue {args.tx_queue}: must be at least 1")
     system, scenario = load_any_scenario(args.scenario)

@@ -3,13 +3,12 @@ from __future__ import annotations
 
 import sys
 
-import can
-
 from ..bus import bus as busmod
 from ..errors import ConfigError
 from ..progress import Progress
 from ..sim.scenario import load_scenario
-from ..sim.session import SimMaster, drive_from_scenario
+from ..sim.session import CAR_NODES, SimMaster, drive_from_scenario
+from ._common import add_log_arguments, check_log_arguments, check_seconds, open_session_log
 
 
 def add_subparser(subparsers) -> None:
@@ -22,7 +21,7 @@ def add_subparser(subparsers) -> None:
     p.add_argument("--duration", type=float, metavar="S", help="run S seconds (repeats the driver profile)")
     p.add_argument("--pose", choices=("wheel", "x_down", "z_down"),
                    help="camber inspection devices in this pose (calibration fixture), overriding the scenario")
-    p.add_argument("--log", metavar="FILE", help="log every frame (candump -L for .log)")
+    add_log_arguments(p)
     busmod.add_arguments(p)
     p.set_defaults(func=run)
 
@@ -35,12 +34,12 @@ def run(args) -> int:
         from dataclasses import replace
 
         sc = replace(sc, camber=replace(sc.camber, pose=args.pose))
-    if args.duration is not None and args.duration <= 0:
-        raise ConfigError("--duration must be positive")
+    check_seconds(args.duration, "--duration")
+    check_log_arguments(args)
     drive = drive_from_scenario(sc, duration_s=args.duration)
     config = busmod.bus_config(args)
     bus = busmod.open_bus(config)
-    writer = can.Logger(args.log) if args.log else None
+    writer = open_session_log(args, CAR_NODES)
     progress = Progress(f"{sc.name} ({args.mode})")
     master = SimMaster(bus, drive, log_writer=writer, progress=progress)
     with busmod.serving(bus, writer, master.stop_event.set):

@@ -231,7 +231,9 @@ def fault_table(drive, catalogue: tuple[FaultCase, ...] | None = None, *, seed: 
     return rows
 
 
-def format_table(rows: list[FaultRow], *, markdown: bool = False, study: FaultStudy | None = None) -> list[str]:
+def format_table(rows: list[FaultRow], *, markdown: bool = False, study: FaultStudy | None = None,
+                 width: int = 100) -> list[str]:
+    """The fault table: one row per fault when it fits `width` columns, else one block per fault."""
     study = study or fault_study()
     head = ("fault", "injected as", "ECU detects (counter rise)", "health during the fault", "recovery",
             "oldest sample, valid est.", study.error_label)
@@ -245,7 +247,19 @@ def format_table(rows: list[FaultRow], *, markdown: bool = False, study: FaultSt
                   for row in body]
         return lines
     widths = [max(len(r[i]) for r in (head, *body)) for i in range(len(head))]
-    return ["  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in (head, *body)]
+    wide = ["  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in (head, *body)]
+    if max(map(len, wide)) <= width:
+        return wide
+    import textwrap
+
+    label = max(len(h) for h in head[2:]) + 2
+    out: list[str] = []
+    for row in body:
+        out.append(f"{row[0]}" + (f"  (injected as {row[1]})" if row[1] != "-" else ""))
+        for h, c in zip(head[2:], row[2:]):
+            out += textwrap.wrap(c, width, initial_indent=f"  {h + ':':<{label}}", subsequent_indent=" " * (label + 2),
+                                 break_on_hyphens=False) or [f"  {h}:"]
+    return out
 
 
 

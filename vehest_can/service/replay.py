@@ -2,71 +2,259 @@
 
 Ticks come from the log's SIM_Sync frames when it has them (a lockstep session: the replay then
 reproduces the ECU's frames bit for bit), otherwise from its timestamps: a tick every 500 µs from
-the first frame, each frame handed in before the first tick at or after its timestamp.
+the first frame, each frame handed in before the first tick at or after its timestamp. A gap of
+more than `max_gap_s` (1 s) between frames is not stepped through tick by tick: the ECU steps
+`max_gap_s` of idle ticks (every input times out, as it would), then the log's clock jumps to the
+next frame (counted in ``idle_ticks_skipped``).
+
+The log is read and handed to the C ECU in batches (:func:`vehest_can.bus.log.iter_log_arrays`:
+candump -L parsed in C; ``vh_replay_run``: a batch of frames and ticks per call), and the ECU's
+frames are compared with the ones in the log as they come, so a file of any length replays in
+bounded memory. :func:`replay` takes python-can messages and keeps every frame (for tests and
+small logs); :func:`replay_file` streams a file.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from pathlib import Path
 
 import can
+import numpy as np
 
 from ..bus import lockstep
-from ..bus.frames import TICK_S, same_frame, sent_by
+from ..bus.frames import FRAME_DTYPE, TICK_S, sent_by, to_message
+from ..bus.log import SessionLog, iter_log_arrays, messages_to_arrays
+from ..native import ffi, lib
 from ..systems.ecu import Ecu
 
 # What the ECU core transmits (the lockstep acknowledge is the daemon's, not the core's)
 ECU_TX = sent_by({"VEHEST"}) - {lockstep.ACK.frame_id}
+_ECU_TX = np.array(sorted(ECU_TX), dtype=np.uint32)
+MAX_GAP_S = 1.0
+#: ECU frames held for comparison on the side that is ahead; beyond this the two streams are not
+#: aligned (e.g. a log that has none of the ECU's frames) and are not compared further
+COMPARE_WINDOW = 1 << 20
+_OUT_CAP = 1 << 16
+_EXT = lib.VH_FRAME_EXT
 
 
 @dataclass
 class ReplayResult:
     frames_in: int
     ticks: int
-    produced: list[can.Message]
-    logged: list[can.Message]
+    produced: list[can.Message]   # every ECU frame of the replay: kept by replay(), not by replay_file()
+    logged: list[can.Message]     # the ECU frames in the log: likewise
     counters: dict
     paced_by: str
+    n_produced: int = 0
+    n_logged: int = 0
+    first_mismatch: int | None = None
+    idle_ticks_skipped: int = 0
+    gaps: int = 0
+    out_of_order: int = 0         # frames older than one before them across batches (handed in late)
+    stats: dict = field(default_factory=dict)
 
     @property
     def identical(self) -> bool | None:
         """Equal to the ECU frames in the log (None when the log has none to compare)."""
-        if not self.logged:
+        if not self.n_logged:
             return None
-        return len(self.logged) == len(self.produced) and all(map(same_frame, self.logged, self.produced))
+        return self.n_logged == self.n_produced and self.first_mismatch is None
 
     def first_difference(self) -> int | None:
-        for i, (a, b) in enumerate(zip(self.logged, self.produced)):
-            if not same_frame(a, b):
-                return i
-        return None if len(self.logged) == len(self.produced) else min(len(self.logged), len(self.produced))
+        if self.first_mismatch is not None:
+            return self.first_mismatch
+        return None if self.n_logged == self.n_produced else min(self.n_logged, self.n_produced)
 
 
-def replay(messages: list[can.Message], ecu: Ecu | None = None) -> ReplayResult:
-    ecu = ecu or Ecu()
-    produced: list[can.Message] = []
-    logged = [m for m in messages if m.arbitration_id in ECU_TX and not m.is_extended_id]
-    inputs = [m for m in messages if not (m.arbitration_id in ECU_TX and not m.is_extended_id)]
-    if any(lockstep.is_sync(m) for m in inputs):
-        paced_by = "sync"
-        for m in inputs:
-            if not lockstep.is_sync(m):
-                ecu.rx(m)
-                continue
-            tick, cmd = lockstep.decode_sync(m)
-            if cmd == lockstep.RESET:
-                ecu.reset()
-            elif cmd == lockstep.STEP:
-                produced += ecu.step(timestamp=tick * TICK_S)
-    else:
-        paced_by = "timestamps"
-        inputs.sort(key=lambda m: m.timestamp)
-        t0 = inputs[0].timestamp if inputs else 0.0
-        k = 0
-        for m in inputs:
-            while t0 + k * TICK_S < m.timestamp - 1e-7:
-                produced += ecu.step(timestamp=k * TICK_S)
-                k += 1
-            ecu.rx(m)
-        if inputs:
-            produced += ecu.step(timestamp=k * TICK_S)
-    return ReplayResult(len(messages), ecu.tick, produced, logged, ecu.counters(), paced_by)
+# FRAME_DTYPE as 9 words: id, len, flags and data[0:2] in the first, data[2:64] and the struct's
+# padding in the rest; what same_frame compares is every byte but the BRS flag and the padding
+# (payload bytes past len are zero on both sides: the C reader's, messages_to_arrays', the ECU's)
+_MASK = np.array([~np.uint64(lib.VH_FRAME_BRS << 40)] + [np.uint64(0xFFFFFFFFFFFFFFFF)] * 7
+                 + [np.uint64(0x0000FFFFFFFFFFFF)], dtype=np.uint64)
+assert FRAME_DTYPE.itemsize == 72 and FRAME_DTYPE.fields["flags"][1] == 5 and FRAME_DTYPE.fields["data"][1] == 6
+
+
+def _same(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Element-wise same_frame of two FRAME_DTYPE arrays (ID, ID type, FD, payload)."""
+    wa = np.ascontiguousarray(a).view(np.uint64).reshape(-1, 9)
+    wb = np.ascontiguousarray(b).view(np.uint64).reshape(-1, 9)
+    return np.logical_not(((wa ^ wb) & _MASK).any(axis=1))
+
+
+class Replayer:
+    """Batches of a log in (:meth:`feed`), the result out (:meth:`finish`)."""
+
+    def __init__(self, ecu: Ecu | None = None, *, keep: bool = False, writer: can.Listener | None = None,
+                 max_gap_s: float = MAX_GAP_S):
+        self.ecu = ecu or Ecu()
+        self.keep = keep
+        self.writer = writer
+        self.max_idle = max(1, int(round(max_gap_s / TICK_S)))
+        self.paced_by: str | None = None
+        self.frames_in = 0
+        self.first_ts: float | None = None
+        self.t0: float | None = None  # timestamps: the log's clock starts at its first input
+        self.k = 0                    # timestamps: ticks of the log's clock so far
+        self.inputs = 0
+        self.skipped = self.gaps = self.out_of_order = 0
+        self.n_logged = self.n_produced = self._compared = 0
+        self.first_mismatch: int | None = None
+        self._aligned = True          # False once one side ran COMPARE_WINDOW frames ahead
+        self._compared_until = 0      # ... and how far the comparison got then
+        self._qlog = np.zeros(0, FRAME_DTYPE)
+        self._qprod = np.zeros(0, FRAME_DTYPE)
+        self.produced: list[can.Message] = []
+        self.logged: list[can.Message] = []
+        self._out = np.zeros(_OUT_CAP, FRAME_DTYPE)
+        self._out_event = np.zeros(_OUT_CAP, np.uint32)
+        self._out_step = np.zeros(_OUT_CAP, np.uint32)
+        self._c_out = (ffi.cast("vh_frame_t *", ffi.from_buffer(self._out)),
+                       ffi.cast("uint32_t *", ffi.from_buffer(self._out_event)),
+                       ffi.cast("uint32_t *", ffi.from_buffer(self._out_step)))
+        self._pos = ffi.new("vh_replay_pos_t *")
+
+    # -- comparison ---------------------------------------------------------------------------
+    def _compare(self, logged: np.ndarray | None = None, produced: np.ndarray | None = None) -> None:
+        if logged is not None:
+            self.n_logged += len(logged)
+            if self._aligned:
+                self._qlog = np.concatenate((self._qlog, logged)) if len(self._qlog) else logged
+        if produced is not None:
+            self.n_produced += len(produced)
+            if self._aligned:
+                self._qprod = np.concatenate((self._qprod, produced)) if len(self._qprod) else produced
+        if not self._aligned:
+            return
+        m = min(len(self._qlog), len(self._qprod))
+        if m:
+            if self.first_mismatch is None:
+                eq = _same(self._qlog[:m], self._qprod[:m])
+                if not eq.all():
+                    self.first_mismatch = self._compared + int(np.argmin(eq))
+            self._compared += m
+            self._qlog, self._qprod = self._qlog[m:], self._qprod[m:]
+        if max(len(self._qlog), len(self._qprod)) > COMPARE_WINDOW:
+            self._aligned = False  # one side ran far ahead: nothing more to compare
+            self._compared_until = self._compared
+            self._qlog = self._qprod = np.zeros(0, FRAME_DTYPE)
+
+    # -- the ECU ------------------------------------------------------------------------------
+    def _run(self, frames: np.ndarray, op: np.ndarray, steps: np.ndarray, tick_of) -> None:
+        """Events through the C ECU; `tick_of(event, step)` gives the tick (timestamp) of its frames."""
+        n = len(op)
+        frames = np.ascontiguousarray(frames)
+        op = np.ascontiguousarray(op, dtype=np.uint8)
+        steps = np.ascontiguousarray(steps, dtype=np.uint32)
+        c_in = ffi.cast("vh_frame_t *", ffi.from_buffer(frames)) if len(frames) else ffi.NULL
+        pos = self._pos
+        pos.event, pos.step = 0, 0
+        while pos.event < n:
+            got = lib.vh_replay_run(self.ecu.c, c_in, ffi.cast("uint8_t *", ffi.from_buffer(op)),
+                                    ffi.cast("uint32_t *", ffi.from_buffer(steps)), n, pos, *self._c_out, _OUT_CAP)
+            if got:
+                out = self._out[:got].copy()
+                ticks = tick_of(self._out_event[:got], self._out_step[:got])
+                self._produced(out, ticks)
+
+    def _produced(self, out: np.ndarray, ticks: np.ndarray) -> None:
+        self._compare(produced=out)
+        if self.keep or self.writer is not None:
+            for f, k in zip(out, ticks):
+                msg = to_message(f, timestamp=float(k) * TICK_S)
+                if self.keep:
+                    self.produced.append(msg)
+                if self.writer is not None:
+                    self.writer.on_message_received(msg)
+
+    # -- a batch of the log -------------------------------------------------------------------
+    def feed(self, frames: np.ndarray, ts: np.ndarray) -> None:
+        self.frames_in += len(frames)
+        if not len(frames):
+            return
+        if self.first_ts is None:
+            self.first_ts = float(ts[0])
+            if isinstance(self.writer, SessionLog) and self.writer.epoch is None:
+                self.writer.epoch = self.first_ts  # the replay's frames on the log's own time base
+        ext = (frames["flags"] & _EXT) != 0
+        is_ecu = np.isin(frames["id"], _ECU_TX) & ~ext
+        if is_ecu.any():
+            logged = frames[is_ecu]
+            self._compare(logged=logged)
+            if self.keep:
+                self.logged += [to_message(f, timestamp=float(t)) for f, t in zip(logged, ts[is_ecu])]
+        if is_ecu.all():
+            return
+        self.inputs += int(len(frames) - np.count_nonzero(is_ecu))
+        sync = ((frames["id"] == lockstep.SYNC.frame_id) & ~ext & (frames["len"] == lockstep.SYNC.length))
+        if self.paced_by is None:
+            self.paced_by = "sync" if sync.any() else "timestamps"
+        if self.paced_by == "sync":
+            self._feed_sync(frames, sync, is_ecu)
+        else:
+            self._feed_timestamps(frames[~is_ecu], ts[~is_ecu])
+
+    def _feed_sync(self, frames: np.ndarray, sync: np.ndarray, is_ecu: np.ndarray) -> None:
+        """In log order; the ECU frames of the log are events that do nothing."""
+        tick = np.ascontiguousarray(frames["data"][:, :4]).view("<u4").ravel()
+        cmd = frames["data"][:, 4]
+        op = np.where(sync, np.where(cmd == lockstep.RESET, lib.VH_REPLAY_RESET, lib.VH_REPLAY_NONE),
+                      np.where(is_ecu, lib.VH_REPLAY_NONE, lib.VH_REPLAY_RX)).astype(np.uint8)
+        steps = (sync & (cmd == lockstep.STEP)).astype(np.uint32)
+        self._run(frames, op, steps, lambda ev, _st: tick[ev].astype(np.float64))
+
+    def _feed_timestamps(self, inp: np.ndarray, its: np.ndarray) -> None:
+        order = np.argsort(its, kind="stable")
+        inp, its = inp[order], its[order]
+        if self.t0 is None:
+            self.t0 = float(its[0])
+        t0 = self.t0
+        # the first tick k with t0 + k * TICK_S >= t - 1e-7, in the very float operations of the loop
+        # `while t0 + k * TICK_S < t - 1e-7: step; k += 1`
+        x = its - 1e-7
+        k = np.maximum(np.ceil((x - t0) / TICK_S), 0).astype(np.int64)
+        k += (t0 + k * TICK_S < x)
+        k -= (k > 0) & (t0 + (k - 1) * TICK_S >= x)
+        self.out_of_order += int(np.count_nonzero(k < self.k))
+        k = np.maximum.accumulate(np.maximum(k, self.k))
+        before = np.concatenate(([self.k], k[:-1]))
+        full = k - before
+        steps = np.minimum(full, self.max_idle)
+        self.gaps += int(np.count_nonzero(full > self.max_idle))
+        self.skipped += int((full - steps).sum())
+        self.k = int(k[-1])
+        op = np.full(len(inp), lib.VH_REPLAY_RX, dtype=np.uint8)
+        self._run(inp, op, steps, lambda ev, st: (before[ev] + st).astype(np.float64))
+
+    def finish(self) -> ReplayResult:
+        if self.paced_by == "timestamps":  # the tick of the last frame
+            k = self.k
+            self._run(np.zeros(1, FRAME_DTYPE), np.zeros(1, np.uint8), np.ones(1, np.uint32),
+                      lambda ev, st: np.full(len(ev), float(k)))
+        if self._aligned:
+            self._compare()
+        elif self.first_mismatch is None:
+            self.first_mismatch = self._compared_until
+        return ReplayResult(
+            self.frames_in, self.ecu.tick, self.produced, self.logged, self.ecu.counters(), self.paced_by or "timestamps",
+            n_produced=self.n_produced, n_logged=self.n_logged, first_mismatch=self.first_mismatch,
+            idle_ticks_skipped=self.skipped, gaps=self.gaps, out_of_order=self.out_of_order,
+        )
+
+
+def replay(messages: list[can.Message], ecu: Ecu | None = None, *, max_gap_s: float = MAX_GAP_S) -> ReplayResult:
+    """Replay python-can messages; the result keeps every ECU frame produced and logged."""
+    r = Replayer(ecu, keep=True, max_gap_s=max_gap_s)
+    r.feed(*messages_to_arrays(messages))
+    r.frames_in = len(messages)
+    return r.finish()
+
+
+def replay_file(path: str | Path, ecu: Ecu | None = None, *, writer: can.Listener | None = None,
+                max_gap_s: float = MAX_GAP_S, progress=None) -> ReplayResult:
+    """Replay a log file in bounded memory (the result keeps counts, not frames); `writer` gets
+    the ECU's frames with their session time."""
+    r = Replayer(ecu, writer=writer, max_gap_s=max_gap_s)
+    for frames, ts in iter_log_arrays(path, progress=progress, copy=False):
+        r.feed(frames, ts)
+    return r.finish()

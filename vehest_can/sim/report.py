@@ -76,3 +76,55 @@ def realtime_summary(session: Session, daemon: dict) -> dict:
                    f"frame-to-estimate latency p50 {lat.get('p50', float('nan')):.0f} µs "
                    f"p99 {lat.get('p99', float('nan')):.0f} µs")
     return out
+
+
+# ---- acceptance: words people gate on, and a JUnit XML report for CI systems -------------------
+
+PASS, FAIL = "PASS", "FAIL"
+LEGEND = "PASS: the line's target is met; FAIL: it is not (the figures that decide it follow the line)"
+
+
+def verdict_word(verdict) -> str:
+    """A system's verdict ('pass', 'SHORT', True ...) as PASS or FAIL."""
+    return PASS if verdict is True or str(verdict).strip().lower() in ("pass", "passed", "ok", "true") else FAIL
+
+
+def checks_of(metrics: dict, suite: str) -> list[dict]:
+    """The acceptance lines of one session's metrics (a system's ``acceptance`` list, and the
+    bus-equals-in-process check of the demo) as {suite, name, passed, detail}."""
+    out = []
+    if "bus_equals_inprocess" in metrics:
+        out.append({"suite": suite, "name": "bus lockstep == in-process lockstep",
+                    "passed": bool(metrics["bus_equals_inprocess"]), "detail": ""})
+    for a in metrics.get("acceptance", []):
+        out.append({"suite": suite, "name": str(a.get("line", "")), "passed": verdict_word(a.get("verdict")) == PASS,
+                    "detail": str(a.get("detail", ""))})
+    return out
+
+
+def checks_text(checks: list[dict]) -> str:
+    lines = [f"  {PASS if c['passed'] else FAIL}  {c['suite']}: {c['name']}" + (f" ({c['detail']})" if c["detail"] else "")
+             for c in checks]
+    failed = sum(not c["passed"] for c in checks)
+    lines.append(f"{len(checks) - failed} {PASS}, {failed} {FAIL}. {LEGEND}")
+    return "\n".join(lines)
+
+
+def write_junit(checks: list[dict], path: Path, name: str = "vehest-can demo") -> None:
+    """One testsuite per scenario, one testcase per acceptance line, a <failure> where it fails."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.Element("testsuites", name=name, tests=str(len(checks)),
+                      failures=str(sum(not c["passed"] for c in checks)))
+    for suite in dict.fromkeys(c["suite"] for c in checks):
+        cs = [c for c in checks if c["suite"] == suite]
+        el = ET.SubElement(root, "testsuite", name=suite, tests=str(len(cs)), failures=str(sum(not c["passed"] for c in cs)),
+                           errors="0", skipped="0")
+        for c in cs:
+            case = ET.SubElement(el, "testcase", classname=suite, name=c["name"])
+            if not c["passed"]:
+                ET.SubElement(case, "failure", message=c["detail"] or FAIL).text = c["detail"]
+            elif c["detail"]:
+                ET.SubElement(case, "system-out").text = c["detail"]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)

@@ -61,10 +61,11 @@ class Session:
     frame_tick: np.ndarray        # (m,) tick of each frame
     stats: dict = field(default_factory=dict)
 
-    def messages(self, channel: str = "vcan0"):
-        """The session as python-can messages, timestamped with simulated time (for logs)."""
+    def messages(self):
+        """The session as python-can messages, timestamped with simulated time (a SessionLog
+        writes them with absolute time, direction and bus)."""
         for f, k in zip(self.frames, self.frame_tick):
-            yield to_message(f, timestamp=float(k) * TICK_S, channel=channel)
+            yield to_message(f, timestamp=float(k) * TICK_S)
 
 
 def drive_from_scenario(scenario, duration_s: float | None = None) -> Drive:
@@ -170,12 +171,13 @@ class SimMaster:
     """The car on a bus: lockstep master or real-time node. Records every frame it sees or sends."""
 
     def __init__(self, bus: can.BusABC, drive, *, log_writer: can.Listener | None = None,
-                 log_channel: str = "vcan0", ack_timeout: float = 2.0, progress=None):
-        """`drive`: a driveline Drive, or any car with Car's interface (e.g. a ChassisCar)."""
+                 ack_timeout: float = 2.0, progress=None):
+        """`drive`: a driveline Drive, or any car with Car's interface (e.g. a ChassisCar).
+        `log_writer` gets every frame with its session time (tick * TICK_S) in ``timestamp``: a
+        :class:`vehest_can.bus.log.SessionLog` turns that into absolute time, direction and bus."""
         self.bus = bus
         self.car = Car(drive) if isinstance(drive, Drive) else drive
         self.log_writer = log_writer
-        self.log_channel = log_channel
         self.ack_timeout = ack_timeout
         self.progress = progress
         self.stop_event = threading.Event()
@@ -194,7 +196,6 @@ class SimMaster:
         """Into the log only (sync frames: on the bus, but not part of the car/ECU session)."""
         if self.log_writer is not None:
             msg.timestamp = tick * TICK_S
-            msg.channel = self.log_channel
             self.log_writer.on_message_received(msg)
 
     def _session(self, mode: str, truth: np.ndarray, stats: dict) -> Session:

@@ -365,6 +365,8 @@ def load_calibrations(path) -> dict[str, Calibration]:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
         raise ConfigError(f"{path}: not JSON ({exc})") from None
+    except RecursionError:
+        raise ConfigError(f"{path}: not a calibration file (JSON nested too deeply)") from None
     if not isinstance(doc, dict):
         raise ConfigError(f"{path}: expected a JSON object at the top level")
     if doc.get("format") != FORMAT:

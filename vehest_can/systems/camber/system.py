@@ -4,9 +4,7 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-import can
-
-from ...bus.log import read_log
+from ...bus.log import SessionLog, read_log
 from ...sim.scenario import load_scenario, scenario_dir
 from ...sim.session import drive_from_scenario, run_inprocess
 from .. import Setup
@@ -70,7 +68,7 @@ class Camber:
 
 
 def _write_log(session, path: Path) -> Path:
-    with can.Logger(str(path)) as writer:
+    with SessionLog(path, {"VEHEST"}) as writer:  # as every session log: absolute time, Tx/Rx, bus channels
         for m in session.messages():
             writer.on_message_received(m)
     return path

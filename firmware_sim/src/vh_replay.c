@@ -1,0 +1,201 @@
+/* vh_replay.c - see vh_replay.h. Host only (never flashed): a log replay harness beside the
+ * in-process lockstep of vh_dlsim.c. */
+#include "vh_replay.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+size_t vh_replay_run(vh_ecu_t *ecu, const vh_frame_t *in, const uint8_t *op, const uint32_t *steps, size_t n,
+                     vh_replay_pos_t *pos, vh_frame_t *out, uint32_t *out_event, uint32_t *out_step, size_t cap)
+{
+    size_t written = 0;
+    while (pos->event < n) {
+        const size_t i = pos->event;
+        while (pos->step < steps[i]) {
+            size_t k, got;
+            if (cap - written < VH_ECU_MAX_TX) {
+                return written;
+            }
+            got = vh_ecu_step(ecu, out + written, cap - written);
+            for (k = 0; k < got; k++) {
+                out_event[written + k] = (uint32_t)i;
+                out_step[written + k] = pos->step;
+            }
+            written += got;
+            pos->step++;
+        }
+        if (op[i] == VH_REPLAY_RX) {
+            vh_ecu_rx(ecu, &in[i]);
+        } else if (op[i] == VH_REPLAY_RESET) {
+            vh_ecu_reset(ecu);
+        }
+        pos->event++;
+        pos->step = 0;
+    }
+    return written;
+}
+
+static int is_space(char c)
+{
+    return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\v' || c == '\f';
+}
+
+static int hex_value(char c)
+{
+    if (c >= '0' && c <= '9') {
+        return c - '0';
+    }
+    if (c >= 'a' && c <= 'f') {
+        return c - 'a' + 10;
+    }
+    if (c >= 'A' && c <= 'F') {
+        return c - 'A' + 10;
+    }
+    return -1;
+}
+
+/* One stripped, non-empty line [p, e). 1: a data frame in *f / *t; 0: a remote or error frame
+ * (skipped); -1: not a candump -L line. Follows python-can's CanutilsLogReader. */
+static int parse_line(const char *p, const char *e, vh_frame_t *f, double *t)
+{
+    const char *tok[5];
+    const char *tend[5];
+    size_t ntok = 0;
+    size_t want;
+    const char *s = p;
+    char num[64];
+    char *endp;
+    const char *hash;
+    const char *d;
+    size_t idlen, k, dlen;
+    uint32_t id = 0;
+
+    while (s < e && ntok < 5) {
+        while (s < e && is_space(*s)) {
+            s++;
+        }
+        if (s == e) {
+            break;
+        }
+        tok[ntok] = s;
+        while (s < e && !is_space(*s)) {
+            s++;
+        }
+        tend[ntok++] = s;
+    }
+    /* " R" / " T" at the end: python-can's direction */
+    want = (e - p >= 2 && e[-2] == ' ' && (e[-1] == 'r' || e[-1] == 'R' || e[-1] == 't' || e[-1] == 'T')) ? 4 : 3;
+    if (ntok != want) {
+        return -1;
+    }
+    /* (timestamp) */
+    k = (size_t)(tend[0] - tok[0]);
+    if (k < 3 || k > sizeof num || tok[0][0] != '(' || tend[0][-1] != ')') {
+        return -1;
+    }
+    for (d = tok[0] + 1; d < tend[0] - 1; d++) {
+        if (!((*d >= '0' && *d <= '9') || *d == '.' || *d == 'e' || *d == 'E' || *d == '+' || *d == '-')) {
+            return -1;
+        }
+    }
+    memcpy(num, tok[0] + 1, k - 2);
+    num[k - 2] = '\0';
+    *t = strtod(num, &endp);
+    if (*endp != '\0' || !isfinite(*t)) {
+        return -1;
+    }
+    /* ID#data, ID##Fdata, ID#R */
+    hash = memchr(tok[2], '#', (size_t)(tend[2] - tok[2]));
+    if (hash == NULL) {
+        return -1;
+    }
+    idlen = (size_t)(hash - tok[2]);
+    if (idlen == 0 || idlen > 8) {
+        return -1; /* more than 8 hex digits does not fit a CAN ID (29 bits + the error flag) */
+    }
+    for (k = 0; k < idlen; k++) {
+        int v = hex_value(tok[2][k]);
+        if (v < 0) {
+            return -1;
+        }
+        id = (id << 4) | (uint32_t)v;
+    }
+    memset(f, 0, sizeof *f);
+    f->flags = idlen > 3 ? VH_FRAME_EXT : 0;
+    d = hash + 1;
+    if (d < tend[2] && *d == '#') {
+        if (d + 1 >= tend[2] || d[1] < '0' || d[1] > '9') {
+            return -1;
+        }
+        f->flags |= VH_FRAME_FD | ((d[1] - '0') & 1 ? VH_FRAME_BRS : 0);
+        d += 2;
+    }
+    if (d < tend[2] && (*d == 'r' || *d == 'R')) {
+        return 0; /* remote frame */
+    }
+    if ((id & 0x20000000u) && (id & 0x80u)) {
+        return 0; /* CAN_ERR_FLAG | CAN_ERR_BUSERROR: an error frame */
+    }
+    id &= 0x1FFFFFFFu;
+    if (!(f->flags & VH_FRAME_EXT) && id > 0x7FFu) {
+        return -1;
+    }
+    dlen = (size_t)(tend[2] - d);
+    if (dlen % 2 != 0 || dlen / 2 > VH_FRAME_MAX_LEN) {
+        return -1;
+    }
+    for (k = 0; k < dlen / 2; k++) {
+        int hi = hex_value(d[2 * k]);
+        int lo = hex_value(d[2 * k + 1]);
+        if (hi < 0 || lo < 0) {
+            return -1;
+        }
+        f->data[k] = (uint8_t)(hi << 4 | lo);
+    }
+    f->id = id;
+    f->len = (uint8_t)(dlen / 2);
+    return 1;
+}
+
+int vh_candump_parse(const char *buf, size_t len, int final, vh_frame_t *out, double *ts, size_t cap,
+                     size_t *n_out, size_t *used, size_t *lines, size_t *skipped)
+{
+    size_t pos = 0;
+    *n_out = 0;
+    *lines = 0;
+    while (pos < len && *n_out < cap) {
+        const char *line = buf + pos;
+        const char *nl = memchr(line, '\n', len - pos);
+        const char *e;
+        size_t next;
+        int r;
+        if (nl == NULL && !final) {
+            break;
+        }
+        e = nl != NULL ? nl : buf + len;
+        next = (size_t)(e - buf) + (nl != NULL ? 1 : 0);
+        while (line < e && is_space(*line)) {
+            line++;
+        }
+        while (e > line && is_space(e[-1])) {
+            e--;
+        }
+        if (line < e) {
+            r = parse_line(line, e, &out[*n_out], &ts[*n_out]);
+            if (r < 0) {
+                *used = pos;
+                return VH_EINVAL;
+            }
+            if (r > 0) {
+                (*n_out)++;
+            } else {
+                (*skipped)++;
+            }
+        }
+        pos = next;
+        (*lines)++;
+    }
+    *used = pos;
+    return VH_OK;
+}

@@ -1,0 +1,74 @@
+"""`vehest-can monitor`: the ECU's estimates, validity, health and counters, decoded through the
+DBCs; from an in-process session, from a running daemon over the bus, and on a terminal (tmux)."""
+import shutil
+import subprocess
+import sys
+import time
+
+import pytest
+from daemonproc import start_daemon, stop_daemon
+
+from vehest_can.bus.bus import cli_args, private_multicast
+from vehest_can.service.monitor import Monitor
+from vehest_can.sim.scenario import load_scenario
+from vehest_can.sim.session import drive_from_scenario, run_inprocess
+from vehest_can.systems.ecu import Ecu
+
+
+def test_monitor_shows_the_latest_decoded_values():
+    s = run_inprocess(drive_from_scenario(load_scenario("launch_2nd"), duration_s=1.0), Ecu())
+    mon = Monitor()
+    for k, m in zip(s.frame_tick, s.messages()):
+        mon.feed(m, now=k * 0.0005)
+    screen = mon.render(100, now=1.0)
+    text = "\n".join(screen)
+    assert max(map(len, screen)) <= 100
+    assert "VEHEST_DrivelineEst: 2000 frames, 2000/s" in text and "DkfT_Health=OK" in text
+    assert "DkfT_Valid=VALID" in text and "CntCrcError=0" in text and "Nm" in text
+    assert "VEHEST_TireForceEst: not heard" in text  # no chassis in this session
+    assert mon.other > 0 and mon.undecodable == 0   # the car's frames are not the ECU's
+
+
+@pytest.mark.multicast
+def test_monitor_of_a_running_daemon(tmp_path):
+    config = private_multicast()
+    daemon = start_daemon(config, "--mode", "realtime", tmp_path=tmp_path)
+    try:
+        out = subprocess.run([sys.executable, "-m", "vehest_can.cli", "monitor", "--once", "--duration", "2",
+                              *cli_args(config)], capture_output=True, text=True, timeout=60)
+    finally:
+        stop_daemon(daemon)
+    assert out.returncode == 0, out.stderr
+    assert "VEHEST_Status:" in out.stdout and "DkfT_HealthSts=INIT" in out.stdout  # nothing to estimate from
+    assert "CntTimeout=" in out.stdout and "not heard" in out.stdout
+
+
+@pytest.mark.multicast
+@pytest.mark.skipif(shutil.which("tmux") is None, reason="tmux not installed")
+def test_monitor_in_a_terminal(tmp_path):
+    """Redrawn in place on a 100x40 terminal (tmux), against a daemon and the simulated car."""
+    config = private_multicast()
+    daemon = start_daemon(config, "--mode", "realtime", tmp_path=tmp_path)
+    name = f"vehest-monitor-{tmp_path.name}"
+    cmd = " ".join([sys.executable, "-m", "vehest_can.cli", "monitor", "--duration", "20", *cli_args(config)])
+    car = None
+    try:
+        subprocess.run(["tmux", "new-session", "-d", "-s", name, "-x", "100", "-y", "45", cmd], check=True)
+        car = subprocess.Popen([sys.executable, "-m", "vehest_can.cli", "sim", "launch_2nd", "--duration", "6",
+                                *cli_args(config)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        screen = ""
+        for _ in range(60):
+            time.sleep(0.5)
+            screen = subprocess.run(["tmux", "capture-pane", "-p", "-t", name], capture_output=True, text=True).stdout
+            if "DkfT_Health=OK" in screen:
+                break
+        (tmp_path / "screen.txt").write_text(screen)
+        assert screen.startswith("vehest-can monitor:") and "VEHEST_DrivelineEst" in screen, screen
+        assert "DkfT_Health=OK" in screen, screen
+        assert max(len(line) for line in screen.splitlines()) <= 100
+    finally:
+        subprocess.run(["tmux", "kill-session", "-t", name], capture_output=True)
+        if car is not None:
+            car.kill()
+            car.wait()
+        stop_daemon(daemon)

@@ -1,0 +1,70 @@
+"""What several verbs share: the session-log flags (``--log`` is always an output)."""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+from ..bus.log import FORMATS, SessionLog, check_log_path
+from ..errors import ConfigError
+
+#: the longest run of a verb that keeps every tick of its session in memory (sim, faults, demo)
+MAX_SESSION_S = 600.0
+#: what matplotlib writes, by extension
+PLOT_FORMATS = (".png", ".pdf", ".svg")
+
+LOG_HELP = ("log every frame to FILE, in the format of its extension: "
+            + ", ".join(f"{k} {v}" for k, v in FORMATS.items())
+            + "; absolute time, Tx/Rx, one channel per bus (pt, ch)")
+
+
+class DeprecatedAlias(argparse.Action):
+    """An old flag kept working: stores into the new one's dest and says so on stderr."""
+
+    def __init__(self, option_strings, dest, new: str = "", **kw):
+        self.new = new
+        super().__init__(option_strings, dest, **kw)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"warning: {option_string} is deprecated here (it names an input, and --log is always an "
+              f"output): use {self.new}", file=sys.stderr)
+        setattr(namespace, self.dest, values)
+
+
+def add_log_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--log", metavar="FILE", help=LOG_HELP)
+    parser.add_argument("--log-per-bus", action="store_true",
+                        help="one log per bus (FILE-pt.log, FILE-ch.log) instead of one with a channel per bus")
+
+
+def check_log_arguments(args) -> None:
+    """Before anything starts: a bad --log is an error now, not after the run."""
+    if getattr(args, "log", None):
+        check_log_path(args.log)
+
+
+def open_session_log(args, nodes) -> SessionLog | None:
+    return SessionLog(args.log, nodes, per_bus=args.log_per_bus) if args.log else None
+
+
+def check_seconds(value: float | None, option: str, *, maximum: float = MAX_SESSION_S, zero: bool = False) -> None:
+    """A duration flag: a finite number of seconds, > 0 (>= 0 with zero=True), at most `maximum`."""
+    if value is None:
+        return
+    low_ok = value >= 0 if zero else value > 0
+    if not (math.isfinite(value) and low_ok and value <= maximum):
+        raise ConfigError(f"{option} {value!r}: must be a number of seconds {'>= 0' if zero else '> 0'} and at most "
+                          f"{maximum:g} (a session keeps every tick in memory)")
+
+
+def check_plot_path(path: str) -> Path:
+    p = Path(path)
+    if p.suffix.lower() not in PLOT_FORMATS:
+        raise ConfigError(f"{path}: unknown plot format {p.suffix or '(no extension)'!r}; use one of "
+                          f"{', '.join(PLOT_FORMATS)}")
+    if p.is_dir():
+        raise ConfigError(f"{path}: is a folder, not a plot file")
+    if not p.parent.is_dir():
+        raise ConfigError(f"{path}: folder {p.parent} does not exist")
+    return p
