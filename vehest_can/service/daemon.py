@@ -9,6 +9,11 @@ Bus errors (``can.CanError``/``OSError`` on send or receive, e.g. a SocketCAN li
 down) do not stop the daemon: it counts them, warns once per outage, keeps ticking and goes on
 when the bus is back; the outages and failures are in the statistics.
 
+Several buses (a HIL bench's powertrain and chassis adapters): the daemon hears every one, and each
+frame it sends goes to the bus whose DBC has it (``routes``: frame ID -> bus; anything else to the
+first bus, which with one bus is every frame); a lockstep SIM_Sync is answered on the bus it came
+from, its VEHEST_SyncAck counting the frames sent there. With one bus, nothing changes.
+
 Stops cleanly on SIGINT/SIGTERM (or END in lockstep with ``exit_on_end``): log flushed, bus
 closed, summary returned.
 """
@@ -51,6 +56,7 @@ class DaemonStats:
     recv_errors: int = 0      # errors raised by the bus's receive
     rx_undecodable: int = 0   # datagrams/frames the transport could not turn into a CAN frame
     bus_down_s: float = 0.0   # wall time from the first error of an outage to its end
+    buses: dict = field(default_factory=dict)  # per bus: {"rx": frames in, "tx": frames out}
 
     def lines(self) -> list[str]:
         out = [f"mode {self.mode}: {self.ticks} ticks, {self.frames_rx} frames in, {self.frames_tx} out, "
@@ -70,6 +76,8 @@ class DaemonStats:
                        f"{self.recv_errors} receive errors, down {self.bus_down_s:.1f} s")
         else:
             out.append("bus errors: none")
+        if len(self.buses) > 1:
+            out.append("buses: " + "; ".join(f"{k} {v['rx']} in, {v['tx']} out" for k, v in self.buses.items()))
         out.append("health: " + ", ".join(f"{k}={v}" for k, v in self.health.items()))
         return out
 
@@ -79,9 +87,16 @@ def _fmt(p: dict) -> str:
 
 
 class EcuDaemon:
-    def __init__(self, bus: can.BusABC, ecu: Ecu | None = None, *, log_writer: can.Listener | None = None,
-                 log_channel: str | None = "vcan0", notifier: sdnotify.Notifier | None = None):
-        self.bus = bus
+    def __init__(self, bus: can.BusABC | dict[str, can.BusABC], ecu: Ecu | None = None, *,
+                 log_writer: can.Listener | None = None, log_channel: str | None = "vcan0",
+                 notifier: sdnotify.Notifier | None = None, routes: dict[int, str] | None = None):
+        """`bus`: one bus, or {name: bus} for several (then logged with the bus's name as channel);
+        `routes`: frame ID -> bus name of what the ECU sends (others go to the first bus)."""
+        self.buses = dict(bus) if isinstance(bus, dict) else {"": bus}
+        if not self.buses:
+            raise ValueError("the daemon needs a bus")
+        self.bus = next(iter(self.buses.values()))
+        self.routes = {i: n for i, n in (routes or {}).items() if n in self.buses}
         self.notifier = notifier or sdnotify.Notifier()  # systemd's sd_notify; a no-op by default
         self.ecu = ecu or Ecu()
         self.log_writer = log_writer
@@ -94,23 +109,56 @@ class EcuDaemon:
         self._down_send = False                # a send failed in the open outage
 
     # -- shared -------------------------------------------------------------------------------
-    def _log(self, msg: can.Message, timestamp: float) -> None:
+    def _log(self, msg: can.Message, timestamp: float, bus: str = "") -> None:
         if self.log_writer is not None:
             msg.timestamp = timestamp
-            msg.channel = self.log_channel
+            msg.channel = bus if len(self.buses) > 1 else self.log_channel
             self.log_writer.on_message_received(msg)
 
-    def _send(self, msg: can.Message, timestamp: float) -> bool:
-        """Send and log one frame; a bus error is counted and the frame dropped (returns False)."""
+    def _route(self, msg: can.Message) -> str:
+        return self.routes.get(msg.arbitration_id, next(iter(self.buses)))
+
+    def _send(self, msg: can.Message, timestamp: float, bus: str | None = None) -> bool:
+        """Send and log one frame (on its bus); a bus error is counted and the frame dropped (returns False)."""
+        name = self._route(msg) if bus is None else bus
         try:
-            self.bus.send(msg)
+            self.buses[name].send(msg)
         except (can.CanError, OSError) as exc:
             self.stats.send_failures += 1
             self._bus_error("send", exc)
             return False
         self._bus_ok("send")
-        self._log(msg, timestamp)
+        self._log(msg, timestamp, name)
+        self._count(name, "tx")
         return True
+
+    def _count(self, bus: str, what: str) -> None:
+        self.stats.buses.setdefault(bus or "bus", {"rx": 0, "tx": 0})[what] += 1
+
+    def _inbox(self, sink) -> list[can.Notifier]:
+        """One python-can Notifier per bus, each frame (or receive error) handed to ``sink(bus, item)``.
+        Only a bus failing again and again (no frame between) backs off, up to 50 ms: garbage between
+        good frames must not stall the receive path."""
+        stop_event = self.stop_event
+
+        class Inbox(can.Listener):
+            def __init__(self, name: str):
+                self.name = name
+                self.in_row = 0  # receive errors since the last frame
+
+            def on_message_received(self, msg: can.Message) -> None:
+                self.in_row = 0
+                sink(self.name, msg)
+
+            def on_error(self, exc: Exception) -> None:
+                # The notifier goes on receiving after this; counted on the ticking thread.
+                sink(self.name, exc)
+                if not is_undecodable(exc):
+                    self.in_row += 1
+                    if self.in_row > 3:
+                        stop_event.wait(min(0.05, 0.001 * 2 ** (self.in_row - 4)))
+
+        return [can.Notifier(b, [Inbox(name)], timeout=0.005) for name, b in self.buses.items()]
 
     def _rx_error(self, exc: Exception) -> bool:
         """Count a receive error. An undecodable datagram (garbage on a udp_multicast port, a
@@ -157,7 +205,8 @@ class EcuDaemon:
 
     def _start(self, stats: DaemonStats) -> sdnotify.Watchdog:
         """READY=1 (the bus is open, the loop starts) and the loop's keep-alive (WATCHDOG=1, STATUS=)."""
-        where = self.bus.channel_info if self.bus.channel_info != "unknown" else type(self.bus).__name__
+        where = ", ".join((f"{name}: " if name else "") + (b.channel_info if b.channel_info != "unknown"
+                                                             else type(b).__name__) for name, b in self.buses.items())
         log.info("ECU daemon serving in %s mode on %s", stats.mode, where)
         self.notifier.ready(f"{stats.mode}: serving on {where}")
         return sdnotify.Watchdog(self.notifier, stats.mode, lambda: stats.ticks, self.ecu.counters, logger=log)
@@ -168,70 +217,83 @@ class EcuDaemon:
         stats = self.stats = DaemonStats("lockstep")
         t0 = last = time.perf_counter()
         watchdog = self._start(stats)
-        while not self.stop_event.is_set():
-            try:
-                msg = self.bus.recv(timeout=0.05)
-            except (can.CanError, OSError) as exc:
-                msg = None
-                if self._rx_error(exc):
-                    self.stop_event.wait(0.05)  # a bus that fails at once must not make us spin
-            watchdog.tick()
-            if msg is None:
-                if idle_timeout is not None and time.perf_counter() - last > idle_timeout:
-                    log.warning("no frame for %.1f s, stopping", idle_timeout)
-                    break
-                continue
-            last = time.perf_counter()
-            self._bus_ok("receive")
-            if msg.is_error_frame or msg.is_remote_frame or is_own(msg, self._own):
-                continue
-            stats.frames_rx += 1
-            now = self.ecu.tick * TICK_S
-            self._log(msg, now)
-            if not lockstep.is_sync(msg):
-                self.ecu.rx(msg)
-                continue
-            tick, cmd = lockstep.decode_sync(msg)
-            if cmd == lockstep.RESET:
-                self.ecu.reset()
-                stats.sessions += 1
-                self._send(lockstep.ack_message(tick, 0), 0.0)
-            elif cmd == lockstep.STEP:
-                out = self.ecu.step()
-                stats.frames_tx += sum(self._send(m, now) for m in out)
-                stats.ticks += 1
-                self._send(lockstep.ack_message(tick, len(out)), now)
-            elif cmd == lockstep.END:
-                self._send(lockstep.ack_message(tick, 0), now)
-                if exit_on_end:
-                    break
+        recv, notifiers = self._lockstep_receiver()
+        try:
+            while not self.stop_event.is_set():
+                name, msg = recv(0.05)
+                if isinstance(msg, Exception):
+                    if self._rx_error(msg):
+                        self.stop_event.wait(0.05)  # a bus that fails at once must not make us spin
+                    msg = None
+                watchdog.tick()
+                if msg is None:
+                    if idle_timeout is not None and time.perf_counter() - last > idle_timeout:
+                        log.warning("no frame for %.1f s, stopping", idle_timeout)
+                        break
+                    continue
+                last = time.perf_counter()
+                self._bus_ok("receive")
+                if msg.is_error_frame or msg.is_remote_frame or is_own(msg, self._own):
+                    continue
+                stats.frames_rx += 1
+                self._count(name, "rx")
+                now = self.ecu.tick * TICK_S
+                self._log(msg, now, name)
+                if not lockstep.is_sync(msg):
+                    self.ecu.rx(msg)
+                    continue
+                tick, cmd = lockstep.decode_sync(msg)
+                if cmd == lockstep.RESET:
+                    self.ecu.reset()
+                    stats.sessions += 1
+                    self._send(lockstep.ack_message(tick, 0), 0.0, name)
+                elif cmd == lockstep.STEP:
+                    out = self.ecu.step()
+                    here = 0
+                    for m in out:
+                        to = self._route(m)
+                        sent = self._send(m, now, to)
+                        stats.frames_tx += sent
+                        here += to == name  # the ack counts what was sent on the sync's bus
+                    stats.ticks += 1
+                    self._send(lockstep.ack_message(tick, here), now, name)
+                elif cmd == lockstep.END:
+                    self._send(lockstep.ack_message(tick, 0), now, name)
+                    if exit_on_end:
+                        break
+        finally:
+            for n in notifiers:
+                n.stop()
         return self._finish(stats, t0)
+
+    def _lockstep_receiver(self):
+        """recv(timeout) -> (bus, frame, receive error or None). One bus: its own recv() in this
+        thread (no hand-over: the lockstep round trip is the demo's speed); several: their notifiers."""
+        if len(self.buses) == 1:
+            (name, bus), = self.buses.items()
+
+            def recv_one(timeout: float):
+                try:
+                    return name, bus.recv(timeout=timeout)
+                except (can.CanError, OSError) as exc:
+                    return name, exc
+            return recv_one, []
+        inbox: queue.SimpleQueue = queue.SimpleQueue()
+        notifiers = self._inbox(lambda bus, item: inbox.put((bus, item)))
+
+        def recv_any(timeout: float):
+            try:
+                return inbox.get(timeout=timeout)
+            except queue.Empty:
+                return "", None
+        return recv_any, notifiers
 
     # -- real time ----------------------------------------------------------------------------
     def serve_realtime(self, *, duration: float | None = None) -> DaemonStats:
         """Tick at 2 kHz of wall clock until stopped or for duration seconds."""
         stats = self.stats = DaemonStats("realtime")
         inbox: queue.SimpleQueue = queue.SimpleQueue()
-        stop_event = self.stop_event
-
-        class Inbox(can.Listener):
-            in_row = 0  # receive errors since the last frame
-
-            def on_message_received(self, msg: can.Message) -> None:
-                self.in_row = 0
-                inbox.put((time.perf_counter(), msg))
-
-            def on_error(self, exc: Exception) -> None:
-                # The notifier goes on receiving after this; counted on the ticking thread. Only a
-                # bus failing again and again (no frame between) backs off, up to 50 ms: garbage
-                # between good frames must not stall the receive path.
-                inbox.put((time.perf_counter(), exc))
-                if not is_undecodable(exc):
-                    self.in_row += 1
-                    if self.in_row > 3:
-                        stop_event.wait(min(0.05, 0.001 * 2 ** (self.in_row - 4)))
-
-        notifier = can.Notifier(self.bus, [Inbox()], timeout=0.005)
+        notifiers = self._inbox(lambda bus, item: inbox.put((time.perf_counter(), bus, item)))
         ticker = Ticker(TICK_S)
         latencies = Durations()  # fixed memory: the daemon may run for weeks
         t0 = time.perf_counter()
@@ -248,7 +310,7 @@ class EcuDaemon:
                 pending = []
                 while True:
                     try:
-                        t_rx, msg = inbox.get_nowait()
+                        t_rx, name, msg = inbox.get_nowait()
                     except queue.Empty:
                         break
                     if isinstance(msg, Exception):
@@ -258,7 +320,8 @@ class EcuDaemon:
                     if msg.is_error_frame or msg.is_remote_frame or is_own(msg, self._own):
                         continue
                     stats.frames_rx += 1
-                    self._log(msg, now)
+                    self._count(name, "rx")
+                    self._log(msg, now, name)
                     self.ecu.rx(msg)
                     if msg.arbitration_id == self._dls_id:
                         pending.append(t_rx)
@@ -271,7 +334,8 @@ class EcuDaemon:
                 stats.ticks += 1
                 watchdog.tick()
         finally:
-            notifier.stop()
+            for n in notifiers:
+                n.stop()
         stats.lateness_us = percentiles_us(ticker.lateness)
         stats.latency_us = percentiles_us(latencies)
         stats.deadline_misses = ticker.misses

@@ -19,6 +19,7 @@ class Camber:
     name = "camber"
     kinds: tuple[str, ...] = ()   # a driveline scenario file with a [camber] table
     realtime = False
+    nodes = ("DLS", "SIM", "CIS")  # the driveline car carrying the inspection devices
     faults = None
 
     def scenario_dir(self) -> Path:
