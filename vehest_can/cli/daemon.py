@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 from dataclasses import asdict, replace
 from pathlib import Path
@@ -22,7 +23,7 @@ def add_subparser(subparsers) -> None:
     p.add_argument("--mode", choices=("lockstep", "realtime"), default="realtime",
                    help="lockstep: step on the simulator's SIM_Sync frames; realtime: own 2 kHz clock (default)")
     p.add_argument("--log", metavar="FILE", help="log every frame (candump -L for .log; any python-can format)")
-    p.add_argument("--duration", type=float, metavar="S", help="realtime: stop after S seconds")
+    p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds (of wall time)")
     p.add_argument("--exit-on-end", action="store_true", help="lockstep: stop when the simulator sends END")
     p.add_argument("--camber-cal", metavar="FILE",
                    help="camber inspection calibration file (written by `vehest-can camber calibrate`)")
@@ -31,15 +32,34 @@ def add_subparser(subparsers) -> None:
                         "not used until the message is regular again (default 2; 0 = off, for transports "
                         "that deliver in batches)")
     p.add_argument("--stats", metavar="FILE", help="write the run's statistics as JSON on exit")
+    p.add_argument("--report", metavar="FILE",
+                   help="realtime: append a JSON line every --report-every seconds (totals so far, the window's "
+                        "latency and lateness percentiles)")
+    p.add_argument("--report-every", type=float, default=60.0, metavar="S", help="seconds between reports (default 60)")
     p.add_argument("--idle-timeout", type=float, metavar="S", help="lockstep: stop after S seconds without a frame")
     sdnotify.add_log_level(p)
     busmod.add_arguments(p)
     p.set_defaults(func=run)
 
 
+def _seconds(value: float | None, flag: str) -> None:
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise ConfigError(f"{flag} must be a finite number of seconds > 0, not {value}")
+
+
 def run(args) -> int:
-    if args.duration is not None and args.duration <= 0:
-        raise ConfigError("--duration must be positive")
+    _seconds(args.duration, "--duration")
+    _seconds(args.idle_timeout, "--idle-timeout")
+    _seconds(args.report_every, "--report-every")
+    if args.mode == "realtime":
+        given = [flag for flag, on in (("--idle-timeout", args.idle_timeout is not None),
+                                        ("--exit-on-end", args.exit_on_end)) if on]
+        if given:
+            verb = "applies" if len(given) == 1 else "apply"
+            raise ConfigError(f"{' and '.join(given)} only {verb} to --mode lockstep (a real-time daemon has no "
+                              f"simulator's END and ticks through silence): use --duration")
+    elif args.report:
+        raise ConfigError("--report applies to --mode realtime (a lockstep daemon's time is the simulator's)")
     sdnotify.apply_log_level(args.log_level)
     ecu = Ecu(replace(EcuConfig.default(), rx_burst_frames=args.rx_burst_limit))
     if args.camber_cal:
@@ -53,7 +73,14 @@ def run(args) -> int:
                        notifier=sdnotify.Notifier.from_env())
     with busmod.serving(bus, writer, daemon.stop_event.set):
         if args.mode == "lockstep":
-            stats = daemon.serve_lockstep(exit_on_end=args.exit_on_end, idle_timeout=args.idle_timeout)
+            stats = daemon.serve_lockstep(exit_on_end=args.exit_on_end, idle_timeout=args.idle_timeout,
+                                          duration=args.duration)
+        elif args.report:
+            with open(args.report, "a") as fh:
+                def report(snapshot: dict) -> None:
+                    fh.write(json.dumps(snapshot) + "\n")
+                    fh.flush()
+                stats = daemon.serve_realtime(duration=args.duration, report=report, report_every=args.report_every)
         else:
             stats = daemon.serve_realtime(duration=args.duration)
     print("\n".join(stats.lines()), file=sys.stderr)

@@ -31,7 +31,7 @@ from ..bus import lockstep
 from ..bus.bus import is_undecodable
 from ..bus.frames import TICK_S, frame_id, is_own, sent_by
 from ..bus.rt import Durations, Ticker, percentiles_us
-from ..systems.ecu import Ecu
+from ..systems.ecu import INPUT_OF, Ecu
 from . import sdnotify
 
 log = logging.getLogger(__name__)
@@ -57,6 +57,7 @@ class DaemonStats:
     rx_undecodable: int = 0   # datagrams/frames the transport could not turn into a CAN frame
     bus_down_s: float = 0.0   # wall time from the first error of an outage to its end
     buses: dict = field(default_factory=dict)  # per bus: {"rx": frames in, "tx": frames out}
+    not_heard: list = field(default_factory=list)  # estimators whose sensor frame never arrived
 
     def lines(self) -> list[str]:
         out = [f"mode {self.mode}: {self.ticks} ticks, {self.frames_rx} frames in, {self.frames_tx} out, "
@@ -78,7 +79,12 @@ class DaemonStats:
             out.append("bus errors: none")
         if len(self.buses) > 1:
             out.append("buses: " + "; ".join(f"{k} {v['rx']} in, {v['tx']} out" for k, v in self.buses.items()))
-        out.append("health: " + ", ".join(f"{k}={v}" for k, v in self.health.items()))
+        health = ", ".join(f"{k}={v}" for k, v in self.health.items() if k not in self.not_heard) or "-"
+        if self.not_heard:
+            inputs = dict.fromkeys(INPUT_OF[k] for k in self.not_heard)
+            health += (f"; not heard (not configured or absent, not a fault): {', '.join(self.not_heard)} "
+                       f"(no {' or '.join(inputs)} since start)")
+        out.append("health: " + health)
         return out
 
 
@@ -199,6 +205,7 @@ class EcuDaemon:
         stats.counters = self.ecu.counters()
         stats.chassis_counters = self.ecu.chassis_counters()
         stats.health = self.ecu.health()
+        stats.not_heard = self.ecu.not_heard()
         self.notifier.stopping(sdnotify.status_line(f"{stats.mode} stopping", stats.ticks, stats.counters))
         log.info("ECU daemon stopped: %s", stats.lines()[0])
         return stats
@@ -212,14 +219,18 @@ class EcuDaemon:
         return sdnotify.Watchdog(self.notifier, stats.mode, lambda: stats.ticks, self.ecu.counters, logger=log)
 
     # -- lockstep -----------------------------------------------------------------------------
-    def serve_lockstep(self, *, exit_on_end: bool = False, idle_timeout: float | None = None) -> DaemonStats:
-        """Answer SIM_Sync frames until stopped (or END with exit_on_end, or idle_timeout s of silence)."""
+    def serve_lockstep(self, *, exit_on_end: bool = False, idle_timeout: float | None = None,
+                       duration: float | None = None) -> DaemonStats:
+        """Answer SIM_Sync frames until stopped (or END with exit_on_end, idle_timeout s of silence, or
+        duration s of wall time)."""
         stats = self.stats = DaemonStats("lockstep")
         t0 = last = time.perf_counter()
         watchdog = self._start(stats)
         recv, notifiers = self._lockstep_receiver()
         try:
             while not self.stop_event.is_set():
+                if duration is not None and time.perf_counter() - t0 >= duration:
+                    break
                 name, msg = recv(0.05)
                 if isinstance(msg, Exception):
                     if self._rx_error(msg):
@@ -266,6 +277,15 @@ class EcuDaemon:
                 n.stop()
         return self._finish(stats, t0)
 
+    def _snapshot(self, stats: DaemonStats, now: float, ticker: Ticker, latency: Durations,
+                  lateness: Durations) -> dict:
+        """A real-time run's report: totals since start, percentiles of the window since the last one."""
+        return {"t_s": now, "ticks": stats.ticks, "frames_rx": stats.frames_rx, "frames_tx": stats.frames_tx,
+                "deadline_misses": ticker.misses, "rx_undecodable": stats.rx_undecodable,
+                "recv_errors": stats.recv_errors, "send_failures": stats.send_failures,
+                "counters": self.ecu.counters(), "chassis_counters": self.ecu.chassis_counters(),
+                "latency_us": latency.percentiles_us(), "lateness_us": lateness.percentiles_us()}
+
     def _lockstep_receiver(self):
         """recv(timeout) -> (bus, frame, receive error or None). One bus: its own recv() in this
         thread (no hand-over: the lockstep round trip is the demo's speed); several: their notifiers."""
@@ -289,14 +309,18 @@ class EcuDaemon:
         return recv_any, notifiers
 
     # -- real time ----------------------------------------------------------------------------
-    def serve_realtime(self, *, duration: float | None = None) -> DaemonStats:
-        """Tick at 2 kHz of wall clock until stopped or for duration seconds."""
+    def serve_realtime(self, *, duration: float | None = None, report=None, report_every: float = 60.0) -> DaemonStats:
+        """Tick at 2 kHz of wall clock until stopped or for duration seconds. `report(dict)`, if given,
+        is called every `report_every` s with the totals so far and the window's latency and
+        lateness percentiles (fixed memory: one histogram per quantity, emptied after each report)."""
         stats = self.stats = DaemonStats("realtime")
         inbox: queue.SimpleQueue = queue.SimpleQueue()
         notifiers = self._inbox(lambda bus, item: inbox.put((time.perf_counter(), bus, item)))
         ticker = Ticker(TICK_S)
         latencies = Durations()  # fixed memory: the daemon may run for weeks
+        window_latency, window_lateness = Durations(), Durations()
         t0 = time.perf_counter()
+        next_report = report_every
         watchdog = self._start(stats)
         ticker.start()
         try:
@@ -307,6 +331,13 @@ class EcuDaemon:
                 if missed:
                     self.ecu.note_deadline_miss(missed)
                 now = time.perf_counter() - t0
+                if report is not None:
+                    window_lateness.add(ticker.late)
+                    if now >= next_report:
+                        next_report += report_every
+                        report(self._snapshot(stats, now, ticker, window_latency, window_lateness))
+                        window_latency.clear()
+                        window_lateness.clear()
                 pending = []
                 while True:
                     try:
@@ -330,6 +361,8 @@ class EcuDaemon:
                 t_tx = time.perf_counter()
                 if sent:
                     latencies.extend(t_tx - t for t in pending)
+                    if report is not None:
+                        window_latency.extend(t_tx - t for t in pending)
                 stats.frames_tx += sent
                 stats.ticks += 1
                 watchdog.tick()
