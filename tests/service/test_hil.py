@@ -438,6 +438,41 @@ def test_realtime_two_buses_each_frame_on_its_own_bus(tmp_path):
 
 
 @pytest.mark.multicast
+def test_daemon_process_opens_every_bus_of_a_hil_config(tmp_path):
+    """`vehest-can daemon --hil CONFIG`: the ECU as its own process (systemd's case) on both buses."""
+    path = write(tmp_path, two_buses(), "bench.toml")
+    cfg = load_hil_config(path)
+    stats = tmp_path / "ecu.json"
+    proc, sock = start_ready(["daemon", "--hil", str(path), "--duration", "60", "--stats", str(stats)])
+    try:
+        for name in ("pt", "ch"):  # frames of an ID the ECU does not receive, on each bus
+            bus = busmod.open_bus(cfg.bus_kwargs(name))
+            try:
+                for _ in range(50):
+                    bus.send(can.Message(arbitration_id=0x123, is_extended_id=False, data=bytes(8)))
+                    time.sleep(0.002)
+            finally:
+                bus.shutdown()
+        time.sleep(0.5)
+    finally:
+        rc, err = stop(proc)
+        close(sock)
+    assert rc == 0, err
+    ecu = json.loads(stats.read_text())
+    assert ecu["buses"]["pt"]["rx"] >= 40 and ecu["buses"]["ch"]["rx"] >= 40, ecu["buses"]
+    assert ecu["buses"]["pt"]["tx"] > 0 and ecu["counters"]["unknown_id"] == ecu["frames_rx"]
+    assert "bus pt: udp_multicast" in err and "bus ch: udp_multicast" in err
+
+
+def test_daemon_hil_needs_the_ecu_simulated_and_no_bus_flags(tmp_path, capsys):
+    path = write(tmp_path, mutate(nodes__simulated=["DLS", "SIM"], nodes__real=["VEHEST"]))
+    assert main(["daemon", "--hil", str(path), "--duration", "1"]) == 1
+    assert "the ECU (VEHEST) is not simulated there" in capsys.readouterr().err
+    assert main(["daemon", "--hil", str(path), "-i", "virtual", "--duration", "1"]) == 1
+    assert "leave out the bus flags (--interface)" in capsys.readouterr().err
+
+
+@pytest.mark.multicast
 def test_lockstep_chassis_car_on_its_bus_equals_inprocess(tmp_path):
     """Lockstep with the ECU on both buses and the chassis car on ch (pt idle): the ch bus carries,
     bit for bit, the chassis frames of an in-process run; the ack counts only what was sent on ch."""

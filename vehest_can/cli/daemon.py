@@ -4,6 +4,7 @@ from __future__ import annotations
 import json
 import math
 import sys
+from contextlib import contextmanager
 from dataclasses import asdict, replace
 from pathlib import Path
 
@@ -13,6 +14,7 @@ from ..bus import bus as busmod
 from ..errors import ConfigError
 from ..service import sdnotify
 from ..service.daemon import EcuDaemon
+from ..service.hil import load_hil_config
 from ..systems.camber.api import load_calibrations
 from ..systems.ecu import Ecu, EcuConfig
 
@@ -37,6 +39,9 @@ def add_subparser(subparsers) -> None:
                         "latency and lateness percentiles)")
     p.add_argument("--report-every", type=float, default=60.0, metavar="S", help="seconds between reports (default 60)")
     p.add_argument("--idle-timeout", type=float, metavar="S", help="lockstep: stop after S seconds without a frame")
+    p.add_argument("--hil", metavar="CONFIG",
+                   help="open every bus the ECU (VEHEST) is on in this HIL configuration (docs/hil.md), one adapter "
+                        "each, each frame sent on its DBC's bus; instead of the python-can bus flags")
     sdnotify.add_log_level(p)
     busmod.add_arguments(p)
     p.set_defaults(func=run)
@@ -64,14 +69,12 @@ def run(args) -> int:
     ecu = Ecu(replace(EcuConfig.default(), rx_burst_frames=args.rx_burst_limit))
     if args.camber_cal:
         ecu.set_camber_calibrations(load_calibrations(args.camber_cal))
-    config = busmod.bus_config(args)
-    bus = busmod.open_bus(config)
-    print(f"vehest-can daemon: bus {busmod.describe_bus(bus, config)}", file=sys.stderr, flush=True)
+    buses, routes, channel = _open_buses(args)
     writer = can.Logger(args.log) if args.log else None
-    daemon = EcuDaemon(bus, ecu, log_writer=writer,
-                       log_channel=config.get("channel") if config["interface"] == "socketcan" else "vcan0",
-                       notifier=sdnotify.Notifier.from_env())
-    with busmod.serving(bus, writer, daemon.stop_event.set):
+    daemon = EcuDaemon(buses if len(buses) > 1 else next(iter(buses.values())), ecu, log_writer=writer,
+                       log_channel=channel, notifier=sdnotify.Notifier.from_env(), routes=routes)
+    first, *others = buses.values()
+    with busmod.serving(first, writer, daemon.stop_event.set), _closing(others):
         if args.mode == "lockstep":
             stats = daemon.serve_lockstep(exit_on_end=args.exit_on_end, idle_timeout=args.idle_timeout,
                                           duration=args.duration)
@@ -87,3 +90,42 @@ def run(args) -> int:
     if args.stats:
         Path(args.stats).write_text(json.dumps(asdict(stats), indent=2) + "\n")
     return 0
+
+
+def _open_buses(args) -> tuple[dict, dict, str | None]:
+    """({name: bus}, frame ID -> bus name, log channel): the python-can flags' one bus, or each bus the
+    ECU is on in a HIL configuration."""
+    if not args.hil:
+        config = busmod.bus_config(args)
+        bus = busmod.open_bus(config)
+        print(f"vehest-can daemon: bus {busmod.describe_bus(bus, config)}", file=sys.stderr, flush=True)
+        return {"": bus}, {}, config.get("channel") if config["interface"] == "socketcan" else "vcan0"
+    flags = [f for f in ("interface", "channel", "bitrate", "data_bitrate", "bus_config", "bus_kwargs")
+             if getattr(args, f, None)]
+    if flags:
+        raise ConfigError(f"--hil takes the buses from {args.hil}: leave out the bus flags "
+                          f"({', '.join('--' + f.replace('_', '-') for f in flags)})")
+    hil = load_hil_config(args.hil)
+    if not hil.ecu_buses:
+        raise ConfigError(f"{args.hil}: the ECU (VEHEST) is not simulated there: nothing for the daemon to serve "
+                          f"(declare VEHEST in nodes.simulated)")
+    buses: dict = {}
+    try:
+        for name in hil.ecu_buses:
+            buses[name] = busmod.open_bus(hil.bus_kwargs(name))
+            print(f"vehest-can daemon: bus {name}: {busmod.describe_bus(buses[name], hil.bus_kwargs(name))}",
+                  file=sys.stderr, flush=True)
+    except BaseException:
+        for b in buses.values():
+            b.shutdown()
+        raise
+    return buses, hil.ecu_routes(), None
+
+
+@contextmanager
+def _closing(buses):
+    try:
+        yield
+    finally:
+        for b in buses:
+            b.shutdown()
