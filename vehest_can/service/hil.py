@@ -9,7 +9,7 @@ of a bus's DBC is real (on the bench) or absent.
 
 The schema is documented in ``docs/hil.md``. ``load_hil_config`` checks every key and raises
 :class:`~vehest_can.errors.ConfigError` whose message names the file, the key as a dotted path and
-the problem; ``run_residual`` runs the simulated nodes against the configured buses.
+the problem; :class:`ResidualBus` runs the simulated nodes against the configured buses.
 """
 from __future__ import annotations
 
