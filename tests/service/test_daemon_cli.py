@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import random
+import threading
 import time
 
 import can
@@ -10,7 +11,7 @@ import pytest
 
 from vehest_can.bus.frames import frame_id
 from vehest_can.cli import main
-from vehest_can.service.daemon import DaemonStats
+from vehest_can.service.daemon import RX_FIFO, DaemonStats, EcuDaemon
 from vehest_can.sim.session import run_inprocess
 from vehest_can.systems import load_any_scenario
 from vehest_can.systems.ecu import Ecu
@@ -71,3 +72,36 @@ def test_a_bus_never_heard_is_not_a_fault():
     assert health.startswith("health: skfmec_q=OK; not heard (not configured or absent, not a fault): dkf_t, "
                              "dkf_s (no DLS_Sensors since start)"), health
     assert "INIT" not in health
+
+
+class StallingEcu(Ecu):
+    """The real ECU, whose 20th step takes 0.5 s: the daemon descheduled, as on a loaded host."""
+
+    def step(self, timestamp: float = 0.0):
+        if self.tick == 20:
+            time.sleep(0.5)
+        return super().step(timestamp)
+
+
+def test_realtime_receive_fifo_is_bounded_and_its_overruns_counted():
+    """Frames that arrive while the daemon cannot tick wait in a receive FIFO of fixed size (RX_FIFO),
+    not in a queue that grows with the stall; the oldest are dropped and counted."""
+    channel = f"fifo{random.random()}"
+    ecu_bus, sender = can.Bus(interface="virtual", channel=channel), can.Bus(interface="virtual", channel=channel)
+    daemon = EcuDaemon(ecu_bus, StallingEcu())
+    out = {}
+    thread = threading.Thread(target=lambda: out.update(stats=daemon.serve_realtime(duration=1.5)))
+    thread.start()
+    try:
+        time.sleep(0.2)  # inside the stall
+        n = 3 * RX_FIFO
+        for _ in range(n):
+            sender.send(can.Message(arbitration_id=0x123, is_extended_id=False, data=bytes(8)))
+        thread.join(10)
+    finally:
+        sender.shutdown()
+        ecu_bus.shutdown()
+    st = out["stats"]
+    assert st.rx_overrun >= n - RX_FIFO - 50, st.rx_overrun
+    assert st.frames_rx + st.rx_overrun == n and st.counters["unknown_id"] == st.frames_rx
+    assert any(line.startswith("receive FIFO overrun: ") for line in st.lines())

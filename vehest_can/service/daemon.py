@@ -19,6 +19,7 @@ closed, summary returned.
 """
 from __future__ import annotations
 
+import collections
 import logging
 import queue
 import threading
@@ -35,6 +36,10 @@ from ..systems.ecu import INPUT_OF, Ecu
 from . import sdnotify
 
 log = logging.getLogger(__name__)
+
+#: real-time receive FIFO, frames (all buses): about 0.2 s of this project's traffic; older frames are
+#: far past every RX timeout (a few ticks) and of no use to the estimators
+RX_FIFO = 512
 
 
 @dataclass
@@ -58,6 +63,7 @@ class DaemonStats:
     bus_down_s: float = 0.0   # wall time from the first error of an outage to its end
     buses: dict = field(default_factory=dict)  # per bus: {"rx": frames in, "tx": frames out}
     not_heard: list = field(default_factory=list)  # estimators whose sensor frame never arrived
+    rx_overrun: int = 0       # real time: frames dropped (the oldest) from a full receive FIFO
 
     def lines(self) -> list[str]:
         out = [f"mode {self.mode}: {self.ticks} ticks, {self.frames_rx} frames in, {self.frames_tx} out, "
@@ -70,6 +76,9 @@ class DaemonStats:
         chassis = {k: v for k, v in self.chassis_counters.items() if v}
         if chassis:
             out.append("chassis faults: " + ", ".join(f"{k}={v}" for k, v in chassis.items()))
+        if self.rx_overrun:
+            out.append(f"receive FIFO overrun: {self.rx_overrun} frames dropped (the oldest; the daemon fell "
+                       f"{RX_FIFO} frames behind)")
         if self.rx_undecodable:
             out.append(f"undecodable input: {self.rx_undecodable} (not a CAN frame of the bus's transport; dropped)")
         if self.bus_outages:
@@ -162,7 +171,7 @@ class EcuDaemon:
                 if not is_undecodable(exc):
                     self.in_row += 1
                     if self.in_row > 3:
-                        stop_event.wait(min(0.05, 0.001 * 2 ** (self.in_row - 4)))
+                        stop_event.wait(0.001 * 2 ** min(self.in_row - 4, 5.6))  # up to 50 ms
 
         return [can.Notifier(b, [Inbox(name)], timeout=0.005) for name, b in self.buses.items()]
 
@@ -282,7 +291,7 @@ class EcuDaemon:
         """A real-time run's report: totals since start, percentiles of the window since the last one."""
         return {"t_s": now, "ticks": stats.ticks, "frames_rx": stats.frames_rx, "frames_tx": stats.frames_tx,
                 "deadline_misses": ticker.misses, "rx_undecodable": stats.rx_undecodable,
-                "recv_errors": stats.recv_errors, "send_failures": stats.send_failures,
+                "recv_errors": stats.recv_errors, "send_failures": stats.send_failures, "rx_overrun": stats.rx_overrun,
                 "counters": self.ecu.counters(), "chassis_counters": self.ecu.chassis_counters(),
                 "latency_us": latency.percentiles_us(), "lateness_us": lateness.percentiles_us()}
 
@@ -298,6 +307,7 @@ class EcuDaemon:
                 except (can.CanError, OSError) as exc:
                     return name, exc
             return recv_one, []
+        # unbounded, but bounded by the protocol: the master has at most its window of ticks in flight
         inbox: queue.SimpleQueue = queue.SimpleQueue()
         notifiers = self._inbox(lambda bus, item: inbox.put((bus, item)))
 
@@ -314,8 +324,16 @@ class EcuDaemon:
         is called every `report_every` s with the totals so far and the window's latency and
         lateness percentiles (fixed memory: one histogram per quantity, emptied after each report)."""
         stats = self.stats = DaemonStats("realtime")
-        inbox: queue.SimpleQueue = queue.SimpleQueue()
-        notifiers = self._inbox(lambda bus, item: inbox.put((time.perf_counter(), bus, item)))
+        # A receive FIFO of fixed size, like a CAN controller's: a daemon descheduled for a second must
+        # not queue thousands of frames (memory that Python keeps); on overrun the oldest go, counted.
+        inbox: collections.deque = collections.deque(maxlen=RX_FIFO)
+
+        def sink(bus: str, item) -> None:
+            if len(inbox) == RX_FIFO:
+                stats.rx_overrun += 1
+            inbox.append((time.perf_counter(), bus, item))
+
+        notifiers = self._inbox(sink)
         ticker = Ticker(TICK_S)
         latencies = Durations()  # fixed memory: the daemon may run for weeks
         window_latency, window_lateness = Durations(), Durations()
@@ -341,8 +359,8 @@ class EcuDaemon:
                 pending = []
                 while True:
                     try:
-                        t_rx, name, msg = inbox.get_nowait()
-                    except queue.Empty:
+                        t_rx, name, msg = inbox.popleft()
+                    except IndexError:
                         break
                     if isinstance(msg, Exception):
                         self._rx_error(msg)

@@ -270,7 +270,7 @@ def format_result(res: SoakResult) -> list[str]:
                  f"{st.get('deadline_misses', 0)} deadline misses; whole-run latency µs "
                  + " ".join(f"{k}={v:.0f}" for k, v in st.get("latency_us", {}).items() if k != "n"))
     lines.append("fault totals: " + ", ".join(f"{k}={v}" for k, v in st.get("counters", {}).items() if v)
-                 + f", rx_undecodable={st.get('rx_undecodable', 0)}")
+                 + f", rx_undecodable={st.get('rx_undecodable', 0)}; receive FIFO overruns {st.get('rx_overrun', 0)}")
     for what, ok, figures in res.checks():
         lines.append(f"  [{'pass' if ok else 'FAIL'}] {what}: {figures}")
     return lines
