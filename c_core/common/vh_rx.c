@@ -5,9 +5,7 @@
 
 void vh_rx_count(uint16_t *c)
 {
-    if (*c < UINT16_MAX) {
-        ++*c;
-    }
+    *c = (uint16_t)(*c + 1u); /* wraps: see vh_ecu_counters_t */
 }
 
 void vh_rx_init(vh_ecu_rxmsg_t *m)

@@ -1,5 +1,5 @@
 /* vh_rx.h - what every ECU application shares on the bus: the RX checks of one cyclic message
- * (length, E2E P01, burst, timeout), the saturating fault counters and a TX slot.
+ * (length, E2E P01, burst, timeout), the wrapping fault counters and a TX slot.
  *
  * Each application owns its messages' vh_ecu_rxmsg_t and counts into the counters of its bus;
  * the checks and their order are the same for every message.
@@ -15,7 +15,10 @@
  * look: their CRC and counters are fine). Two allows one late frame plus the on-time one. */
 #define VH_ECU_BURST_FRAMES 2u
 
-/* Saturating fault counters (uint16, as on the bus). */
+/* Fault counters, uint16 as on the bus, wrapping modulo 2^16 (never stuck at a limit): a reader
+ * takes the difference of two readings modulo 65536, which is exact while fewer than 65536 counts
+ * happen between them; the host accumulates those differences into wide totals
+ * (vehest_can.systems.ecu). */
 typedef struct {
     uint16_t crc_error;
     uint16_t counter_repeat;
@@ -41,7 +44,7 @@ typedef struct {
     uint8_t timed_out; /* no good frame for the message's timeout (set at start) */
 } vh_ecu_rxmsg_t;
 
-/* Add one to a counter, saturating at UINT16_MAX. */
+/* Add one to a counter, modulo 2^16. */
 void vh_rx_count(uint16_t *c);
 /* Nothing received yet: timed out (not counted as a fault). */
 void vh_rx_init(vh_ecu_rxmsg_t *m);

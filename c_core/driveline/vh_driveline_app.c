@@ -127,7 +127,8 @@ static unsigned update_inputs(vh_drv_app_t *a, vh_dkf_t dkf[VH_ECU_N_DKF], doubl
     } else {
         a->ti_valid = 0u;
     }
-    if (!a->ti_valid) {
+    if (!a->ti_valid && a->dls.rx.e2e.have_last) {
+        /* not before the first DLS_Sensors: a bus never heard is absent (not configured), not a fault */
         vh_rx_count(&cnt->input_invalid);
     } else {
         mask |= VH_DKF_U_VALID;

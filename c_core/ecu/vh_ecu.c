@@ -173,6 +173,5 @@ size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap)
 
 void vh_ecu_note_deadline_miss(vh_ecu_t *ecu, uint32_t n)
 {
-    const uint32_t sum = (uint32_t)ecu->cnt.deadline_miss + n;
-    ecu->cnt.deadline_miss = (uint16_t)(sum > UINT16_MAX ? UINT16_MAX : sum);
+    ecu->cnt.deadline_miss = (uint16_t)(ecu->cnt.deadline_miss + n); /* modulo 2^16, like every counter */
 }

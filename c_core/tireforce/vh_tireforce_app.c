@@ -132,14 +132,15 @@ int vh_tf_app_fill_est(vh_ecu_chs_t *c, const double s[VH_SKF_NX], uint8_t *data
 int vh_tf_app_fill_status(vh_ecu_chs_t *c, uint8_t *data)
 {
     struct vh_ch_vehest_chassis_status_t st;
-    const uint32_t cnt_err = (uint32_t)c->cnt.counter_repeat + c->cnt.counter_skip;
+    /* the sum of two wrapping counters wraps the same way: differences stay exact */
+    const uint16_t cnt_err = (uint16_t)(c->cnt.counter_repeat + c->cnt.counter_skip);
     if (!c->heard) {
         return 0;
     }
     memset(&st, 0, sizeof st);
     st.skfmec_q_health_sts = c->skf.health;
     st.cnt_rx_crc_error = c->cnt.crc_error;
-    st.cnt_rx_counter_error = (uint16_t)(cnt_err > UINT16_MAX ? UINT16_MAX : cnt_err);
+    st.cnt_rx_counter_error = cnt_err;
     st.cnt_rx_timeout = c->cnt.timeout;
     st.cnt_signal_invalid = c->cnt.signal_invalid;
     st.cnt_saturation = c->cnt.saturation;

@@ -143,21 +143,49 @@ CASES = [
     (dict(buses=None), "buses", "missing"),
     (dict(nodes__real=["ABS"]), "nodes.real", "node ABS is in no bus's DBC (buses.pt: CIS, DLS, SIM, VEHEST)"),
     (dict(nodes__real=["VEHEST"]), "nodes.real", "node VEHEST is declared twice (also in nodes.simulated)"),
-    (dict(nodes__real=["CIS"]), "nodes.real", "node CIS belongs to the car: it is simulated like DLS"),
+    (dict(nodes__real=["CIS"]), "nodes.real", "node CIS belongs to the car of launch_2nd (driveline: DLS, SIM, CIS): "
+                                              "it is simulated like DLS"),
     (dict(nodes__simulated=["DLS", "SIM", "DLS", "VEHEST"]), "nodes.simulated", "node DLS is declared twice"),
     (dict(nodes__simulated=["DLS", "SIM"]), "nodes", "node VEHEST (on buses.pt, DBC vehest_pt.dbc) is not declared"),
-    (dict(nodes__simulated=["DLS", "VEHEST"], nodes__real=["SIM"]), "nodes.simulated", "simulate both or neither"),
+    (dict(nodes__simulated=["DLS", "VEHEST"], nodes__real=["SIM"]), "nodes",
+     "node CIS is not declared and the car it belongs to is both simulated (DLS) and real (SIM): simulate the "
+     "car's nodes together or not at all"),
+    (dict(nodes__simulated=["DLS", "CIS", "VEHEST"], nodes__real=["SIM"]), "nodes.real",
+     "node SIM belongs to the car of launch_2nd (driveline: DLS, SIM, CIS): it is simulated like DLS; simulate the "
+     "car's nodes together or not at all"),
     (dict(nodes__simulated=[], nodes__real=["DLS", "SIM", "VEHEST"], scenario=None), "nodes.simulated",
      "nothing is simulated here"),
     (dict(nodes__simulated="DLS"), "nodes.simulated", "must be a list of node names"),
     (dict(mode="lockstep", nodes__simulated=["DLS", "SIM"], nodes__real=["VEHEST"]), "mode",
      "lockstep needs every node simulated here"),
     (dict(mode="fast"), "mode", "unknown mode 'fast'"),
-    (dict(scenario=None), "scenario", "missing: the car (DLS, SIM) is simulated here"),
+    (dict(scenario=None), "scenario", "missing: the car (DLS, SIM, CIS) is simulated here"),
+    (dict(scenario=[]), "scenario", "an empty list"),
+    (dict(scenario=["launch_2nd", "tip_in_tip_out"]), "scenario[1]",
+     "DLS, SIM would be played by two cars (launch_2nd and tip_in_tip_out)"),
+    (dict(scenario=["launch_2nd", 3]), "scenario[1]", "must be a string"),
     (dict(nodes__simulated=["VEHEST"], nodes__real=["DLS", "SIM"]), "scenario", "nothing here for a scenario"),
     (dict(scenario="no_such_scenario"), "scenario", "no shipped scenario named 'no_such_scenario' (shipped: "),
     (dict(scenario="drives/absent.toml"), "scenario", "absent.toml: cannot read"),
     (dict(duration_s=-1.0), "duration_s", "out of range"),
+    # what opening the bus would refuse, found by --check (issue 15)
+    (dict(buses__pt__channel="127.0.0.1"), "buses.pt.channel", "is not a multicast group"),
+    (dict(buses__pt__channel="can0"), "buses.pt.channel", "'can0' is not an IP multicast group"),
+    (dict(buses__pt__kwargs={"port": 70000}), "buses.pt.kwargs", "port must be an integer 1..65535, not 70000"),
+    (dict(buses__pt__kwargs={"hop_limit": 0, "multicast_interface": "192.168.1.10"}), "buses.pt.kwargs",
+     "hop_limit=0 would hear other machines but send them nothing"),
+    (dict(buses__pt__kwargs={"hop_limt": 1}), "buses.pt.kwargs.hop_limt",
+     "python-can's udp_multicast interface takes no argument 'hop_limt' (did you mean 'hop_limit'?"),
+    (dict(buses__pt__interface="socketcan", buses__pt__channel="vcan0/x"), "buses.pt.channel",
+     "a SocketCAN channel is a network interface name"),
+    (dict(buses__pt__interface="socketcan", buses__pt__channel="vcan0", buses__pt__kwargs={"loopback": True}),
+     "buses.pt.kwargs.loopback", "takes no argument 'loopback' (did you mean 'local_loopback'?"),
+    (dict(buses__pt__interface="virtual", buses__pt__kwargs={"recieve_own_messages": True}),
+     "buses.pt.kwargs.recieve_own_messages", "did you mean 'receive_own_messages'?"),
+    (dict(buses__pt__interface="kvaser", buses__pt__channel="can0"), "buses.pt.channel",
+     "a Kvaser channel is a channel number"),
+    (dict(buses__pt__interface="pcan", buses__pt__channel="PCAN_USB1", buses__pt__timing=FD_TIMING),
+     "buses.pt.channel", "unknown PCAN channel 'PCAN_USB1' (did you mean 'PCAN_USBBUS1'?"),
 ]
 
 
@@ -223,6 +251,49 @@ def test_two_buses_need_a_node_on_exactly_one(tmp_path):
         load_hil_config(write(tmp_path, doc))
     doc["buses"]["car"]["nodes"] = ["DLS", "ABS"]
     with pytest.raises(ConfigError, match=r"buses.car.nodes: node ABS is not in vehest_pt.dbc"):
+        load_hil_config(write(tmp_path, doc))
+
+
+CH_ID = {m.name: m.frame_id for m in database("ch").messages}
+
+
+def two_buses(**pt):
+    """Powertrain and chassis buses, each udp_multicast on a group of its own, the ECU on both, a car on each."""
+    doc = mutate(scenario=["launch_2nd", "chassis_relation_70kph"], nodes__simulated=["DLS", "SIM", "VEHEST", "CHS"])
+    doc["buses"]["pt"].update(channel=group(), **pt)
+    doc["buses"]["ch"] = {"interface": "udp_multicast", "channel": group(), "fd": True, "dbc": "vehest_ch"}
+    return doc
+
+
+def test_one_adapter_per_bus_and_a_car_of_each_registered_system(tmp_path):
+    cfg = load_hil_config(write(tmp_path, two_buses()))
+    assert cfg.ecu_buses == ("pt", "ch") and cfg.bus_of("VEHEST").name == "pt"
+    assert [(c.system, c.scenario.name, c.nodes, c.bus) for c in cfg.cars] == [
+        ("driveline", "launch_2nd", ("DLS", "SIM", "CIS"), "pt"), ("tireforce", "chassis_relation_70kph", ("CHS",), "ch")]
+    routes = cfg.ecu_routes()  # what the ECU sends goes to the bus whose DBC has it
+    assert routes[EST_ID] == "pt" and routes[CH_ID["VEHEST_TireForceEst"]] == "ch"
+    assert routes[CH_ID["VEHEST_ChassisStatus"]] == "ch" and set(routes.values()) == {"pt", "ch"}
+    # each simulated car needs its scenario; a scenario whose car is real has nothing to drive
+    for changes, key, problem in [
+        (dict(scenario="launch_2nd"), "scenario", "missing: the car (CHS) is simulated here and needs a scenario "
+                                                  "to drive (tireforce"),
+        (dict(scenario=["launch_2nd", "chassis_relation_70kph"], mode="lockstep"), "scenario",
+         "lockstep steps one car"),
+        (dict(nodes={"simulated": ["DLS", "SIM", "VEHEST"], "real": ["CHS"]}), "scenario[1]",
+         "the car of chassis_relation_70kph (tireforce: CHS) is real on the bench"),
+    ]:
+        doc = two_buses()
+        doc.update(changes)
+        with pytest.raises(ConfigError) as err:
+            load_hil_config(write(tmp_path, doc))
+        assert str(err.value).startswith(f"{tmp_path / 'hil.toml'}: {key}: ") and problem in str(err.value), err.value
+    # the chassis node's firmware frames against the bench's chassis DBC
+    text = dbc_path("ch").read_text()
+    (tmp_path / "ch_moved.dbc").write_text(re.sub(r"\b(BO_|SG_|VAL_) 272\b", r"\1 273", text))
+    doc = two_buses()
+    doc["buses"]["ch"]["dbc"] = "ch_moved.dbc"
+    with pytest.raises(ConfigError, match=r"buses\.ch\.dbc: ch_moved\.dbc does not match the frames of simulated "
+                                          r"node CHS \(built from the bundled vehest_ch\.dbc\)"):
         load_hil_config(write(tmp_path, doc))
 
 
@@ -317,8 +388,8 @@ def test_realtime_both_simulated_in_one_process(tmp_path, capsys):
     wall = time.perf_counter() - t0
     out = capsys.readouterr().out
     print(out, f"wall {wall:.1f} s", file=sys.stderr)
-    m = re.search(r"car \(simulated here, bus pt\): launch_2nd, (\d+) ticks .* (\d+) VEHEST_DrivelineEst frames "
-                  r"received", out)
+    m = re.search(r"car \(simulated here, bus pt\): launch_2nd, (\d+) ticks .* frames received from the ECU: "
+                  r"(\d+) VEHEST_DrivelineEst", out)
     ticks, est = int(m[1]), int(m[2])
     assert ticks == 6000
     assert est > 1500, out  # the ECU ticks on its own clock; deadline misses on a loaded machine thin it out
@@ -346,6 +417,79 @@ def test_realtime_both_simulated_estimates_track_the_plant(tmp_path):
     assert len(err) > 1000
     # the filter beats its own transducer against the plant's truth, even over a free-running bus
     assert rms_est < rms_noise
+
+
+@pytest.mark.multicast
+def test_realtime_two_buses_each_frame_on_its_own_bus(tmp_path):
+    """The ECU daemon on both buses (udp_multicast, loopback), the driveline car on pt, the chassis car on
+    ch: each car hears only its own bus's ECU frames, the ECU hears both."""
+    cfg = load_hil_config(write(tmp_path, two_buses()))
+    result = ResidualBus(cfg, duration_s=2.0).run()
+    (pt_car, pt), (ch_car, ch) = result.sessions
+    assert (pt_car.bus, ch_car.bus) == ("pt", "ch")
+    pt_ids, ch_ids = {m.frame_id for m in database("pt").messages}, set(CH_ID.values())
+    assert set(pt.frames["id"].tolist()) <= pt_ids and set(ch.frames["id"].tolist()) <= ch_ids
+    assert np.sum(pt.frames["id"] == EST_ID) > 500
+    assert np.sum(ch.frames["id"] == CH_ID["VEHEST_TireForceEst"]) > 250
+    buses = result.ecu.buses
+    assert set(buses) == {"pt", "ch"} and buses["pt"]["rx"] > 0.6 * 4000 and buses["ch"]["rx"] > 0.6 * 4000
+    assert buses["pt"]["tx"] > 0 and buses["ch"]["tx"] > 0
+    assert result.ecu.frames_rx == buses["pt"]["rx"] + buses["ch"]["rx"]
+
+
+@pytest.mark.multicast
+def test_daemon_process_opens_every_bus_of_a_hil_config(tmp_path):
+    """`vehest-can daemon --hil CONFIG`: the ECU as its own process (systemd's case) on both buses."""
+    path = write(tmp_path, two_buses(), "bench.toml")
+    cfg = load_hil_config(path)
+    stats = tmp_path / "ecu.json"
+    proc, sock = start_ready(["daemon", "--hil", str(path), "--duration", "60", "--stats", str(stats)])
+    try:
+        for name in ("pt", "ch"):  # frames of an ID the ECU does not receive, on each bus
+            bus = busmod.open_bus(cfg.bus_kwargs(name))
+            try:
+                for _ in range(50):
+                    bus.send(can.Message(arbitration_id=0x123, is_extended_id=False, data=bytes(8)))
+                    time.sleep(0.002)
+            finally:
+                bus.shutdown()
+        time.sleep(0.5)
+    finally:
+        rc, err = stop(proc)
+        close(sock)
+    assert rc == 0, err
+    ecu = json.loads(stats.read_text())
+    assert ecu["buses"]["pt"]["rx"] >= 40 and ecu["buses"]["ch"]["rx"] >= 40, ecu["buses"]
+    assert ecu["buses"]["pt"]["tx"] > 0 and ecu["counters"]["unknown_id"] == ecu["frames_rx"]
+    assert "bus pt: udp_multicast" in err and "bus ch: udp_multicast" in err
+
+
+def test_daemon_hil_needs_the_ecu_simulated_and_no_bus_flags(tmp_path, capsys):
+    path = write(tmp_path, mutate(nodes__simulated=["DLS", "SIM"], nodes__real=["VEHEST"]))
+    assert main(["daemon", "--hil", str(path), "--duration", "1"]) == 1
+    assert "the ECU (VEHEST) is not simulated there" in capsys.readouterr().err
+    assert main(["daemon", "--hil", str(path), "-i", "virtual", "--duration", "1"]) == 1
+    assert "leave out the bus flags (--interface)" in capsys.readouterr().err
+
+
+@pytest.mark.multicast
+def test_lockstep_chassis_car_on_its_bus_equals_inprocess(tmp_path):
+    """Lockstep with the ECU on both buses and the chassis car on ch (pt idle): the ch bus carries,
+    bit for bit, the chassis frames of an in-process run; the ack counts only what was sent on ch."""
+    from vehest_can.systems import load_any_scenario
+
+    doc = two_buses(nodes=["VEHEST"])
+    doc.update(mode="lockstep", scenario="chassis_relation_70kph")
+    doc["nodes"] = {"simulated": ["VEHEST", "CHS"]}
+    cfg = load_hil_config(write(tmp_path, doc))
+    result = ResidualBus(cfg, duration_s=0.5).run()
+    system, sc = load_any_scenario("chassis_relation_70kph")
+    local = run_inprocess(system.car(sc, 0.5), Ecu())
+    on_ch = np.isin(local.frames["id"], list(CH_ID.values()))
+    assert result.ecu.ticks == 1000 and on_ch.sum() < len(on_ch)  # the ECU sent pt frames too: on pt
+    assert np.array_equal(result.session.frames, local.frames[on_ch])
+    assert np.array_equal(result.session.frame_tick, local.frame_tick[on_ch])
+    assert result.ecu.buses["pt"]["tx"] == (~on_ch).sum()
 
 
 def start_ready(args, timeout=60.0):
@@ -398,7 +542,7 @@ def test_car_simulated_against_a_real_ecu_daemon_process(tmp_path, capsys):
     print(out, file=sys.stderr)
     assert rc == 0, err
     assert "ECU (simulated here" not in out
-    ticks, est = map(int, re.search(r"launch_2nd, (\d+) ticks .* (\d+) VEHEST_DrivelineEst frames", out).groups())
+    ticks, est = map(int, re.search(r"launch_2nd, (\d+) ticks .* from the ECU: (\d+) VEHEST_DrivelineEst", out).groups())
     ecu = json.loads(stats.read_text())
     assert ticks == 4000 and est > 1000
     # the daemon heard the simulated car (UDP multicast drops frames when a starved process's socket

@@ -13,11 +13,14 @@ import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
+import can
 import pytest
 
+from vehest_can.bus import bus as busmod
 from vehest_can.cli import build_parser
 from vehest_can.service import sdnotify
 from vehest_can.service.sdnotify import Notifier, Watchdog, socket_address, watchdog_interval
@@ -69,9 +72,26 @@ def fields(message: str) -> dict:
 def test_realtime_daemon_notifies_ready_watchdog_status_stopping_in_order(notify_socket, tmp_path):
     sock, path = notify_socket
     stats = tmp_path / "stats.json"
-    got, err = run_daemon({"NOTIFY_SOCKET": path, "WATCHDOG_USEC": "400000"}, sock,
-                          "--mode", "realtime", "--duration", "2", "-i", "udp_multicast", "-c", group(),
-                          "--stats", str(stats), "--log-level", "info")
+    channel = group()
+    stop = threading.Event()
+
+    def junk():  # frames of an ID the ECU does not receive: a fault counter that rises
+        bus = busmod.open_bus({"interface": "udp_multicast", "channel": channel, "fd": True})
+        try:
+            while not stop.wait(0.01):
+                bus.send(can.Message(arbitration_id=0x123, is_extended_id=False, data=bytes(8)))
+        finally:
+            bus.shutdown()
+
+    sender = threading.Thread(target=junk, daemon=True)
+    sender.start()
+    try:
+        got, err = run_daemon({"NOTIFY_SOCKET": path, "WATCHDOG_USEC": "400000"}, sock,
+                              "--mode", "realtime", "--duration", "2", "-i", "udp_multicast", "-c", channel,
+                              "--stats", str(stats), "--log-level", "info")
+    finally:
+        stop.set()
+        sender.join()
     msgs = [fields(m) for _, m in got]
     assert msgs[0]["READY"] == "1" and msgs[0]["STATUS"].startswith("realtime: serving on")
     assert msgs[-1]["STOPPING"] == "1"
@@ -86,10 +106,10 @@ def test_realtime_daemon_notifies_ready_watchdog_status_stopping_in_order(notify
     s = json.loads(stats.read_text())
     final = msgs[-1]["STATUS"]
     assert final.startswith(f"realtime stopping: {s['ticks']} ticks; faults: ")
-    assert "input_invalid=" in final  # no car on this bus: every tick's input is invalid, and it says so
+    assert "unknown_id=" in final and "input_invalid" not in final  # no car: not heard, not a fault
     # log lines on stderr, with levels
     assert "INFO vehest_can.service.daemon: ECU daemon serving in realtime mode" in err
-    assert "WARNING vehest_can.service.daemon: realtime: faults rising: input_invalid" in err
+    assert "WARNING vehest_can.service.daemon: realtime: faults rising: unknown_id" in err
     assert "INFO vehest_can.service.daemon: ECU daemon stopped" in err
 
 

@@ -217,34 +217,50 @@ class HostMulticastBus(UdpMulticastBus):
     def __init__(self, channel: str = UdpMulticastBus.DEFAULT_GROUP_IPv4, port: int = 43113,
                  hop_limit: int = 0, multicast_interface: str | None = None,
                  receive_own_messages: bool = False, fd: bool = True, **kwargs) -> None:
-        channel = str(channel)
-        try:
-            ipv6 = ipaddress.ip_address(channel).version == 6
-        except ValueError:
-            raise can.CanInitializationError(f"udp_multicast channel {channel!r} is not an IP multicast group") from None
-        if isinstance(hop_limit, str) and hop_limit.strip().isdigit():  # from a config file
-            hop_limit = int(hop_limit)
-        if isinstance(hop_limit, bool) or not isinstance(hop_limit, int) or not 0 <= hop_limit <= 255:
-            raise can.CanInitializationError(f"udp_multicast hop_limit must be an integer 0..255, not {hop_limit!r}")
-        interface = str(multicast_interface) if multicast_interface is not None else ("lo" if ipv6 else LOOPBACK_V4)
+        channel, port, hop_limit, interface = multicast_settings(channel, port, hop_limit, multicast_interface)
         self.host_only = _is_loopback(interface) or hop_limit == 0
-        if not _is_loopback(interface) and hop_limit == 0:
-            raise can.CanInitializationError(
-                f"udp_multicast on {interface} with hop_limit=0 would hear other machines but send them "
-                "nothing: give hop_limit=1 (or more) for a bus across machines, or leave "
-                "multicast_interface out for this host only")
-        if ipv6 and _is_loopback(interface) and sys.platform.startswith("linux"):
-            raise can.CanInitializationError(
-                f"udp_multicast IPv6 group {channel} cannot stay on this host: Linux's loopback carries no "
-                f"IPv6 multicast. Use an IPv4 group (the default {UdpMulticastBus.DEFAULT_GROUP_IPv4}), or "
-                "name an interface and a hop limit for a bus across machines (multicast_interface=eth0 hop_limit=1)")
         if receive_own_messages:
             raise can.CanInterfaceNotImplementedError("receiving own messages is not yet implemented")
         can.BusABC.__init__(self, channel, **kwargs)
-        self._multicast = _GroupSocket(channel, int(port), hop_limit, interface)
+        self._multicast = _GroupSocket(channel, port, hop_limit, interface)
         self._can_protocol = can.CanProtocol.CAN_FD if fd else can.CanProtocol.CAN_20
         self.channel_info = (f"udp_multicast {channel} port {int(port)} on {interface}, "
                              f"TTL {hop_limit}: " + ("this host only" if self.host_only else "reaches other machines"))
+
+
+def multicast_settings(channel, port=43113, hop_limit=0, multicast_interface=None) -> tuple[str, int, int, str]:
+    """A udp_multicast bus's (group, port, hop limit, interface), checked before any socket is opened
+    (:class:`HostMulticastBus` and ``hil --check``): ``can.CanInitializationError`` saying what is wrong."""
+    channel = str(channel)
+    try:
+        group = ipaddress.ip_address(channel)
+    except ValueError:
+        raise can.CanInitializationError(f"udp_multicast channel {channel!r} is not an IP multicast group") from None
+    if not group.is_multicast:
+        raise can.CanInitializationError(f"udp_multicast channel {channel} is not a multicast group "
+                                         f"(IPv4 224.0.0.0/4, e.g. {UdpMulticastBus.DEFAULT_GROUP_IPv4}; IPv6 ff00::/8)")
+    ipv6 = group.version == 6
+    values = {}
+    for key, value, hi in (("port", port, 65535), ("hop_limit", hop_limit, 255)):
+        if isinstance(value, str) and value.strip().isdigit():  # from a config file
+            value = int(value)
+        if isinstance(value, bool) or not isinstance(value, int) or not (0 if key == "hop_limit" else 1) <= value <= hi:
+            lo = 0 if key == "hop_limit" else 1
+            raise can.CanInitializationError(f"udp_multicast {key} must be an integer {lo}..{hi}, not {value!r}")
+        values[key] = value
+    hop_limit = values["hop_limit"]
+    interface = str(multicast_interface) if multicast_interface is not None else ("lo" if ipv6 else LOOPBACK_V4)
+    if not _is_loopback(interface) and hop_limit == 0:
+        raise can.CanInitializationError(
+            f"udp_multicast on {interface} with hop_limit=0 would hear other machines but send them "
+            "nothing: give hop_limit=1 (or more) for a bus across machines, or leave "
+            "multicast_interface out for this host only")
+    if ipv6 and _is_loopback(interface) and sys.platform.startswith("linux"):
+        raise can.CanInitializationError(
+            f"udp_multicast IPv6 group {channel} cannot stay on this host: Linux's loopback carries no "
+            f"IPv6 multicast. Use an IPv4 group (the default {UdpMulticastBus.DEFAULT_GROUP_IPv4}), or "
+            "name an interface and a hop limit for a bus across machines (multicast_interface=eth0 hop_limit=1)")
+    return channel, values["port"], hop_limit, interface
 
 
 def is_undecodable(exc: BaseException) -> bool:

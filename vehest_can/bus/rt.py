@@ -26,6 +26,11 @@ class Durations:
 
     def __init__(self) -> None:
         self.bins = np.zeros(self.LINEAR_US + self.PER_OCTAVE * self.OCTAVES + 1, dtype=np.int64)
+        self.clear()
+
+    def clear(self) -> None:
+        """Empty again, in the same memory (a window of a long run)."""
+        self.bins.fill(0)
         self.n = 0
         self.max_s = 0.0
 
@@ -73,6 +78,7 @@ class Ticker:
     period: float
     lateness: Durations = field(default_factory=Durations)
     misses: int = 0
+    late: float = 0.0  # how late the last tick started, s
     _next: float = 0.0
     _k: int = 0
 
@@ -87,7 +93,7 @@ class Ticker:
             time.sleep(remaining - SPIN_S)
         while time.perf_counter() < self._next:
             pass
-        late = time.perf_counter() - self._next
+        late = self.late = time.perf_counter() - self._next
         self.lateness.add(late)
         missed = int(late // self.period)
         if missed:

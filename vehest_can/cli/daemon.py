@@ -2,7 +2,9 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
+from contextlib import contextmanager
 from dataclasses import asdict, replace
 from pathlib import Path
 
@@ -10,6 +12,7 @@ from ..bus import bus as busmod
 from ..errors import ConfigError
 from ..service import sdnotify
 from ..service.daemon import EcuDaemon
+from ..service.hil import load_hil_config
 from ..systems.camber.api import load_calibrations
 from ..systems.ecu import Ecu, EcuConfig
 from ..xcp import ecu as xcp_ecu
@@ -22,7 +25,7 @@ def add_subparser(subparsers) -> None:
     p.add_argument("--mode", choices=("lockstep", "realtime"), default="realtime",
                    help="lockstep: step on the simulator's SIM_Sync frames; realtime: own 2 kHz clock (default)")
     add_log_arguments(p)
-    p.add_argument("--duration", type=float, metavar="S", help="realtime: stop after S seconds")
+    p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds (of wall time)")
     p.add_argument("--exit-on-end", action="store_true", help="lockstep: stop when the simulator sends END")
     p.add_argument("--camber-cal", metavar="FILE",
                    help="camber inspection calibration file (written by `vehest-can camber calibrate`)")
@@ -31,30 +34,59 @@ def add_subparser(subparsers) -> None:
                         "not used until the message is regular again (default 2; 0 = off, for transports "
                         "that deliver in batches)")
     p.add_argument("--stats", metavar="FILE", help="write the run's statistics as JSON on exit")
+    p.add_argument("--report", metavar="FILE",
+                   help="realtime: append a JSON line every --report-every seconds (totals so far, the window's "
+                        "latency and lateness percentiles)")
+    p.add_argument("--report-every", type=float, default=60.0, metavar="S", help="seconds between reports (default 60)")
     p.add_argument("--idle-timeout", type=float, metavar="S", help="lockstep: stop after S seconds without a frame")
+    p.add_argument("--hil", metavar="CONFIG",
+                   help="open every bus the ECU (VEHEST) is on in this HIL configuration (docs/hil.md), one adapter "
+                        "each, each frame sent on its DBC's bus; instead of the python-can bus flags")
     sdnotify.add_log_level(p)
     xcp_ecu.add_arguments(p)  # the XCP slave in the ECU (its own flags, docs/xcp.md)
     busmod.add_arguments(p)
     p.set_defaults(func=run)
 
 
+def _seconds(value: float | None, flag: str) -> None:
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise ConfigError(f"{flag} must be a finite number of seconds > 0, not {value}")
+
+
 def run(args) -> int:
-    if args.duration is not None and args.duration <= 0:
-        raise ConfigError("--duration must be positive")
+    _seconds(args.duration, "--duration")
+    _seconds(args.idle_timeout, "--idle-timeout")
+    _seconds(args.report_every, "--report-every")
+    if args.mode == "realtime":
+        given = [flag for flag, on in (("--idle-timeout", args.idle_timeout is not None),
+                                        ("--exit-on-end", args.exit_on_end)) if on]
+        if given:
+            verb = "applies" if len(given) == 1 else "apply"
+            raise ConfigError(f"{' and '.join(given)} only {verb} to --mode lockstep (a real-time daemon has no "
+                              f"simulator's END and ticks through silence): use --duration")
+    elif args.report:
+        raise ConfigError("--report applies to --mode realtime (a lockstep daemon's time is the simulator's)")
     check_log_arguments(args)
     sdnotify.apply_log_level(args.log_level)
     ecu = Ecu(replace(EcuConfig.default(), rx_burst_frames=args.rx_burst_limit))
     if args.camber_cal:
         ecu.set_camber_calibrations(load_calibrations(args.camber_cal))
     xcp = xcp_ecu.from_args(args, ecu)
-    config = busmod.bus_config(args)
-    bus = busmod.open_bus(config)
-    print(f"vehest-can daemon: bus {busmod.describe_bus(bus, config)}", file=sys.stderr, flush=True)
+    buses, routes, channel = _open_buses(args)
     writer = open_session_log(args, {"VEHEST"})  # the log sets each frame's channel (its bus)
-    daemon = EcuDaemon(bus, ecu, log_writer=writer, notifier=sdnotify.Notifier.from_env())
-    with busmod.serving(bus, writer, daemon.stop_event.set):
+    daemon = EcuDaemon(buses if len(buses) > 1 else next(iter(buses.values())), ecu, log_writer=writer,
+                       log_channel=channel, notifier=sdnotify.Notifier.from_env(), routes=routes)
+    first, *others = buses.values()
+    with busmod.serving(first, writer, daemon.stop_event.set), _closing(others):
         if args.mode == "lockstep":
-            stats = daemon.serve_lockstep(exit_on_end=args.exit_on_end, idle_timeout=args.idle_timeout)
+            stats = daemon.serve_lockstep(exit_on_end=args.exit_on_end, idle_timeout=args.idle_timeout,
+                                          duration=args.duration)
+        elif args.report:
+            with open(args.report, "a") as fh:
+                def report(snapshot: dict) -> None:
+                    fh.write(json.dumps(snapshot) + "\n")
+                    fh.flush()
+                stats = daemon.serve_realtime(duration=args.duration, report=report, report_every=args.report_every)
         else:
             stats = daemon.serve_realtime(duration=args.duration)
     print("\n".join(stats.lines()), file=sys.stderr)
@@ -63,3 +95,42 @@ def run(args) -> int:
     if args.stats:
         Path(args.stats).write_text(json.dumps(asdict(stats), indent=2) + "\n")
     return 0
+
+
+def _open_buses(args) -> tuple[dict, dict, str | None]:
+    """({name: bus}, frame ID -> bus name, log channel): the python-can flags' one bus, or each bus the
+    ECU is on in a HIL configuration."""
+    if not args.hil:
+        config = busmod.bus_config(args)
+        bus = busmod.open_bus(config)
+        print(f"vehest-can daemon: bus {busmod.describe_bus(bus, config)}", file=sys.stderr, flush=True)
+        return {"": bus}, {}, config.get("channel") if config["interface"] == "socketcan" else "vcan0"
+    flags = [f for f in ("interface", "channel", "bitrate", "data_bitrate", "bus_config", "bus_kwargs")
+             if getattr(args, f, None)]
+    if flags:
+        raise ConfigError(f"--hil takes the buses from {args.hil}: leave out the bus flags "
+                          f"({', '.join('--' + f.replace('_', '-') for f in flags)})")
+    hil = load_hil_config(args.hil)
+    if not hil.ecu_buses:
+        raise ConfigError(f"{args.hil}: the ECU (VEHEST) is not simulated there: nothing for the daemon to serve "
+                          f"(declare VEHEST in nodes.simulated)")
+    buses: dict = {}
+    try:
+        for name in hil.ecu_buses:
+            buses[name] = busmod.open_bus(hil.bus_kwargs(name))
+            print(f"vehest-can daemon: bus {name}: {busmod.describe_bus(buses[name], hil.bus_kwargs(name))}",
+                  file=sys.stderr, flush=True)
+    except BaseException:
+        for b in buses.values():
+            b.shutdown()
+        raise
+    return buses, hil.ecu_routes(), None
+
+
+@contextmanager
+def _closing(buses):
+    try:
+        yield
+    finally:
+        for b in buses:
+            b.shutdown()

@@ -9,11 +9,17 @@ Bus errors (``can.CanError``/``OSError`` on send or receive, e.g. a SocketCAN li
 down) do not stop the daemon: it counts them, warns once per outage, keeps ticking and goes on
 when the bus is back; the outages and failures are in the statistics.
 
+Several buses (a HIL bench's powertrain and chassis adapters): the daemon hears every one, and each
+frame it sends goes to the bus whose DBC has it (``routes``: frame ID -> bus; anything else to the
+first bus, which with one bus is every frame); a lockstep SIM_Sync is answered on the bus it came
+from, its VEHEST_SyncAck counting the frames sent there. With one bus, nothing changes.
+
 Stops cleanly on SIGINT/SIGTERM (or END in lockstep with ``exit_on_end``): log flushed, bus
 closed, summary returned.
 """
 from __future__ import annotations
 
+import collections
 import logging
 import queue
 import threading
@@ -26,10 +32,14 @@ from ..bus import lockstep
 from ..bus.bus import is_undecodable
 from ..bus.frames import TICK_S, frame_id, is_own, sent_by
 from ..bus.rt import Durations, Ticker, percentiles_us
-from ..systems.ecu import Ecu
+from ..systems.ecu import INPUT_OF, Ecu
 from . import sdnotify
 
 log = logging.getLogger(__name__)
+
+#: real-time receive FIFO, frames (all buses): about 0.2 s of this project's traffic; older frames are
+#: far past every RX timeout (a few ticks) and of no use to the estimators
+RX_FIFO = 512
 
 
 @dataclass
@@ -51,6 +61,9 @@ class DaemonStats:
     recv_errors: int = 0      # errors raised by the bus's receive
     rx_undecodable: int = 0   # datagrams/frames the transport could not turn into a CAN frame
     bus_down_s: float = 0.0   # wall time from the first error of an outage to its end
+    buses: dict = field(default_factory=dict)  # per bus: {"rx": frames in, "tx": frames out}
+    not_heard: list = field(default_factory=list)  # estimators whose sensor frame never arrived
+    rx_overrun: int = 0       # real time: frames dropped (the oldest) from a full receive FIFO
 
     def lines(self) -> list[str]:
         out = [f"mode {self.mode}: {self.ticks} ticks, {self.frames_rx} frames in, {self.frames_tx} out, "
@@ -63,6 +76,9 @@ class DaemonStats:
         chassis = {k: v for k, v in self.chassis_counters.items() if v}
         if chassis:
             out.append("chassis faults: " + ", ".join(f"{k}={v}" for k, v in chassis.items()))
+        if self.rx_overrun:
+            out.append(f"receive FIFO overrun: {self.rx_overrun} frames dropped (the oldest; the daemon fell "
+                       f"{RX_FIFO} frames behind)")
         if self.rx_undecodable:
             out.append(f"undecodable input: {self.rx_undecodable} (not a CAN frame of the bus's transport; dropped)")
         if self.bus_outages:
@@ -70,7 +86,14 @@ class DaemonStats:
                        f"{self.recv_errors} receive errors, down {self.bus_down_s:.1f} s")
         else:
             out.append("bus errors: none")
-        out.append("health: " + ", ".join(f"{k}={v}" for k, v in self.health.items()))
+        if len(self.buses) > 1:
+            out.append("buses: " + "; ".join(f"{k} {v['rx']} in, {v['tx']} out" for k, v in self.buses.items()))
+        health = ", ".join(f"{k}={v}" for k, v in self.health.items() if k not in self.not_heard) or "-"
+        if self.not_heard:
+            inputs = dict.fromkeys(INPUT_OF[k] for k in self.not_heard)
+            health += (f"; not heard (not configured or absent, not a fault): {', '.join(self.not_heard)} "
+                       f"(no {' or '.join(inputs)} since start)")
+        out.append("health: " + health)
         return out
 
 
@@ -79,9 +102,16 @@ def _fmt(p: dict) -> str:
 
 
 class EcuDaemon:
-    def __init__(self, bus: can.BusABC, ecu: Ecu | None = None, *, log_writer: can.Listener | None = None,
-                 log_channel: str | None = "vcan0", notifier: sdnotify.Notifier | None = None):
-        self.bus = bus
+    def __init__(self, bus: can.BusABC | dict[str, can.BusABC], ecu: Ecu | None = None, *,
+                 log_writer: can.Listener | None = None, log_channel: str | None = "vcan0",
+                 notifier: sdnotify.Notifier | None = None, routes: dict[int, str] | None = None):
+        """`bus`: one bus, or {name: bus} for several (then logged with the bus's name as channel);
+        `routes`: frame ID -> bus name of what the ECU sends (others go to the first bus)."""
+        self.buses = dict(bus) if isinstance(bus, dict) else {"": bus}
+        if not self.buses:
+            raise ValueError("the daemon needs a bus")
+        self.bus = next(iter(self.buses.values()))
+        self.routes = {i: n for i, n in (routes or {}).items() if n in self.buses}
         self.notifier = notifier or sdnotify.Notifier()  # systemd's sd_notify; a no-op by default
         self.ecu = ecu or Ecu()
         self.log_writer = log_writer
@@ -94,23 +124,56 @@ class EcuDaemon:
         self._down_send = False                # a send failed in the open outage
 
     # -- shared -------------------------------------------------------------------------------
-    def _log(self, msg: can.Message, timestamp: float) -> None:
+    def _log(self, msg: can.Message, timestamp: float, bus: str = "") -> None:
         if self.log_writer is not None:
             msg.timestamp = timestamp
-            msg.channel = self.log_channel
+            msg.channel = bus if len(self.buses) > 1 else self.log_channel
             self.log_writer.on_message_received(msg)
 
-    def _send(self, msg: can.Message, timestamp: float) -> bool:
-        """Send and log one frame; a bus error is counted and the frame dropped (returns False)."""
+    def _route(self, msg: can.Message) -> str:
+        return self.routes.get(msg.arbitration_id, next(iter(self.buses)))
+
+    def _send(self, msg: can.Message, timestamp: float, bus: str | None = None) -> bool:
+        """Send and log one frame (on its bus); a bus error is counted and the frame dropped (returns False)."""
+        name = self._route(msg) if bus is None else bus
         try:
-            self.bus.send(msg)
+            self.buses[name].send(msg)
         except (can.CanError, OSError) as exc:
             self.stats.send_failures += 1
             self._bus_error("send", exc)
             return False
         self._bus_ok("send")
-        self._log(msg, timestamp)
+        self._log(msg, timestamp, name)
+        self._count(name, "tx")
         return True
+
+    def _count(self, bus: str, what: str) -> None:
+        self.stats.buses.setdefault(bus or "bus", {"rx": 0, "tx": 0})[what] += 1
+
+    def _inbox(self, sink) -> list[can.Notifier]:
+        """One python-can Notifier per bus, each frame (or receive error) handed to ``sink(bus, item)``.
+        Only a bus failing again and again (no frame between) backs off, up to 50 ms: garbage between
+        good frames must not stall the receive path."""
+        stop_event = self.stop_event
+
+        class Inbox(can.Listener):
+            def __init__(self, name: str):
+                self.name = name
+                self.in_row = 0  # receive errors since the last frame
+
+            def on_message_received(self, msg: can.Message) -> None:
+                self.in_row = 0
+                sink(self.name, msg)
+
+            def on_error(self, exc: Exception) -> None:
+                # The notifier goes on receiving after this; counted on the ticking thread.
+                sink(self.name, exc)
+                if not is_undecodable(exc):
+                    self.in_row += 1
+                    if self.in_row > 3:
+                        stop_event.wait(0.001 * 2 ** min(self.in_row - 4, 5.6))  # up to 50 ms
+
+        return [can.Notifier(b, [Inbox(name)], timeout=0.005) for name, b in self.buses.items()]
 
     def _rx_error(self, exc: Exception) -> bool:
         """Count a receive error. An undecodable datagram (garbage on a udp_multicast port, a
@@ -151,90 +214,131 @@ class EcuDaemon:
         stats.counters = self.ecu.counters()
         stats.chassis_counters = self.ecu.chassis_counters()
         stats.health = self.ecu.health()
+        stats.not_heard = self.ecu.not_heard()
         self.notifier.stopping(sdnotify.status_line(f"{stats.mode} stopping", stats.ticks, stats.counters))
         log.info("ECU daemon stopped: %s", stats.lines()[0])
         return stats
 
     def _start(self, stats: DaemonStats) -> sdnotify.Watchdog:
         """READY=1 (the bus is open, the loop starts) and the loop's keep-alive (WATCHDOG=1, STATUS=)."""
-        where = self.bus.channel_info if self.bus.channel_info != "unknown" else type(self.bus).__name__
+        where = ", ".join((f"{name}: " if name else "") + (b.channel_info if b.channel_info != "unknown"
+                                                             else type(b).__name__) for name, b in self.buses.items())
         log.info("ECU daemon serving in %s mode on %s", stats.mode, where)
         self.notifier.ready(f"{stats.mode}: serving on {where}")
         return sdnotify.Watchdog(self.notifier, stats.mode, lambda: stats.ticks, self.ecu.counters, logger=log)
 
     # -- lockstep -----------------------------------------------------------------------------
-    def serve_lockstep(self, *, exit_on_end: bool = False, idle_timeout: float | None = None) -> DaemonStats:
-        """Answer SIM_Sync frames until stopped (or END with exit_on_end, or idle_timeout s of silence)."""
+    def serve_lockstep(self, *, exit_on_end: bool = False, idle_timeout: float | None = None,
+                       duration: float | None = None) -> DaemonStats:
+        """Answer SIM_Sync frames until stopped (or END with exit_on_end, idle_timeout s of silence, or
+        duration s of wall time)."""
         stats = self.stats = DaemonStats("lockstep")
         t0 = last = time.perf_counter()
         watchdog = self._start(stats)
-        while not self.stop_event.is_set():
-            try:
-                msg = self.bus.recv(timeout=0.05)
-            except (can.CanError, OSError) as exc:
-                msg = None
-                if self._rx_error(exc):
-                    self.stop_event.wait(0.05)  # a bus that fails at once must not make us spin
-            watchdog.tick()
-            if msg is None:
-                if idle_timeout is not None and time.perf_counter() - last > idle_timeout:
-                    log.warning("no frame for %.1f s, stopping", idle_timeout)
+        recv, notifiers = self._lockstep_receiver()
+        try:
+            while not self.stop_event.is_set():
+                if duration is not None and time.perf_counter() - t0 >= duration:
                     break
-                continue
-            last = time.perf_counter()
-            self._bus_ok("receive")
-            if msg.is_error_frame or msg.is_remote_frame or is_own(msg, self._own):
-                continue
-            stats.frames_rx += 1
-            now = self.ecu.tick * TICK_S
-            self._log(msg, now)
-            if not lockstep.is_sync(msg):
-                self.ecu.rx(msg)
-                continue
-            tick, cmd = lockstep.decode_sync(msg)
-            if cmd == lockstep.RESET:
-                self.ecu.reset()
-                stats.sessions += 1
-                self._send(lockstep.ack_message(tick, 0), 0.0)
-            elif cmd == lockstep.STEP:
-                out = self.ecu.step()
-                stats.frames_tx += sum(self._send(m, now) for m in out)
-                stats.ticks += 1
-                self._send(lockstep.ack_message(tick, len(out)), now)
-            elif cmd == lockstep.END:
-                self._send(lockstep.ack_message(tick, 0), now)
-                if exit_on_end:
-                    break
+                name, msg = recv(0.05)
+                if isinstance(msg, Exception):
+                    if self._rx_error(msg):
+                        self.stop_event.wait(0.05)  # a bus that fails at once must not make us spin
+                    msg = None
+                watchdog.tick()
+                if msg is None:
+                    if idle_timeout is not None and time.perf_counter() - last > idle_timeout:
+                        log.warning("no frame for %.1f s, stopping", idle_timeout)
+                        break
+                    continue
+                last = time.perf_counter()
+                self._bus_ok("receive")
+                if msg.is_error_frame or msg.is_remote_frame or is_own(msg, self._own):
+                    continue
+                stats.frames_rx += 1
+                self._count(name, "rx")
+                now = self.ecu.tick * TICK_S
+                self._log(msg, now, name)
+                if not lockstep.is_sync(msg):
+                    self.ecu.rx(msg)
+                    continue
+                tick, cmd = lockstep.decode_sync(msg)
+                if cmd == lockstep.RESET:
+                    self.ecu.reset()
+                    stats.sessions += 1
+                    self._send(lockstep.ack_message(tick, 0), 0.0, name)
+                elif cmd == lockstep.STEP:
+                    out = self.ecu.step()
+                    here = 0
+                    for m in out:
+                        to = self._route(m)
+                        sent = self._send(m, now, to)
+                        stats.frames_tx += sent
+                        here += to == name  # the ack counts what was sent on the sync's bus
+                    stats.ticks += 1
+                    self._send(lockstep.ack_message(tick, here), now, name)
+                elif cmd == lockstep.END:
+                    self._send(lockstep.ack_message(tick, 0), now, name)
+                    if exit_on_end:
+                        break
+        finally:
+            for n in notifiers:
+                n.stop()
         return self._finish(stats, t0)
 
-    # -- real time ----------------------------------------------------------------------------
-    def serve_realtime(self, *, duration: float | None = None) -> DaemonStats:
-        """Tick at 2 kHz of wall clock until stopped or for duration seconds."""
-        stats = self.stats = DaemonStats("realtime")
+    def _snapshot(self, stats: DaemonStats, now: float, ticker: Ticker, latency: Durations,
+                  lateness: Durations) -> dict:
+        """A real-time run's report: totals since start, percentiles of the window since the last one."""
+        return {"t_s": now, "ticks": stats.ticks, "frames_rx": stats.frames_rx, "frames_tx": stats.frames_tx,
+                "deadline_misses": ticker.misses, "rx_undecodable": stats.rx_undecodable,
+                "recv_errors": stats.recv_errors, "send_failures": stats.send_failures, "rx_overrun": stats.rx_overrun,
+                "counters": self.ecu.counters(), "chassis_counters": self.ecu.chassis_counters(),
+                "latency_us": latency.percentiles_us(), "lateness_us": lateness.percentiles_us()}
+
+    def _lockstep_receiver(self):
+        """recv(timeout) -> (bus, frame, receive error or None). One bus: its own recv() in this
+        thread (no hand-over: the lockstep round trip is the demo's speed); several: their notifiers."""
+        if len(self.buses) == 1:
+            (name, bus), = self.buses.items()
+
+            def recv_one(timeout: float):
+                try:
+                    return name, bus.recv(timeout=timeout)
+                except (can.CanError, OSError) as exc:
+                    return name, exc
+            return recv_one, []
+        # unbounded, but bounded by the protocol: the master has at most its window of ticks in flight
         inbox: queue.SimpleQueue = queue.SimpleQueue()
-        stop_event = self.stop_event
+        notifiers = self._inbox(lambda bus, item: inbox.put((bus, item)))
 
-        class Inbox(can.Listener):
-            in_row = 0  # receive errors since the last frame
+        def recv_any(timeout: float):
+            try:
+                return inbox.get(timeout=timeout)
+            except queue.Empty:
+                return "", None
+        return recv_any, notifiers
 
-            def on_message_received(self, msg: can.Message) -> None:
-                self.in_row = 0
-                inbox.put((time.perf_counter(), msg))
+    # -- real time ----------------------------------------------------------------------------
+    def serve_realtime(self, *, duration: float | None = None, report=None, report_every: float = 60.0) -> DaemonStats:
+        """Tick at 2 kHz of wall clock until stopped or for duration seconds. `report(dict)`, if given,
+        is called every `report_every` s with the totals so far and the window's latency and
+        lateness percentiles (fixed memory: one histogram per quantity, emptied after each report)."""
+        stats = self.stats = DaemonStats("realtime")
+        # A receive FIFO of fixed size, like a CAN controller's: a daemon descheduled for a second must
+        # not queue thousands of frames (memory that Python keeps); on overrun the oldest go, counted.
+        inbox: collections.deque = collections.deque(maxlen=RX_FIFO)
 
-            def on_error(self, exc: Exception) -> None:
-                # The notifier goes on receiving after this; counted on the ticking thread. Only a
-                # bus failing again and again (no frame between) backs off, up to 50 ms: garbage
-                # between good frames must not stall the receive path.
-                inbox.put((time.perf_counter(), exc))
-                if not is_undecodable(exc):
-                    self.in_row += 1
-                    if self.in_row > 3:
-                        stop_event.wait(min(0.05, 0.001 * 2 ** (self.in_row - 4)))
+        def sink(bus: str, item) -> None:
+            if len(inbox) == RX_FIFO:
+                stats.rx_overrun += 1
+            inbox.append((time.perf_counter(), bus, item))
 
-        notifier = can.Notifier(self.bus, [Inbox()], timeout=0.005)
+        notifiers = self._inbox(sink)
         ticker = Ticker(TICK_S)
         latencies = Durations()  # fixed memory: the daemon may run for weeks
+        window_latency, window_lateness = Durations(), Durations()
         t0 = time.perf_counter()
+        next_report = report_every
         watchdog = self._start(stats)
         ticker.start()
         try:
@@ -245,11 +349,18 @@ class EcuDaemon:
                 if missed:
                     self.ecu.note_deadline_miss(missed)
                 now = time.perf_counter() - t0
+                if report is not None:
+                    window_lateness.add(ticker.late)
+                    if now >= next_report:
+                        next_report += report_every
+                        report(self._snapshot(stats, now, ticker, window_latency, window_lateness))
+                        window_latency.clear()
+                        window_lateness.clear()
                 pending = []
                 while True:
                     try:
-                        t_rx, msg = inbox.get_nowait()
-                    except queue.Empty:
+                        t_rx, name, msg = inbox.popleft()
+                    except IndexError:
                         break
                     if isinstance(msg, Exception):
                         self._rx_error(msg)
@@ -258,7 +369,8 @@ class EcuDaemon:
                     if msg.is_error_frame or msg.is_remote_frame or is_own(msg, self._own):
                         continue
                     stats.frames_rx += 1
-                    self._log(msg, now)
+                    self._count(name, "rx")
+                    self._log(msg, now, name)
                     self.ecu.rx(msg)
                     if msg.arbitration_id == self._dls_id:
                         pending.append(t_rx)
@@ -267,11 +379,14 @@ class EcuDaemon:
                 t_tx = time.perf_counter()
                 if sent:
                     latencies.extend(t_tx - t for t in pending)
+                    if report is not None:
+                        window_latency.extend(t_tx - t for t in pending)
                 stats.frames_tx += sent
                 stats.ticks += 1
                 watchdog.tick()
         finally:
-            notifier.stop()
+            for n in notifiers:
+                n.stop()
         stats.lateness_us = percentiles_us(ticker.lateness)
         stats.latency_us = percentiles_us(latencies)
         stats.deadline_misses = ticker.misses

@@ -1,18 +1,23 @@
 """HIL rehearsal: a TOML file names the buses, the DBC on each, and which nodes are simulated here.
 
-Residual-bus simulation: simulate only what the bench lacks. The project can simulate three nodes
-of the PT bus (``dbc/vehest_pt.dbc``): ``VEHEST`` (the ECU, :class:`~vehest_can.service.daemon.EcuDaemon`)
-and the car, ``DLS`` (driveline sensor node) with ``SIM`` (the plant / simulation master), both in
-:class:`~vehest_can.sim.SimMaster`. Every other node of a bus's DBC is real (on the bench) or absent.
+Residual-bus simulation: simulate only what the bench lacks. The project can simulate the ECU
+(``VEHEST``, :class:`~vehest_can.service.daemon.EcuDaemon`, on every bus it is on) and the car of
+every registered system (:mod:`vehest_can.systems`: each says which DBC nodes its car plays, e.g. the
+driveline's ``DLS`` and ``SIM``, the tyre force's ``CHS``), each car a
+:class:`~vehest_can.sim.SimMaster` on its bus, driven by a scenario of that system. Every other node
+of a bus's DBC is real (on the bench) or absent.
 
 The schema is documented in ``docs/hil.md``. ``load_hil_config`` checks every key and raises
 :class:`~vehest_can.errors.ConfigError` whose message names the file, the key as a dotted path and
-the problem; ``run_residual`` runs the simulated nodes against the configured buses.
+the problem; :class:`ResidualBus` runs the simulated nodes against the configured buses.
 """
 from __future__ import annotations
 
 import difflib
+import importlib
+import inspect
 import logging
+import re
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,12 +27,12 @@ import can
 
 from ..bus import bus as busmod
 from ..bus.busload import bus_load, load_dbc
-from ..bus.frames import database
+from ..bus.frames import BUSES, database
 from ..errors import ConfigError, ScenarioError, VehestError
 from ..paths import dbc_dir
 from ..schema import Checker, Num, read_toml, type_name
-from ..sim.scenario import Scenario, list_scenarios, load_scenario, scenario_path
-from ..sim.session import SimMaster, drive_from_scenario
+from ..sim.session import SimMaster
+from ..systems import System, claiming, registered, shipped_scenarios
 from .daemon import EcuDaemon
 
 log = logging.getLogger(__name__)
@@ -37,11 +42,6 @@ BUS_LOAD_LIMIT_PCT = 60.0
 
 SIMULATED, REAL = "simulated", "real"
 ECU_NODE = "VEHEST"
-CAR_NODES = ("DLS", "SIM")  # one simulated car: sensor node + plant/simulation master, one SimMaster
-# Nodes the simulated car also plays when its DBC has them (the camber inspection devices): they
-# follow the car's role unless declared, and may not be declared otherwise.
-CAR_ACCESSORIES = ("CIS",)
-SIMULATABLE = (*CAR_NODES, *CAR_ACCESSORIES, ECU_NODE)
 MODES = ("realtime", "lockstep")
 
 _TOP = {"description", "mode", "scenario", "duration_s", "buses", "nodes"}
@@ -78,6 +78,7 @@ class HilBus:
     load_worst_pct: float = 0.0
     load_nominal_pct: float = 0.0
     load_notes: tuple[str, ...] = ()
+    not_checked: str = ""                    # why the kwargs could not be checked against the interface here
 
     def bus_kwargs(self) -> dict:
         """python-can configuration (``can.Bus(**kwargs)``, ``vehest_can.bus.open_bus``)."""
@@ -93,6 +94,16 @@ class HilBus:
 
 
 @dataclass(frozen=True)
+class HilCar:
+    """One simulated car: a registered system's scenario, the nodes it plays here, its bus."""
+
+    system: str
+    scenario: Any
+    nodes: tuple[str, ...]
+    bus: str
+
+
+@dataclass(frozen=True)
 class HilConfig:
     """A validated HIL configuration (see the module docstring)."""
 
@@ -101,10 +112,11 @@ class HilConfig:
     buses: tuple[HilBus, ...]
     simulated: tuple[str, ...]
     real: tuple[str, ...]
-    scenario: Scenario | None = None
+    cars: tuple[HilCar, ...] = ()
     duration_s: float | None = None
     description: str = ""
-    node_bus: tuple[tuple[str, str], ...] = ()  # (simulated node, bus name)
+    node_bus: tuple[tuple[str, str], ...] = ()  # (simulated node, its bus; the ECU's first bus)
+    ecu_buses: tuple[str, ...] = ()             # every bus the simulated ECU is on
 
     def bus(self, name: str) -> HilBus:
         for b in self.buses:
@@ -117,8 +129,22 @@ class HilConfig:
         return self.bus(name).bus_kwargs()
 
     def bus_of(self, node: str) -> HilBus:
-        """The bus a simulated node runs on."""
+        """The bus a simulated node runs on (the ECU: its first)."""
         return self.bus(dict(self.node_bus)[node])
+
+    def ecu_routes(self) -> dict[int, str]:
+        """Frame ID -> bus for what the simulated ECU sends: the bus whose DBC has the frame from VEHEST."""
+        routes: dict[int, str] = {}
+        for name in self.ecu_buses:
+            for m in load_dbc(self.bus(name).dbc).messages:
+                if ECU_NODE in m.senders:
+                    routes.setdefault(m.frame_id, name)
+        return routes
+
+    @property
+    def scenario(self):
+        """The first car's scenario (None: no car simulated here)."""
+        return self.cars[0].scenario if self.cars else None
 
     @property
     def ecu_simulated(self) -> bool:
@@ -126,7 +152,7 @@ class HilConfig:
 
     @property
     def car_simulated(self) -> bool:
-        return CAR_NODES[0] in self.simulated
+        return bool(self.cars)
 
     def summary(self) -> list[str]:
         """A table of the buses and a line per simulated part (``vehest-can hil --check``)."""
@@ -142,19 +168,21 @@ class HilConfig:
                          ", ".join(n for n in b.nodes if n in self.simulated) or "-",
                          ", ".join(n for n in b.nodes if n in self.real) or "-"))
         lines = _table(head, rows, right=(6, 7))
+        lines += [f"buses.{b.name}.kwargs: {b.not_checked}" for b in self.buses if b.not_checked]
         lines.append(f"mode {self.mode}; bus load limit {BUS_LOAD_LIMIT_PCT:g}% (worst case, with stuff bits)")
         if self.ecu_simulated:
-            lines.append(f"ECU (VEHEST): simulated here on bus {self.bus_of(ECU_NODE).name}")
-        if self.car_simulated:
-            sc = self.scenario
-            assert sc is not None  # a simulated car has its scenario
-            length = f"{self.duration_s:g} s" if self.duration_s else f"{sc.duration_s:g} s (the scenario's)"
-            lines.append(f"car (DLS, SIM): simulated here on bus {self.bus_of(CAR_NODES[0]).name}, "
-                         f"scenario {sc.name} ({sc.path}), {length}")
-        if not self.ecu_simulated:
+            lines.append(f"ECU (VEHEST): simulated here on bus{'es' if len(self.ecu_buses) > 1 else ''} "
+                         f"{', '.join(self.ecu_buses)}")
+        else:
             lines.append("ECU (VEHEST): real, on the bench")
-        if not self.car_simulated:
-            lines.append("car (DLS, SIM): real, on the bench")
+        for car in self.cars:
+            sc = car.scenario
+            length = f"{self.duration_s:g} s" if self.duration_s else f"{sc.duration_s:g} s (the scenario's)"
+            lines.append(f"car ({', '.join(car.nodes)}) of {car.system}: simulated here on bus {car.bus}, "
+                         f"scenario {sc.name} ({sc.path}), {length}")
+        real_cars = [n for n in self.real if any(n in g for g in _car_groups())]
+        if real_cars:
+            lines.append(f"car nodes ({', '.join(real_cars)}): real, on the bench")
         return lines
 
 
@@ -230,17 +258,21 @@ def hil_config_from_dict(doc: dict, path: str | Path = "<hil config>") -> HilCon
             declared[node] = role
     on_bus = {b.name: set(b.nodes) for b in buses}
     in_dbc = {b.name: _dbc_nodes(databases[b.dbc]) for b in buses}
-    car_role = declared.get(CAR_NODES[0])
-    for node in CAR_ACCESSORIES:
-        if node in declared and car_role is not None and declared[node] != car_role:
-            c.fail(f"nodes.{declared[node]}", f"node {node} belongs to the car: it is {car_role} like "
-                                              f"{CAR_NODES[0]}, or leave it out")
-        if node not in declared and car_role is not None and any(node in n for n in on_bus.values()):
-            declared[node] = car_role
+    anywhere = set().union(*on_bus.values())
     for node, role in declared.items():
         if not any(node in names for names in in_dbc.values()):
             known = "; ".join(f"buses.{b}: {', '.join(sorted(n)) or 'none'}" for b, n in in_dbc.items())
             c.fail(f"nodes.{role}", f"node {node} is in no bus's DBC ({known})")
+    # A car's node left out follows its car's declared nodes (CIS with DLS and SIM): one role, or declare it.
+    for node in sorted(anywhere - set(declared)):
+        partners = {n: declared[n] for g in _car_groups() if node in g for n in g if n in declared}
+        if len(set(partners.values())) > 1:
+            c.fail("nodes", f"node {node} is not declared and the car it belongs to is both simulated "
+                            f"({', '.join(n for n, r in partners.items() if r == SIMULATED)}) and real "
+                            f"({', '.join(n for n, r in partners.items() if r == REAL)}): simulate the car's nodes "
+                            f"together or not at all")
+        if partners:
+            declared[node] = next(iter(partners.values()))
     for b in buses:
         for node in b.nodes:
             if node not in declared:
@@ -248,34 +280,26 @@ def hil_config_from_dict(doc: dict, path: str | Path = "<hil config>") -> HilCon
                                 f"add it to nodes.simulated or nodes.real")
     simulated = tuple(n for n, r in declared.items() if r == SIMULATED)
     real = tuple(n for n, r in declared.items() if r == REAL)
+    simulatable = (ECU_NODE, *dict.fromkeys(n for g in _car_groups() for n in g))
     for node in simulated:
-        if node not in SIMULATABLE:
+        if node not in simulatable:
             c.fail("nodes.simulated", f"vehest-can cannot simulate node {node} (it simulates "
-                                      f"{', '.join(SIMULATABLE)}): declare {node} real")
+                                      f"{', '.join(simulatable)}): declare {node} real")
     if not simulated:
-        c.fail("nodes.simulated", "nothing is simulated here: name at least one node (DLS and SIM for the "
-                                  "car, VEHEST for the ECU)")
-    car = [n for n in CAR_NODES if n in simulated]
-    if car and len(car) != len(CAR_NODES):
-        c.fail("nodes.simulated", f"{' and '.join(CAR_NODES)} are one simulated car (sensor node and plant): "
-                                  f"simulate both or neither, not only {car[0]}")
+        c.fail("nodes.simulated", "nothing is simulated here: name at least one node (a car's nodes such as "
+                                  "DLS and SIM, VEHEST for the ECU)")
     node_bus: dict[str, str] = {}
     for node in simulated:
         where = [b for b, names in on_bus.items() if node in names]
         if not where:
             c.fail("nodes.simulated", f"node {node} is on no bus (its DBC's bus lists other nodes in `nodes`)")
-        if len(where) > 1:
+        if len(where) > 1 and node != ECU_NODE:  # the ECU has a controller on each of its buses
             c.fail("nodes.simulated", f"node {node} would run on buses {' and '.join(where)}: name it in the "
                                       f"`nodes` list of one of them only")
         node_bus[node] = where[0]
-    if car and node_bus[CAR_NODES[0]] != node_bus[CAR_NODES[1]]:
-        c.fail("nodes.simulated", f"the simulated car ({', '.join(CAR_NODES)}) must be on one bus, not on "
-                                  f"{node_bus[CAR_NODES[0]]} and {node_bus[CAR_NODES[1]]}")
-    for node, bus_name in node_bus.items():
-        b = next(x for x in buses if x.name == bus_name)
-        _check_firmware_frames(c, b, databases[b.dbc], node)
+    ecu_buses = tuple(b for b, names in on_bus.items() if ECU_NODE in names) if ECU_NODE in simulated else ()
 
-    # -- mode, scenario, duration ------------------------------------------------------------
+    # -- mode, scenarios (one per simulated car), duration -------------------------------------
     mode = c.string(doc.get("mode", "realtime"), "mode")
     if mode not in MODES:
         c.fail("mode", f"unknown mode {mode!r} (expected one of: {', '.join(MODES)})")
@@ -283,19 +307,65 @@ def hil_config_from_dict(doc: dict, path: str | Path = "<hil config>") -> HilCon
         c.fail("mode", f"lockstep needs every node simulated here (it steps them on SIM_Sync frames); "
                        f"{', '.join(real)} {'is' if len(real) == 1 else 'are'} real: use mode = \"realtime\"")
     duration = c.number(doc["duration_s"], "duration_s", _DURATION) if "duration_s" in doc else None
-    scenario = None
-    if car:
-        if "scenario" not in doc:
-            c.fail("scenario", "missing: the car (DLS, SIM) is simulated here and needs a scenario to drive "
-                               "(a shipped name such as \"launch_2nd\", or a .toml path)")
-        scenario = _scenario(c, c.string(doc["scenario"], "scenario"), base)
-    elif "scenario" in doc:
-        c.fail("scenario", "the car (DLS, SIM) is real on the bench: there is nothing here for a scenario to "
-                           "drive (remove the key, or simulate DLS and SIM)")
+    car_nodes = [n for n in simulated if n != ECU_NODE]
+    cars: list[HilCar] = []
+    for key, value in _scenario_values(c, doc):
+        system, sc = _scenario(c, key, value, base)
+        plays = [n for n in getattr(system, "nodes", ()) if n in anywhere]
+        here = [n for n in plays if declared.get(n) == SIMULATED]
+        if not here:
+            c.fail(key, f"the car of {sc.name} ({system.name}: {', '.join(plays) or 'no node on these buses'}) is "
+                        f"real on the bench: there is nothing here for a scenario to drive (remove it, or simulate "
+                        f"{', '.join(plays) or 'its nodes'})")
+        for n in plays:
+            if declared.get(n) == REAL:
+                c.fail("nodes.real", f"node {n} belongs to the car of {sc.name} ({system.name}: "
+                                     f"{', '.join(plays)}): it is simulated like {here[0]}; simulate the car's "
+                                     f"nodes together or not at all (or leave {n} out if it follows)")
+        for other in cars:
+            both = sorted(set(here) & set(other.nodes))
+            if both:
+                c.fail(key, f"{', '.join(both)} would be played by two cars ({other.scenario.name} and {sc.name}): "
+                            f"one scenario per car")
+        buses_of = sorted({node_bus[n] for n in here})
+        if len(buses_of) > 1:
+            c.fail("nodes.simulated", f"the simulated car ({', '.join(here)}) must be on one bus, not on "
+                                      f"{' and '.join(buses_of)}")
+        cars.append(HilCar(system.name, sc, tuple(here), buses_of[0]))
+    unplayed = [n for n in car_nodes if not any(n in car.nodes for car in cars)]
+    if unplayed:
+        who = sorted({s.name for s in registered() if set(getattr(s, "nodes", ())) & set(unplayed)})
+        c.fail("scenario", f"missing: the car ({', '.join(unplayed)}) is simulated here and needs a scenario to "
+                           f"drive ({' or '.join(who)}: a shipped name such as \"launch_2nd\", or a .toml path; "
+                           f"a list of them for several cars)")
+    if mode == "lockstep" and len(cars) > 1:
+        c.fail("scenario", f"lockstep steps one car (its SIM_Sync ticks the ECU): give one scenario, not "
+                           f"{len(cars)}, or use mode = \"realtime\"")
+    for node, bus_name in node_bus.items():
+        for b in buses:
+            if b.name == bus_name or (node == ECU_NODE and b.name in ecu_buses):
+                _check_firmware_frames(c, b, databases[b.dbc], node)
 
     return HilConfig(path=path, mode=mode, buses=tuple(buses), simulated=simulated, real=real,
-                     scenario=scenario, duration_s=duration, description=description,
-                     node_bus=tuple(sorted(node_bus.items())))
+                     cars=tuple(cars), duration_s=duration, description=description,
+                     node_bus=tuple(sorted(node_bus.items())), ecu_buses=ecu_buses)
+
+
+def _car_groups() -> list[tuple[str, ...]]:
+    """The nodes each registered system's car plays."""
+    return [tuple(getattr(s, "nodes", ())) for s in registered()]
+
+
+def _scenario_values(c: _Checker, doc: dict) -> list[tuple[str, str]]:
+    """`scenario`: one name/path, or a list of them (one per simulated car), with each one's dotted key."""
+    if "scenario" not in doc:
+        return []
+    value = doc["scenario"]
+    if isinstance(value, list):
+        if not value:
+            c.fail("scenario", "an empty list: name one scenario per simulated car")
+        return [(f"scenario[{i}]", c.string(v, f"scenario[{i}]")) for i, v in enumerate(value)]
+    return [("scenario", c.string(value, "scenario"))]
 
 
 def _bus(c: _Checker, name: str, doc, base: Path, databases: dict) -> HilBus:
@@ -340,6 +410,7 @@ def _bus(c: _Checker, name: str, doc, base: Path, databases: dict) -> HilBus:
                                 f"mode and needs the FD bit timing: a [{key}.timing] table with "
                                 f"{', '.join(_TIMING_FD)}")
     kwargs = _kwargs(c, doc.get("kwargs", {}), f"{key}.kwargs")
+    not_checked = _check_opening(c, key, interface, channel, kwargs)
 
     dbc = _dbc_file(c, c.string(doc["dbc"], f"{key}.dbc"), f"{key}.dbc", base)
     if dbc not in databases:
@@ -380,7 +451,8 @@ def _bus(c: _Checker, name: str, doc, base: Path, databases: dict) -> HilBus:
     return HilBus(name=name, interface=interface, channel=channel, fd=fd, dbc=dbc, nodes=tuple(nodes),
                   bitrate=bitrate, data_bitrate=data_bitrate, timing=timing, kwargs=tuple(kwargs.items()),
                   load_bitrate=load.bitrate, load_data_bitrate=load.data_bitrate,
-                  load_worst_pct=load.worst_pct, load_nominal_pct=load.nominal_pct, load_notes=load.notes)
+                  load_worst_pct=load.worst_pct, load_nominal_pct=load.nominal_pct, load_notes=load.notes,
+                  not_checked=not_checked)
 
 
 def _timing(c: _Checker, doc, key: str, fd: bool) -> can.BitTiming | can.BitTimingFd:
@@ -419,6 +491,86 @@ def _kwargs(c: _Checker, doc, key: str) -> dict:
     return dict(doc)
 
 
+_PARAM = re.compile(r":param\s+(?:[\w\[\], .|]+\s+)?(\w+)\s*:")
+_IFNAMSIZ = 16  # Linux <net/if.h>: a network interface name is at most 15 bytes
+
+
+def _check_opening(c: _Checker, key: str, interface: str, channel, kwargs: dict) -> str:
+    """What opening the bus would refuse (or silently ignore), found now rather than at run time: the
+    channel where its form is known without the hardware, and each `kwargs` key against the arguments
+    the interface takes (its signature and documented parameters). Returns why the arguments could not
+    be checked here ("" when they were)."""
+    if interface == "udp_multicast":
+        for args, where in (({}, "channel"), (kwargs, "kwargs")):
+            try:
+                busmod.multicast_settings(channel, **{k: v for k, v in args.items()
+                                                      if k in ("port", "hop_limit", "multicast_interface")})
+            except can.CanInitializationError as exc:
+                c.fail(f"{key}.{where}", str(exc))
+    elif interface == "socketcan" and not (isinstance(channel, str) and 0 < len(channel.encode()) < _IFNAMSIZ
+                                           and not any(ch in channel for ch in "/ \t")):
+        c.fail(f"{key}.channel", f"a SocketCAN channel is a network interface name (can0, vcan0: at most "
+                                 f"{_IFNAMSIZ - 1} bytes, no '/' or space), not {channel!r}")
+    elif interface == "kvaser" and (isinstance(channel, bool) or not isinstance(channel, int) or channel < 0):
+        c.fail(f"{key}.channel", f"a Kvaser channel is a channel number (0, 1, ...), not {channel!r}")
+    elif interface == "pcan":
+        names = _pcan_channels()
+        if names and channel not in names:
+            near = difflib.get_close_matches(str(channel), names, n=1)
+            c.fail(f"{key}.channel", f"unknown PCAN channel {channel!r} ({f'did you mean {near[0]!r}? ' if near else ''}"
+                                     f"e.g. PCAN_USBBUS1)")
+    known, why = _interface_arguments(interface)
+    if known is None:
+        return f"not checked against python-can's {interface} interface ({why})" if kwargs else ""
+    for k in kwargs:
+        if k not in known:
+            near = difflib.get_close_matches(k, sorted(known), n=1)
+            c.fail(f"{key}.kwargs.{k}", f"python-can's {interface} interface takes no argument {k!r} "
+                                        f"({f'did you mean {near[0]!r}? ' if near else ''}it takes: "
+                                        f"{', '.join(sorted(known))})")
+    return ""
+
+
+def _pcan_channels() -> list[str]:
+    try:
+        names = _import_quietly("can.interfaces.pcan.basic").PCAN_CHANNEL_NAMES
+    except Exception:  # noqa: BLE001 - a module that does not import here: not checked
+        return []
+    return sorted(names)
+
+
+def _import_quietly(module: str):
+    """python-can's interface modules log warnings at import about missing vendor libraries: not ours to show."""
+    quiet = logging.getLogger("can")
+    level = quiet.level
+    quiet.setLevel(logging.ERROR)
+    try:
+        return importlib.import_module(module)
+    finally:
+        quiet.setLevel(level)
+
+
+def _interface_arguments(interface: str) -> tuple[set[str] | None, str]:
+    """The argument names a python-can interface's bus takes, or (None, why) when its module does not
+    import on this machine (a vendor library missing)."""
+    if interface == "udp_multicast":
+        cls: Any = busmod.HostMulticastBus
+    else:
+        module, name = can.interfaces.BACKENDS[interface]
+        try:
+            cls = getattr(_import_quietly(module), name)
+        except Exception as exc:  # noqa: BLE001 - any import failure of a vendor module means the same
+            return None, f"its module does not import here: {exc}"
+    names = {"can_filters"}  # can.BusABC's own
+    for klass in (cls, can.BusABC):
+        params = inspect.signature(klass.__init__).parameters
+        names.update(p for p, v in params.items() if v.kind not in (v.VAR_KEYWORD, v.VAR_POSITIONAL))
+        names.update(_PARAM.findall(inspect.getdoc(klass.__init__) or ""))
+        names.update(_PARAM.findall(inspect.getdoc(klass) or ""))
+    names.discard("self")
+    return names, ""
+
+
 def _dbc_file(c: _Checker, value: str, key: str, base: Path) -> Path:
     p = Path(value)
     if not p.suffix and len(p.parts) == 1:  # a bundled DBC by name: "vehest_pt"
@@ -440,12 +592,15 @@ def _dbc_nodes(db) -> set[str]:
 
 
 def _check_firmware_frames(c: _Checker, b: HilBus, db, node: str) -> None:
-    """A simulated node sends the frames its firmware was built with (the bundled PT DBC): the bus's
-    DBC must describe them the same way (name, ID, length), or the bench would decode garbage."""
+    """A simulated node sends the frames its firmware was built with (the bundled DBC of that bus): the
+    bus's DBC must describe them the same way (name, ID, length), or the bench would decode garbage."""
     def sends(d):
         return {(m.name, m.frame_id, m.is_extended_frame, m.length) for m in d.messages if node in m.senders}
 
-    built, here = sends(database("pt")), sends(db)
+    here = sends(db)
+    names = {m.name for m in db.messages}
+    bundled = max(BUSES, key=lambda bus: len(names & {m.name for m in database(bus).messages}))
+    built = sends(database(bundled))
     if built != here:
         missing = sorted(built - here)
         extra = sorted(here - built)
@@ -454,22 +609,28 @@ def _check_firmware_frames(c: _Checker, b: HilBus, db, node: str) -> None:
             + [f"the DBC has {n} (ID 0x{i:X}, {ln} bytes) from {node}, which the firmware does not send"
                for n, i, _, ln in extra[:2]])
         c.fail(f"buses.{b.name}.dbc", f"{b.dbc.name} does not match the frames of simulated node {node} "
-                                      f"(built from the bundled vehest_pt.dbc): {what}")
+                                      f"(built from the bundled vehest_{bundled}.dbc): {what}")
 
 
-def _scenario(c: _Checker, value: str, base: Path) -> Scenario:
+def _scenario(c: _Checker, key: str, value: str, base: Path) -> tuple[System, Any]:
+    """A scenario of any registered system: a shipped one's name, or a .toml path (relative to `base`)."""
     p = Path(value)
     if p.suffix == ".toml" or len(p.parts) > 1:
         p = p if p.is_absolute() else base / p
     else:
-        p = scenario_path(value)  # a shipped scenario's name
-        if not p.is_file():
-            c.fail("scenario", f"no shipped scenario named {value!r} (shipped: {', '.join(list_scenarios())}; "
-                               f"or give a .toml path)")
+        shipped = {q.stem: q for q in shipped_scenarios()}
+        if value not in shipped:
+            c.fail(key, f"no shipped scenario named {value!r} (shipped: {', '.join(sorted(shipped))}; "
+                        f"or give a .toml path)")
+        p = shipped[value]
     try:
-        return load_scenario(p)
+        doc = read_toml(p, ScenarioError)
+        system = claiming(doc)
+        if system is None:
+            c.fail(key, f"{p}: no registered system reads this scenario (kind = {doc.get('kind')!r})")
+        return system, system.load(p)
     except ScenarioError as exc:
-        c.fail("scenario", str(exc))
+        c.fail(key, str(exc))
 
 
 # ---- running the simulated part -------------------------------------------------------------
@@ -477,23 +638,36 @@ def _scenario(c: _Checker, value: str, base: Path) -> Scenario:
 @dataclass
 class HilResult:
     ecu: Any = None          # DaemonStats when the ECU was simulated here
-    session: Any = None      # sim.Session when the car was simulated here
-    ecu_bus: str | None = None
-    car_bus: str | None = None
+    sessions: list = field(default_factory=list)  # (HilCar, sim.Session) of each car simulated here
+    ecu_buses: tuple[str, ...] = ()
     bus_info: list[str] = field(default_factory=list)  # where each opened handle's frames go
+
+    @property
+    def session(self):
+        """The first car's session (None: no car here)."""
+        return self.sessions[0][1] if self.sessions else None
+
+    @property
+    def ecu_bus(self) -> str | None:
+        return self.ecu_buses[0] if self.ecu_buses else None
+
+    @property
+    def car_bus(self) -> str | None:
+        return self.sessions[0][0].bus if self.sessions else None
 
 
 class ResidualBus:
-    """Runs the simulated nodes of a configuration: an EcuDaemon, a SimMaster, or both (one process).
+    """Runs the simulated nodes of a configuration: an EcuDaemon on every bus of the ECU, a SimMaster
+    per car, or both (one process, one thread each). ``stop()`` (e.g. from a signal handler) ends the
+    run early, cleanly. `configure(ecu)` is applied to the simulated ECU first (e.g. calibrations)."""
 
-    ``stop()`` (e.g. from a signal handler) ends the run early, cleanly.
-    """
-
-    def __init__(self, config: HilConfig, *, duration_s: float | None = None, notifier=None, progress=None):
+    def __init__(self, config: HilConfig, *, duration_s: float | None = None, notifier=None, progress=None,
+                 configure=None):
         self.config = config
         self.duration_s = duration_s if duration_s is not None else config.duration_s
         self.notifier = notifier
         self.progress = progress
+        self.configure = configure
         self.stop_event = threading.Event()
 
     def stop(self) -> None:
@@ -503,63 +677,86 @@ class ResidualBus:
         cfg = self.config
         result = HilResult()
         opened: list[can.BusABC] = []
+
+        def open_(name: str, who: str) -> can.BusABC:
+            # A handle of its own for each part even on a shared bus: python-can hands each frame to
+            # one reader per handle.
+            opened.append(busmod.open_bus(cfg.bus_kwargs(name)))
+            result.bus_info.append(f"{who}: bus {name}: " + busmod.describe_bus(opened[-1], cfg.bus_kwargs(name)))
+            return opened[-1]
+
         try:
-            daemon = master = None
+            daemon = None
             if cfg.ecu_simulated:
-                result.ecu_bus = cfg.bus_of(ECU_NODE).name
-                opened.append(busmod.open_bus(cfg.bus_kwargs(result.ecu_bus)))
-                result.bus_info.append(f"ecu: bus {result.ecu_bus}: "
-                                       + busmod.describe_bus(opened[-1], cfg.bus_kwargs(result.ecu_bus)))
-                daemon = EcuDaemon(opened[-1], notifier=self.notifier)
+                result.ecu_buses = cfg.ecu_buses
+                daemon = EcuDaemon({n: open_(n, "ecu") for n in cfg.ecu_buses}, routes=cfg.ecu_routes(),
+                                   notifier=self.notifier)
+                if self.configure is not None:
+                    self.configure(daemon.ecu)
                 daemon.stop_event = self.stop_event
-            if cfg.car_simulated:
-                # Its own handle even on the ECU's bus: python-can hands each frame to one reader per handle.
-                result.car_bus = cfg.bus_of(CAR_NODES[0]).name
-                opened.append(busmod.open_bus(cfg.bus_kwargs(result.car_bus)))
-                result.bus_info.append(f"car: bus {result.car_bus}: "
-                                       + busmod.describe_bus(opened[-1], cfg.bus_kwargs(result.car_bus)))
-                drive = drive_from_scenario(cfg.scenario, self.duration_s)
-                master = SimMaster(opened[-1], drive, progress=self.progress)
+            masters = []
+            for i, car in enumerate(cfg.cars):
+                system = next(s for s in registered() if s.name == car.system)
+                master = SimMaster(open_(car.bus, f"car {car.scenario.name}"),
+                                   system.car(car.scenario, self.duration_s),
+                                   progress=self.progress if i == 0 else None)
                 master.stop_event = self.stop_event
-            if master is None:
-                assert daemon is not None  # a configuration simulates the ECU, the car or both
-                result.ecu = daemon.serve_realtime(duration=self.duration_s)
-            elif daemon is None:
-                result.session = master.run_realtime()
-            else:
-                result.ecu, result.session = self._both(daemon, master)
+                masters.append((car, master))
+            result.ecu, sessions = self._run(daemon, masters)
+            result.sessions = list(zip([car for car, _ in masters], sessions))
         finally:
             for b in opened:
                 b.shutdown()
         return result
 
-    def _both(self, daemon, master):
-        """The ECU daemon in a thread, the car in this one; the ECU stops when the car is done."""
+    def _run(self, daemon, masters):
+        """The ECU daemon in a thread, the first car in this one, any other car in a thread of its
+        own; the ECU stops when the cars are done. An ECU alone runs for the duration (or until stopped)."""
+        if not masters:
+            return daemon.serve_realtime(duration=self.duration_s), []
         lockstep = self.config.mode == "lockstep"
         out: dict[str, Any] = {}
 
-        def serve():
-            try:
-                out["stats"] = daemon.serve_lockstep(exit_on_end=True) if lockstep else daemon.serve_realtime()
-            except BaseException as exc:  # re-raised in the main thread
-                out["error"] = exc
+        def guarded(key, fn):
+            def run():
+                try:
+                    out[key] = fn()
+                except BaseException as exc:  # re-raised in the main thread
+                    out.setdefault("error", exc)
+                    self.stop_event.set()
+            return run
 
-        # Both 2 kHz loops share one GIL; they release it while they sleep to their next tick. (A shorter
-        # sys.setswitchinterval measured no better: docs/hil.md.)
-        thread = threading.Thread(target=serve, name="ecu-daemon", daemon=True)
-        thread.start()
+        threads = []
+        if daemon is not None:
+            serve = (lambda: daemon.serve_lockstep(exit_on_end=True)) if lockstep else daemon.serve_realtime
+            # Both 2 kHz loops share one GIL; they release it while they sleep to their next tick. (A
+            # shorter sys.setswitchinterval measured no better: docs/hil.md.)
+            threads.append(threading.Thread(target=guarded("stats", serve), name="ecu-daemon", daemon=True))
+            threads[-1].start()
         try:
-            if lockstep:
-                session = master.run_lockstep()  # its RESET handshake waits for the daemon
-                thread.join(5.0)                 # the daemon stops on END
+            if lockstep:  # one car (the loader's rule); its RESET handshake waits for the daemon
+                sessions = [masters[0][1].run_lockstep()]
+                if threads:
+                    threads[0].join(5.0)  # the daemon stops on END
             else:
-                self.stop_event.wait(0.2)        # the daemon's receiver is up before the first sensor frame
-                session = master.run_realtime()
+                if daemon is not None:
+                    self.stop_event.wait(0.2)  # the daemon's receiver is up before the first sensor frame
+                cars = [threading.Thread(target=guarded(i, m.run_realtime), name=f"car-{i}", daemon=True)
+                        for i, (_, m) in enumerate(masters[1:], 1)]
+                for t in cars:
+                    t.start()
+                first = masters[0][1].run_realtime()
+                for t in cars:
+                    t.join()
+                if "error" in out:
+                    raise out["error"]
+                sessions = [first, *(out[i] for i in range(1, len(masters)))]
         finally:
             self.stop_event.set()
-            thread.join(10.0)
+            for t in threads:
+                t.join(10.0)
         if "error" in out:
             raise out["error"]
-        if "stats" not in out:
+        if daemon is not None and "stats" not in out:
             raise VehestError("the simulated ECU did not stop within 10 s")
-        return out["stats"], session
+        return out.get("stats"), sessions

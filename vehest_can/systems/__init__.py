@@ -77,6 +77,9 @@ class System(Protocol):
     faults: FaultStudy | None
     #: what ``vehest-can campaign`` runs (optional; a system without one takes no campaigns)
     campaign: CampaignRunner | None
+    #: the DBC nodes its car plays on a bus (``vehest-can hil`` simulates them together, on one bus);
+    #: a system without it cannot be simulated in a HIL rehearsal
+    nodes: tuple[str, ...]
 
     def scenario_dir(self) -> Path:
         """Where its shipped scenarios are (the demo runs every file there that it claims)."""

@@ -25,6 +25,34 @@ CHASSIS_COUNTERS = (
     "filter_reset", "rx_burst", "saturation",
 )
 HEALTH = {0: "INIT", 1: "OK", 2: "DEGRADED", 3: "FAULT"}
+#: the sensor frame each estimator lives on: never heard means not configured / absent, not failed
+INPUT_OF = {"dkf_t": "DLS_Sensors", "dkf_s": "DLS_Sensors", "skfmec_q": "CHS_Sensors"}
+#: a C counter read at least this often (steps, frames) cannot move 65536 between two reads
+_POLL_STEPS, _POLL_FRAMES = 64, 4096
+
+
+class WideCounters:
+    """The C core's 16-bit counters (wrapping modulo 2^16, as on the bus) accumulated into Python
+    ints that never wrap or saturate: each :meth:`poll` adds the difference modulo 2^16 since the
+    last one, exact while no counter moves 65536 or more between two polls."""
+
+    def __init__(self, read, names: tuple[str, ...]):
+        self._read = read  # () -> the C struct holding `names`
+        self.names = names
+        self.reset()
+
+    def reset(self) -> None:
+        """The C counters were zeroed (an ECU reset): totals start again."""
+        self._last = dict.fromkeys(self.names, 0)
+        self.totals = dict.fromkeys(self.names, 0)
+
+    def poll(self) -> dict[str, int]:
+        c = self._read()
+        for name in self.names:
+            now = int(getattr(c, name))
+            self.totals[name] += (now - self._last[name]) & 0xFFFF
+            self._last[name] = now
+        return dict(self.totals)
 
 
 @dataclass
@@ -64,22 +92,39 @@ class Ecu:
         check(lib.vh_ecu_init(self.c, self._c_config), "ECU configuration")
         self._rx = ffi.new("vh_frame_t *")
         self._tx = ffi.new("vh_frame_t[]", lib.VH_ECU_MAX_TX)
+        self._wide = (WideCounters(lambda: self.c.cnt, COUNTERS), WideCounters(lambda: self.c.chs.cnt, CHASSIS_COUNTERS))
+        self._steps = self._frames = 0
 
     def reset(self) -> None:
         lib.vh_ecu_reset(self.c)
+        for w in self._wide:
+            w.reset()
+
+    def poll_counters(self) -> None:
+        """Fold the C counters into the wide totals; the loops here call it often enough (every
+        64 steps and 4096 frames); a caller that steps the C ECU itself calls it at least every
+        65535 counts of any counter (e.g. every 8192 ticks: a tick counts a few at most)."""
+        for w in self._wide:
+            w.poll()
 
     def rx(self, msg: can.Message) -> None:
         if msg.is_error_frame or msg.is_remote_frame:
             return
-        lib.vh_ecu_rx(self.c, to_frame(msg, self._rx))
+        self.rx_frame(to_frame(msg, self._rx))
 
     def rx_frame(self, frame) -> None:
         """A ``vh_frame_t *`` straight from a C node (in-process runs)."""
         lib.vh_ecu_rx(self.c, frame)
+        self._frames += 1
+        if self._frames % _POLL_FRAMES == 0:
+            self.poll_counters()
 
     def step_frames(self) -> list:
         """One tick; the frames to transmit as ``vh_frame_t`` cdata (valid until the next step)."""
         n = lib.vh_ecu_step(self.c, self._tx, lib.VH_ECU_MAX_TX)
+        self._steps += 1
+        if self._steps % _POLL_STEPS == 0:
+            self.poll_counters()
         return [self._tx[i] for i in range(n)]
 
     def step(self, timestamp: float = 0.0) -> list[can.Message]:
@@ -93,14 +138,31 @@ class Ecu:
                   f"camber calibration of {wheel}")
 
     def note_deadline_miss(self, n: int = 1) -> None:
-        lib.vh_ecu_note_deadline_miss(self.c, n)
+        while n > 0:  # a stall of more than 65535 ticks in pieces the wide total can follow
+            lib.vh_ecu_note_deadline_miss(self.c, min(n, 0x7FFF))
+            self.poll_counters()
+            n -= 0x7FFF
 
     @property
     def tick(self) -> int:
         return int(self.c.tick)
 
     def counters(self) -> dict[str, int]:
+        """The powertrain side's fault counters since reset: true totals (the 16-bit C counters wrap)."""
+        return self._wide[0].poll()
+
+    def c_counters(self) -> dict[str, int]:
+        """The 16-bit C counters as the bus carries them (VEHEST_Status): the totals modulo 65536."""
         return {name: int(getattr(self.c.cnt, name)) for name in COUNTERS}
+
+    def heard(self) -> dict[str, bool]:
+        """Whether each sensor frame has been received (a good CRC) since reset."""
+        return {"DLS_Sensors": bool(self.c.drv.dls.rx.e2e.have_last), "CHS_Sensors": bool(self.c.chs.heard)}
+
+    def not_heard(self) -> list[str]:
+        """The estimators whose sensor frame has never been heard: not configured or absent, not failed."""
+        heard = self.heard()
+        return [name for name, frame in INPUT_OF.items() if not heard[frame]]
 
     def health(self) -> dict[str, str]:
         return {
@@ -110,4 +172,5 @@ class Ecu:
         }
 
     def chassis_counters(self) -> dict[str, int]:
-        return {name: int(getattr(self.c.chs.cnt, name)) for name in CHASSIS_COUNTERS}
+        """The chassis side's fault counters since reset: true totals."""
+        return self._wide[1].poll()

@@ -18,7 +18,7 @@ import math
 import os
 import tempfile
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import ConfigError
-from ...native import check, ffi, lib
+from ...native import check, config_class, ffi, lib
 
 FORMAT = "vehest-can/camber-calibration"
 VERSION = 1
@@ -65,52 +65,35 @@ class CalStatus(enum.IntEnum):
     INVALID = lib.VH_CAMBER_CAL_INVALID
 
 
-def _c_cal_limits_default():
-    lim = ffi.new("vh_camber_cal_limits_t *")
-    lib.vh_camber_cal_limits_default(lim)
-    return lim
+_C_LIMITS: Any = config_class("vh_camber_cal_limits_t", "CalibrationLimits",
+                              defaults=lib.vh_camber_cal_limits_default, frozen=True)
+_C_MEASURE: Any = config_class("vh_camber_config_t", "MeasureConfig", defaults=lib.vh_camber_config_default, frozen=True)
 
 
-def _c_config_default():
-    cfg = ffi.new("vh_camber_config_t *")
-    lib.vh_camber_config_default(cfg)
-    return cfg
-
-
-_LIM0 = _c_cal_limits_default()
-_CFG0 = _c_config_default()
-
-
-@dataclass(frozen=True)
-class CalibrationLimits:
-    """Acceptance limits for calibration captures (defaults: the firmware's)."""
-
-    min_samples: int = int(_LIM0.min_samples)
-    std_max_g: float = float(_LIM0.std_max_g)  # sqrt(var_x + var_y + var_z) of one capture
-    mag_tol_g: float = float(_LIM0.mag_tol_g)  # | |mean| - 1 g |
-    ortho_tol: float = float(_LIM0.ortho_tol)  # |x . z|
+class CalibrationLimits(_C_LIMITS):
+    """Acceptance limits for calibration captures, field for field ``vh_camber_cal_limits_t`` (derived
+    from the C struct: :func:`vehest_can.native.config_class`; defaults: the firmware's):
+    ``min_samples`` per capture, ``std_max_g`` sqrt(var_x + var_y + var_z) of one capture,
+    ``mag_tol_g`` | |mean| - 1 g |, ``ortho_tol`` |x . z|."""
 
     def _to_c(self):
-        lim = ffi.new("vh_camber_cal_limits_t *")
         if not (isinstance(self.min_samples, int) and 2 <= self.min_samples <= N_MAX):
             raise ConfigError(f"min_samples must be an integer in 2..{N_MAX}, got {self.min_samples!r}")
-        for name in ("std_max_g", "mag_tol_g", "ortho_tol"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ConfigError(f"{name} must be a finite number > 0, got {v!r}")
-        lim.min_samples, lim.std_max_g = self.min_samples, self.std_max_g
-        lim.mag_tol_g, lim.ortho_tol = self.mag_tol_g, self.ortho_tol
-        return lim
+        _check_positive(self, ("std_max_g", "mag_tol_g", "ortho_tol"))
+        return self.to_c()
 
 
-@dataclass(frozen=True)
-class MeasureConfig:
-    """Inspection acceptance (defaults: the firmware's)."""
+class MeasureConfig(_C_MEASURE):
+    """Inspection acceptance, field for field ``vh_camber_config_t`` (derived from the C struct;
+    defaults: the firmware's): ``window`` samples per result in measure_windows(), ``min_samples``,
+    ``mag_tol_g`` | |mean a| - 1 g |, ``std_max_g`` sqrt(var_x + var_y + var_z) over the window."""
 
-    min_samples: int = int(_CFG0.min_samples)
-    mag_tol_g: float = float(_CFG0.mag_tol_g)  # | |mean a| - 1 g |
-    std_max_g: float = float(_CFG0.std_max_g)  # sqrt(var_x + var_y + var_z) over the window
-    window: int = int(_CFG0.window)  # samples per result in measure_windows()
+
+def _check_positive(config, names) -> None:
+    for name in names:
+        v = getattr(config, name)
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise ConfigError(f"{name} must be a finite number > 0, got {v!r}")
 
 
 def _check_lsb(lsb_g, where: str) -> tuple[float, float, float]:
@@ -488,17 +471,12 @@ def _result(r, config: MeasureConfig) -> Result:
 
 
 def _instance(calibration: Calibration | None, config: MeasureConfig, window: int):
-    cfg = ffi.new("vh_camber_config_t *")
     if not (isinstance(config.min_samples, int) and 2 <= config.min_samples <= N_MAX):
         raise ConfigError(f"min_samples must be an integer in 2..{N_MAX}, got {config.min_samples!r}")
     if not (isinstance(window, int) and config.min_samples <= window <= N_MAX):
         raise ConfigError(f"window must be an integer in min_samples..{N_MAX}, got {window!r}")
-    for name in ("mag_tol_g", "std_max_g"):
-        v = getattr(config, name)
-        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-            raise ConfigError(f"{name} must be a finite number > 0, got {v!r}")
-    cfg.window, cfg.min_samples = window, config.min_samples
-    cfg.mag_tol_g, cfg.std_max_g = config.mag_tol_g, config.std_max_g
+    _check_positive(config, ("mag_tol_g", "std_max_g"))
+    cfg = replace(config, window=window).to_c()
     inst = ffi.new("vh_camber_t *")
     c_cal = calibration._to_c() if calibration is not None else ffi.NULL
     check(lib.vh_camber_init(inst, cfg, c_cal), "camber init")

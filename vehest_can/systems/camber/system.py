@@ -18,6 +18,7 @@ class Camber:
     name = "camber"
     kinds: tuple[str, ...] = ()   # a driveline scenario file with a [camber] table
     realtime = False
+    nodes = ("DLS", "SIM", "CIS")  # the driveline car carrying the inspection devices
     faults = None
     campaign = CAMPAIGN  # vehest-can campaign
 

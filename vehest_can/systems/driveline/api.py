@@ -6,11 +6,12 @@ module only marshals arrays. See ``dkf_ref.py`` for the independent numpy implem
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from typing import Any
 
 import numpy as np
 
 from ...errors import ConfigError
-from ...native import check, ffi, lib
+from ...native import check, config_class, ffi, lib
 
 SPEEDS_TORQUE = "speeds+torque"
 SPEEDS = "speeds"
@@ -18,25 +19,15 @@ _MEAS = {SPEEDS_TORQUE: lib.VH_DKF_SPEEDS_TORQUE, SPEEDS: lib.VH_DKF_SPEEDS}
 _DISC = {"euler": lib.VH_DKF_EULER, "zoh": lib.VH_DKF_ZOH}
 
 
-@dataclass
-class DkfConfig:
-    """Filter configuration; defaults are the paper's (Table 1, sec. 4) for the measurement set."""
+_C_CONFIG: Any = config_class(
+    "vh_dkf_config_t", "DkfConfig", defaults=lambda c: lib.vh_dkf_config_default(c, _MEAS[SPEEDS_TORQUE]),
+    enums={"meas": ("measurement set", _MEAS), "disc": ("discretisation", _DISC)}, flags=("use_input",))
 
-    jo: float
-    jv: float
-    rd: float
-    ri: float
-    ks: float
-    c: float
-    ts: float
-    q: tuple[float, float, float, float]
-    r: tuple[float, float, float]
-    p0: tuple[float, float, float, float]
-    p_max: float
-    x_max: float
-    meas: str = SPEEDS_TORQUE
-    disc: str = "zoh"
-    use_input: bool = True
+
+class DkfConfig(_C_CONFIG):
+    """Filter configuration, field for field ``vh_dkf_config_t`` (derived from the C struct:
+    :func:`vehest_can.native.config_class`); defaults are the paper's (Table 1, sec. 4) for the
+    measurement set, as the C core's ``vh_dkf_config_default`` writes them."""
 
     @classmethod
     def default(cls, meas: str = SPEEDS_TORQUE, **overrides) -> DkfConfig:
@@ -50,33 +41,6 @@ class DkfConfig:
                 raise ConfigError(f"unknown filter setting {key!r}")
             setattr(cfg, key, tuple(value) if isinstance(value, (list, tuple, np.ndarray)) else value)
         return cfg
-
-    @classmethod
-    def from_c(cls, c) -> DkfConfig:
-        meas = {v: k for k, v in _MEAS.items()}[c.meas]
-        disc = {v: k for k, v in _DISC.items()}[c.disc]
-        return cls(
-            jo=c.jo, jv=c.jv, rd=c.rd, ri=c.ri, ks=c.ks, c=c.c, ts=c.ts,
-            q=tuple(c.q), r=tuple(c.r), p0=tuple(c.p0), p_max=c.p_max, x_max=c.x_max,
-            meas=meas, disc=disc, use_input=bool(c.use_input),
-        )
-
-    def to_c(self, c=None):
-        """Fill (or allocate) a ``vh_dkf_config_t``."""
-        if self.meas not in _MEAS:
-            raise ConfigError(f"measurement set {self.meas!r}: expected one of {sorted(_MEAS)}")
-        if self.disc not in _DISC:
-            raise ConfigError(f"discretisation {self.disc!r}: expected one of {sorted(_DISC)}")
-        c = c if c is not None else ffi.new("vh_dkf_config_t *")
-        for name in ("jo", "jv", "rd", "ri", "ks", "c", "ts", "p_max", "x_max"):
-            setattr(c, name, float(getattr(self, name)))
-        for name, n in (("q", 4), ("r", 3), ("p0", 4)):
-            values = tuple(getattr(self, name))
-            if len(values) != n:
-                raise ConfigError(f"{name}: expected {n} values, got {len(values)}")
-            setattr(c, name, [float(v) for v in values])
-        c.meas, c.disc, c.use_input = _MEAS[self.meas], _DISC[self.disc], int(self.use_input)
-        return c
 
 
 @dataclass

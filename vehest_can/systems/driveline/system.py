@@ -16,6 +16,7 @@ class Driveline:
     name = "driveline"
     kinds: tuple[str, ...] = ()   # driveline scenario files carry no `kind`
     realtime = True
+    nodes = ("DLS", "SIM", "CIS")  # the car (vh_dlsim_t): sensor node, plant; CIS when it carries inspection devices
     faults = FAULTS
 
     def scenario_dir(self) -> Path:

@@ -19,6 +19,7 @@ class TireForce:
     name = "tireforce"
     kinds = KINDS
     realtime = False
+    nodes = ("CHS",)  # the 14-DOF plant and its chassis sensor node
     faults = None
 
     def scenario_dir(self) -> Path:
