@@ -6,6 +6,7 @@ from pathlib import Path
 
 from .. import Setup
 from . import report
+from .faults import FAULTS
 from .scenario import KINDS, RollCar, load_roll_scenario, roll_scenario_dir
 
 
@@ -13,7 +14,7 @@ class Roll:
     name = "roll"
     kinds = KINDS
     realtime = True
-    faults = None
+    faults = FAULTS
     campaign = None
 
     def scenario_dir(self) -> Path:
