@@ -57,6 +57,15 @@ def test_ukf_on_the_bus_follows_the_plant(sessions):
             assert m["ukf_roll_rate_rms_pct_of_peak"] <= 10.0, name
 
 
+def test_ecu_float32_equals_the_array_api_and_is_near_double(sessions):
+    """The samples decoded from the bus through the array API (vehest_can._roll, float32): the ECU's
+    published estimates bit for bit at the DBC's resolution; the double build on the same samples."""
+    for name in ("roll_paper_72kph_active", "roll_paper_36kph_passive"):
+        r = report.rerun(sessions[name])
+        assert r["ecu_equals_array_api"] and r["steps"] == 1200, name
+        assert r["f32_vs_f64_roll_deg"] < 1e-3 and r["f32_vs_f64_roll_rate_deg_s"] < 0.02, name
+
+
 def test_active_halves_the_peak_roll_at_72_kmh_within_the_limits(sessions):
     act, pas = (report.evaluate(sessions[f"roll_paper_72kph_{m}"], ((4800.0, 16000.0),) * 2)
                 for m in ("active", "passive"))

@@ -101,6 +101,10 @@ def table(m: dict) -> str:
              f"{m['ukf_roll_rate_rms_deg_s']:.4f} deg/s; health OK {m['ukf_health_ok_pct']:.1f} %, resets {m['ukf_resets']}",
              f"  moments: peak front/rear {m['moment_peak_nm'][0]:.0f} / {m['moment_peak_nm'][1]:.0f} N m, total "
              f"variation {m['moment_total_variation_nm']:.0f} N m, energy above 50 Hz {m['moment_energy_above_50hz_pct']:.3f} %"]
+    if "f32_vs_f64_roll_deg" in m:
+        lines.append(f"  float32 (ECU) vs double on the same bus samples: max |d roll| {m['f32_vs_f64_roll_deg']:.1e} deg, "
+                     f"max |d roll rate| {m['f32_vs_f64_roll_rate_deg_s']:.1e} deg/s; ECU == array API: "
+                     f"{'yes' if m['ecu_equals_array_api'] else 'NO'}")
     if "vs_passive" in m:
         v = m["vs_passive"]
         lines.append(f"  vs passive: peak roll {v['passive_peak_roll_deg']:.3f} -> {m['peak_roll_deg']:.3f} deg "
@@ -160,3 +164,55 @@ def plots(session, out_dir: Path, title: str, passive=None) -> list[Path]:
         fig.savefig(files[-1], dpi=100)
         plt.close(fig)
     return files
+
+
+def _by_tick(session, name: str, n: int, scaling: bool = True) -> dict[str, np.ndarray]:
+    from ...bus.frames import message
+
+    msg = message(name)
+    out = {s.name: np.full(n, np.nan) for s in msg.signals}
+    sel = session.frames["id"] == msg.frame_id
+    for f, k in zip(session.frames[sel], session.frame_tick[sel]):
+        for key, v in msg.decode(bytes(f["data"][: f["len"]]), decode_choices=False, scaling=scaling).items():
+            out[key][k] = v
+    return out
+
+
+def rerun(session) -> dict[str, Any]:
+    """The ECU's float32 UKF once more, through the array API (``vehest_can._roll``) on the samples
+    decoded from the bus, and the double build on the same: whether the published estimates equal the
+    array API's at the DBC's resolution (bit for bit), and how far float32 is from double. Assumes a
+    clean run (every measurement valid at every step), as the shipped cases are."""
+    from ...native import ffi as nffi
+    from ...native import lib as nlib
+    from . import native as rn
+
+    cfg = nffi.new("vh_roll_app_config_t *")
+    nlib.vh_roll_app_config_default(cfg)
+    over = {name: (list(getattr(cfg.ukf, name)) if f.type.kind == "array" else getattr(cfg.ukf, name))
+            for name, f in nffi.typeof(cfg.ukf).fields}
+    prm = rn.make_params(**over)
+    n = len(session.truth)
+    sens = _by_tick(session, "ROLL_Sensors", n)
+    yaw = _by_tick(session, "ROLL_YawRate", n)
+    act = _by_tick(session, "ROLL_ActuatorStatus", n)
+    chs = _by_tick(session, "CHS_Sensors", n)
+    steps = np.flatnonzero(~np.isnan(sens["RollLatAccel"]))
+    names = ["RollLatAccel"] + [f"{g}{w}" for g in ("WheelVertAccel", "TyreDefl", "SuspDefl") for w in ("FL", "FR", "RL", "RR")]
+    z = np.column_stack([sens[s][steps] for s in names] + [yaw["RollYawRate"][steps]])
+    w = [chs[f"WheelSpeed{x}"][steps] for x in ("FL", "FR", "RL", "RR")]
+    vx = float(cfg.rw) * (((w[0] + w[1]) + w[2]) + w[3]) / 4.0   # as the ECU sums them
+    u = np.column_stack([chs["SteerAngle"][steps], vx, act["AppliedMomentF"][steps], act["AppliedMomentR"][steps]])
+    x32, _, _ = rn.Ukf(prm, "f32").run(u, z)
+    x64, _, _ = rn.Ukf(prm, "f64").run(u, z)
+    raw = _by_tick(session, "VEHEST_RollEst", n, scaling=False)
+    est_ticks = np.flatnonzero(~np.isnan(raw["RollEstAngle"]))
+    row = np.searchsorted(steps, est_ticks)
+    from ...bus.frames import message
+
+    sig = message("VEHEST_RollEst").get_signal_by_name
+    same = all(np.array_equal(np.floor(x32[row, i].astype(np.float64) / sig(s).scale + 0.5), raw[s][est_ticks])
+               for i, s in ((4, "RollEstAngle"), (5, "RollEstRate")))
+    return {"ecu_equals_array_api": bool(same), "steps": int(len(steps)),
+            "f32_vs_f64_roll_deg": float(np.degrees(np.abs(x32[:, 4] - x64[:, 4]).max())),
+            "f32_vs_f64_roll_rate_deg_s": float(np.degrees(np.abs(x32[:, 5] - x64[:, 5]).max()))}

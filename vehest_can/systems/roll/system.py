@@ -43,7 +43,9 @@ class Roll:
         limits = tuple((float(arc[i].m_max), float(arc[i].rate_max)) for i in range(2))
         m = {"scenario": sc.name, "description": sc.description, "mode": session.mode,
              "control": "active" if sc.active else "passive", "speed_kmh": sc.plant.initial_speed_kmh,
-             **report.evaluate(session, limits)}
+             **report.evaluate(session, limits), **report.rerun(session)}
+        print(f"  ECU's float32 UKF on the bus == array API on the decoded samples: "
+              f"{'identical' if m['ecu_equals_array_api'] else 'DIFFERENT'} ({m['steps']} steps)")
         passive = None
         if sc.active:
             twin = sc.with_mode("passive")
