@@ -249,7 +249,8 @@ def table(res: dict, lockstep: dict[str, float] | None = None) -> str:
     rl = res.get("roll") or {}
     if rl:
         fpu = rl.get("filterpy_ns")
-        for key, name in (("c_f32_ns", "roll UKF step, C float32 (array API)"), ("c_f64_ns", "roll UKF step, C double (array API)")):
+        for key, name in (("c_f32_ns", "roll UKF step, C float32 (array API)"),
+                          ("c_f64_ns", "roll UKF step, C double (array API)")):
             vs = f"   {fpu / rl[key]:.0f}x filterpy UKF (target >= 100x)" if fpu else ""
             lines.append(f"{name:<44}{rl[key] / 1000:>9.2f} µs/step{vs}")
         if fpu:
