@@ -143,6 +143,10 @@ enum {
 
 void vh_roll_params_default(vh_roll_params_t *prm);
 void vh_roll_smc_params_default(vh_roll_smc_params_t *c, const vh_roll_params_t *prm);
+/* 0, or -1 for missing pointers or non-finite / non-physical parameters: what the inits refuse,
+ * checked without an instance (an ECU checks its configuration before it touches its state). */
+int vh_roll_params_check(const vh_roll_params_t *prm);
+int vh_roll_smc_params_check(const vh_roll_smc_params_t *prm);
 
 /* The two precisions, declared from one template. */
 #define VH_ROLL_REAL float

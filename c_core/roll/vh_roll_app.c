@@ -32,10 +32,9 @@ void vh_roll_app_config_default(vh_roll_app_config_t *cfg)
 
 int vh_roll_app_check(const vh_roll_app_config_t *cfg)
 {
-    vh_roll_ukf_f32 u;
-    vh_roll_smc_f32 s;
+    /* the parameter checks of the inits, without an instance on the stack (7 KB for the UKF) */
     if (fabs(cfg->ukf.dt - STEP_S) > 1e-12 || fabs(cfg->smc.dt - STEP_S) > 1e-12 || !(cfg->rw > 0.0) ||
-        !isfinite(cfg->rw) || vh_roll_ukf_init_f32(&u, &cfg->ukf) != 0 || vh_roll_smc_init_f32(&s, &cfg->smc) != 0) {
+        !isfinite(cfg->rw) || vh_roll_params_check(&cfg->ukf) != 0 || vh_roll_smc_params_check(&cfg->smc) != 0) {
         return VH_EINVAL;
     }
     return VH_OK;
