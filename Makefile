@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
-SOURCES := $(shell find c_core firmware_sim dbc -type f \( -name '*.c' -o -name '*.h' -o -name '*.dbc' -o -name '*.py' \)) pyproject.toml setup.py
+SOURCES := $(shell find c_core firmware_sim dbc -type f \( -name '*.c' -o -name '*.h' -o -name '*.inc' -o -name '*.dbc' -o -name '*.py' \)) pyproject.toml setup.py
 
 .PHONY: demo test bench install clean firmware-size
 

@@ -7,6 +7,7 @@ from setuptools.command.build_py import build_py
 
 DATA = {"dbc": ("dbc", "*.dbc"), "scenarios": ("firmware_sim/scenarios", "*.toml"),
         "scenarios/chassis": ("firmware_sim/scenarios/chassis", "*.toml"),
+        "scenarios/roll": ("firmware_sim/scenarios/roll", "*.toml"),
         "campaigns": ("firmware_sim/campaigns", "*.toml"),
         "examples/hil": ("examples/hil", "*.toml"), "examples/systemd": ("examples/systemd", "*")}
 

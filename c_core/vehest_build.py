@@ -30,11 +30,13 @@ STRICT_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
 # -O3: lets the compiler vectorise the 4x4 products of the filter step (~25% faster than -O2).
 OPT_FLAGS = ["-O3"]
 #: the systems of the firmware, one folder each (sources, headers, the system's ECU application)
-SYSTEMS = ("driveline", "tireforce", "camber")
+SYSTEMS = ("driveline", "tireforce", "camber", "roll")
 #: every folder of the firmware: what it shares, the systems, the XCP slave, the scheduler
 FIRMWARE_DIRS = [HERE / "common", *(HERE / s for s in SYSTEMS), HERE / "xcp", HERE / "ecu"]
-#: firmware built as cffi modules of their own (vehest_can._roll, vehest_can._secoc; vehest_can._xcp is the slave alone)
-STANDALONE_DIRS = [HERE / "roll", HERE / "secoc"]
+#: firmware built as a cffi module of its own (vehest_can._secoc), not yet in the ECU's tick; the XCP
+#: slave alone (vehest_can._xcp) and the roll filter without its ECU application (vehest_can._roll)
+#: also build alone (xcp_build.py, roll_build.py)
+STANDALONE_DIRS = [HERE / "secoc"]
 SIM_SRC_DIR = ROOT / "firmware_sim" / "src"
 SIM_INCLUDE_DIR = ROOT / "firmware_sim" / "include"
 #: built into the extension but never flashed (host-side calibration helpers)
@@ -144,10 +146,32 @@ def public_headers(gen_dir: Path = GEN_DIR) -> list[Path]:
     return order
 
 
+def _expanded_cdef(path: Path) -> str:
+    """A header that includes a template (``*.inc``, e.g. vh_roll.h: one declaration per precision):
+    its integer macros, then the header through the C preprocessor with ``<NAME>_CDEF`` set (the
+    header leaves out its system includes then)."""
+    import os
+    import shlex
+    import subprocess
+
+    from setuptools._distutils.sysconfig import get_config_var
+
+    cc = shlex.split(os.environ.get("CC") or get_config_var("CC") or "cc")
+    out = subprocess.run(cc + ["-E", "-P", f"-D{path.stem.upper()}_CDEF", "-I", str(path.parent), "-x", "c", str(path)],
+                         check=True, capture_output=True, text=True).stdout
+    defines = [ln for ln in header_cdef(path.read_text()).splitlines() if ln.startswith(("#define", "static const"))]
+    return "\n".join(defines) + "\n" + out
+
+
+def _cdef_of(path: Path) -> str:
+    text = path.read_text()
+    return _expanded_cdef(path) if re.search(r'#include\s+"[^"]+\.inc"', text) else header_cdef(text)
+
+
 def cdef_text(gen_dir: Path = GEN_DIR) -> str:
     dbcgen.generate_all(gen_dir)
     parts = [p.read_text() for p in sorted(gen_dir.glob("*.cdef"))]  # the generated codec
-    parts += [f"/* {p.name} */\n" + header_cdef(p.read_text()) for p in public_headers(gen_dir)]
+    parts += [f"/* {p.name} */\n" + _cdef_of(p) for p in public_headers(gen_dir)]
     return "\n".join(parts)
 
 

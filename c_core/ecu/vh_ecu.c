@@ -11,7 +11,7 @@
 /* Ticks per cycle of a message; the meta headers refuse a cycle that is not whole ticks. */
 #define TICKS(cycle_us) ((cycle_us) / VH_TICK_US)
 /* room in a tick's TX for the XCP frames (vh_ecu_xcp_tx) beside the systems' six */
-typedef char vh_ecu_tx_room_check[(VH_ECU_MAX_TX >= 6 + VH_ECU_XCP_MAX_TX) ? 1 : -1];
+typedef char vh_ecu_tx_room_check[(VH_ECU_MAX_TX >= 8 + VH_ECU_XCP_MAX_TX) ? 1 : -1];
 
 int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_params_t *prm)
 {
@@ -21,7 +21,7 @@ int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_
     vh_skfq_t qprobe;
     if (vh_drv_app_check(cfg->gear_ratio, cfg->we_min) != VH_OK || !(cfg->camber_still_ww >= 0.0) ||
         !isfinite(cfg->camber_still_ww) || vh_camber_init(&cprobe, &cfg->camber, NULL) != VH_OK ||
-        vh_skfq_init(&qprobe, prm) != VH_OK) {
+        vh_skfq_init(&qprobe, prm) != VH_OK || vh_roll_app_check(&cfg->roll) != VH_OK) {
         return VH_EINVAL;
     }
     for (i = 0; i < VH_ECU_N_DKF; ++i) {
@@ -45,6 +45,7 @@ void vh_ecu_reset(vh_ecu_t *ecu)
     vh_drv_app_reset(&ecu->drv, ecu->cfg.dkf, ecu->cfg.gear_ratio);
     vh_cmb_app_reset(&ecu->cis, &ecu->cfg.camber);
     vh_tf_app_reset(&ecu->chs);
+    vh_roll_app_reset(&ecu->roll, &ecu->cfg.roll);
     memset(&ecu->cnt, 0, sizeof ecu->cnt);
     ecu->tick = 0u;
 }
@@ -57,7 +58,12 @@ int vh_ecu_set_camber_calibration(vh_ecu_t *ecu, unsigned wheel, const vh_camber
 /* ---- RX: dispatch by frame ID ---- */
 
 static void rx_dls(vh_ecu_t *ecu, const vh_frame_t *f) { vh_drv_app_rx(&ecu->drv, ecu->cfg.gear_ratio, &ecu->cnt, f); }
-static void rx_chs(vh_ecu_t *ecu, const vh_frame_t *f) { vh_tf_app_rx(&ecu->chs, f); }
+static void rx_chs(vh_ecu_t *ecu, const vh_frame_t *f)
+{
+    vh_tf_app_rx(&ecu->chs, f);
+    vh_roll_app_rx(&ecu->roll, &ecu->cfg.roll, f); /* steer and wheel speeds: the roll UKF's inputs */
+}
+static void rx_roll(vh_ecu_t *ecu, const vh_frame_t *f) { vh_roll_app_rx(&ecu->roll, &ecu->cfg.roll, f); }
 static void rx_cis(vh_ecu_t *ecu, const vh_frame_t *f)
 {
     if ((f->flags & VH_FRAME_EXT) == 0u) { /* an extended-ID twin is not ours: ignored, not counted */
@@ -73,6 +79,10 @@ static const struct {
     {VH_PT_DLS_SENSORS_FRAME_ID, rx_dls},
     {VH_CH_CHS_SENSORS_FRAME_ID, rx_chs},
     {VH_PT_CIS_ACCEL_FRAME_ID, rx_cis},
+    {VH_CH_ROLL_SENSORS_FRAME_ID, rx_roll},
+    {VH_CH_ROLL_YAW_RATE_FRAME_ID, rx_roll},
+    {VH_CH_ROLL_ACTUATOR_STATUS_FRAME_ID, rx_roll},
+    {VH_CH_ROLL_MODE_CMD_FRAME_ID, rx_roll},
     /* known frames that are not the ECU's input: our own TX and the lockstep sync */
     {VH_PT_VEHEST_DRIVELINE_EST_FRAME_ID, rx_none},
     {VH_PT_VEHEST_STATUS_FRAME_ID, rx_none},
@@ -81,6 +91,8 @@ static const struct {
     {VH_PT_VEHEST_CAMBER_FRAME_ID, rx_none},
     {VH_CH_VEHEST_TIRE_FORCE_EST_FRAME_ID, rx_none},
     {VH_CH_VEHEST_CHASSIS_STATUS_FRAME_ID, rx_none},
+    {VH_CH_VEHEST_ROLL_CMD_FRAME_ID, rx_none},
+    {VH_CH_VEHEST_ROLL_EST_FRAME_ID, rx_none},
 };
 
 void vh_ecu_rx(vh_ecu_t *ecu, const vh_frame_t *frame)
@@ -119,6 +131,10 @@ static int drv_status(vh_ecu_t *ecu, uint8_t *d)
 static int cmb_tx(vh_ecu_t *ecu, uint8_t *d) { return vh_cmb_app_fill(&ecu->cis, d); }
 static int tf_est(vh_ecu_t *ecu, uint8_t *d) { return vh_tf_app_fill_est(&ecu->chs, ecu->cfg.skf.s, d); }
 static int tf_status(vh_ecu_t *ecu, uint8_t *d) { return vh_tf_app_fill_status(&ecu->chs, d); }
+static void roll_tick(vh_ecu_t *ecu) { vh_roll_app_tick(&ecu->roll, ecu->cfg.rx_burst_frames); }
+static void roll_step(vh_ecu_t *ecu) { vh_roll_app_step(&ecu->roll); }
+static int roll_cmd(vh_ecu_t *ecu, uint8_t *d) { return vh_roll_app_fill_cmd(&ecu->roll, d); }
+static int roll_est(vh_ecu_t *ecu, uint8_t *d) { return vh_roll_app_fill_est(&ecu->roll, d); }
 /* XCP: calibration reaches the systems at the tick boundary, before any of them steps; DAQ
  * samples after all of them, on the event channels 0 (tick), 1 (1 ms), 2 (10 ms) */
 static void xcp_cal(vh_ecu_t *ecu) { vh_ecu_xcp_tick(ecu); }
@@ -145,6 +161,12 @@ static const struct {
     {tf_step, NULL, 0u, 0u, 0u, 1u},
     {TX(tf_est, VH_CH_VEHEST_TIRE_FORCE_EST)},
     {TX(tf_status, VH_CH_VEHEST_CHASSIS_STATUS)},
+    /* roll: RX ages every tick; UKF + SMC every ROLL_Sensors cycle (5 ms: its 30-45 us stay out of
+     * 9 ticks in 10), the command right after */
+    {roll_tick, NULL, 0u, 0u, 0u, 1u},
+    {roll_step, NULL, 0u, 0u, 0u, TICKS(VH_CH_ROLL_SENSORS_CYCLE_TIME_US)},
+    {TX(roll_cmd, VH_CH_VEHEST_ROLL_CMD)},
+    {TX(roll_est, VH_CH_VEHEST_ROLL_EST)},
     {xcp_ev_tick, NULL, 0u, 0u, 0u, 1u},
     {xcp_ev_1ms, NULL, 0u, 0u, 0u, TICKS(1000u)},
     {xcp_ev_10ms, NULL, 0u, 0u, 0u, TICKS(10000u)},

@@ -8,7 +8,8 @@
  * counted); vh_ecu_step runs a fixed table of runnables, each at its rate in ticks (the DBC
  * cycle time of the frame it sends). The applications own their RX checks, steps and TX:
  * driveline (vh_driveline_app.h, seed 001) and camber inspection (vh_camber_app.h, seed 002) on
- * the powertrain bus, tyre force (vh_tireforce_app.h, seed 000) on the chassis bus. Frame IDs
+ * the powertrain bus, tyre force (vh_tireforce_app.h, seed 000) and roll (vh_roll_app.h, seed 003)
+ * on the chassis bus. Frame IDs
  * are unique across both DBCs, so frames are told apart by ID.
  */
 #ifndef VH_ECU_H
@@ -19,12 +20,13 @@
 #include "vh_dkf.h"
 #include "vh_driveline_app.h"
 #include "vh_ecu_xcp.h"
+#include "vh_roll_app.h"
 #include "vh_rx.h"
 #include "vh_skf.h"
 #include "vh_tireforce_app.h"
 #include "vh_types.h"
 
-#define VH_ECU_MAX_TX 7 /* the systems' 6 + VH_ECU_XCP_MAX_TX */
+#define VH_ECU_MAX_TX 9 /* the systems' 8 + VH_ECU_XCP_MAX_TX */
 
 typedef struct {
     vh_dkf_config_t dkf[VH_ECU_N_DKF]; /* ri is taken from gear_ratio[gear] at run time */
@@ -36,6 +38,7 @@ typedef struct {
                                           for transports that deliver in batches (UML's 100 Hz timer) */
     vh_skf_config_t skf;               /* tyre-force SKFMEC (seed 000), scaled = mec = 1; the ECU runs its
                                           fixed-point translation (vh_skfq_params_from_config) */
+    vh_roll_app_config_t roll;         /* roll UKF + sliding-mode control (seed 003), float32 */
 } vh_ecu_config_t;
 
 typedef struct {
@@ -44,6 +47,7 @@ typedef struct {
     vh_drv_app_t drv;
     vh_ecu_cis_t cis;
     vh_ecu_chs_t chs;
+    vh_roll_app_t roll;         /* roll (seed 003): its own counters */
     vh_ecu_counters_t cnt;      /* the powertrain bus's counters (VEHEST_Status); chassis: chs.cnt */
     uint32_t tick;
     vh_ecu_xcp_t xcp;           /* the XCP slave (vh_ecu_xcp.h); off until vh_ecu_xcp_enable */

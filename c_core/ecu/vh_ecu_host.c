@@ -23,6 +23,7 @@ void vh_ecu_config_default(vh_ecu_config_t *cfg)
     cfg->camber_still_ww = 0.5; /* 0.15 m/s at the wheel: parked, not rolling */
     cfg->rx_burst_frames = VH_ECU_BURST_FRAMES;
     vh_skf_config_default(&cfg->skf, VH_SKF_SKFMEC);
+    vh_roll_app_config_default(&cfg->roll);
 }
 
 int vh_ecu_init(vh_ecu_t *ecu, const vh_ecu_config_t *cfg)

@@ -3,7 +3,7 @@
 
 The cdef is the header itself: ``vh_roll.h`` run through the C preprocessor with
 ``VH_ROLL_CDEF`` set (no system headers; the float32 and double declarations expanded from
-``vh_roll_decl.h``), never a Python copy of the declarations.
+``vh_roll_decl.inc``), never a Python copy of the declarations.
 
 The sources are compiled here with the strict flags (C99, -Wall -Wextra -Werror -pedantic,
 and -Wdouble-promotion so the float32 build stays single precision), apart from cffi's glue.
@@ -21,7 +21,7 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent.parent
 STRICT_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-Wdouble-promotion"]
 OPT_FLAGS = ["-O2"]
-SOURCES = ["vh_roll_f32.c", "vh_roll_f64.c", "vh_roll_params.c"]
+SOURCES = ["vh_roll_f32.c", "vh_roll_f64_host.c", "vh_roll_params.c"]
 
 
 def _cc() -> list[str]:

@@ -2,7 +2,7 @@
  * (eq. 13-26) on a 9-DOF vehicle model (eq. 1-10), and the sliding-mode active roll controller
  * (eq. 27-35). docs/roll.md has the model, its derivation and the choices.
  *
- * One source (vh_roll_impl.c) compiled twice: vh_roll_*_f32 in single precision (what a
+ * One source (vh_roll_impl.inc) compiled twice: vh_roll_*_f32 in single precision (what a
  * Cortex-M4F/M33 FPU does in hardware: the ECU's build) and vh_roll_*_f64 in double (the
  * reference build). Caller-owned instances, no heap, no globals holding state; flat row-major
  * arrays. This folder includes nothing from the rest of c_core.
@@ -143,16 +143,20 @@ enum {
 
 void vh_roll_params_default(vh_roll_params_t *prm);
 void vh_roll_smc_params_default(vh_roll_smc_params_t *c, const vh_roll_params_t *prm);
+/* 0, or -1 for missing pointers or non-finite / non-physical parameters: what the inits refuse,
+ * checked without an instance (an ECU checks its configuration before it touches its state). */
+int vh_roll_params_check(const vh_roll_params_t *prm);
+int vh_roll_smc_params_check(const vh_roll_smc_params_t *prm);
 
 /* The two precisions, declared from one template. */
 #define VH_ROLL_REAL float
 #define VH_ROLL_NAME(n) n##_f32
-#include "vh_roll_decl.h"
+#include "vh_roll_decl.inc"
 #undef VH_ROLL_REAL
 #undef VH_ROLL_NAME
 #define VH_ROLL_REAL double
 #define VH_ROLL_NAME(n) n##_f64
-#include "vh_roll_decl.h"
+#include "vh_roll_decl.inc"
 #undef VH_ROLL_REAL
 #undef VH_ROLL_NAME
 

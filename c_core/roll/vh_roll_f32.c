@@ -1,5 +1,5 @@
 /* vh_roll_f32.c - the roll UKF and SMC in single precision (the ECU's build: a Cortex-M4F/M33
- * FPU does float32 in hardware). The code is vh_roll_impl.c. */
+ * FPU does float32 in hardware). The code is vh_roll_impl.inc. */
 #include <math.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -13,4 +13,4 @@
 #define VH_COS cosf
 #define VH_ATAN atanf
 #define VH_FABS fabsf
-#include "vh_roll_impl.c"
+#include "vh_roll_impl.inc"

@@ -110,3 +110,61 @@ void vh_roll_smc_params_default(vh_roll_smc_params_t *c, const vh_roll_params_t 
     c->kphi = prm->kphi_f + prm->kphi_r;
     c->cphi = prm->cphi_f + prm->cphi_r;
 }
+
+int vh_roll_params_check(const vh_roll_params_t *prm)
+{
+    double vals[26];
+    int i, ok = 1;
+    if (prm == NULL) {
+        return -1;
+    }
+    vals[0] = prm->ms; vals[1] = prm->ix; vals[2] = prm->iy; vals[3] = prm->iz; vals[4] = prm->lf;
+    vals[5] = prm->lr; vals[6] = prm->tf; vals[7] = prm->tr; vals[8] = prm->h; vals[9] = prm->kphi_f;
+    vals[10] = prm->kphi_r; vals[11] = prm->cphi_f; vals[12] = prm->cphi_r; vals[13] = prm->m_uf;
+    vals[14] = prm->m_ur; vals[15] = prm->k_f; vals[16] = prm->k_r; vals[17] = prm->kt;
+    vals[18] = prm->calpha_f; vals[19] = prm->calpha_r; vals[20] = prm->mf_c; vals[21] = prm->mu;
+    vals[22] = prm->mu_load; vals[23] = prm->v_low; vals[24] = prm->dt; vals[25] = prm->ct + 1.0;
+    for (i = 0; i < 26; ++i) {
+        ok = ok && vals[i] > 0.0 && vals[i] < 1e12;
+    }
+    for (i = 0; i < VH_ROLL_NX; ++i) {
+        ok = ok && prm->q[i] >= 0.0 && prm->q[i] < 1e12 && prm->p0[i] > 0.0 && prm->p0[i] < 1e12;
+    }
+    for (i = 0; i < VH_ROLL_NZ; ++i) {
+        ok = ok && prm->r[i] > 0.0 && prm->r[i] < 1e12;
+    }
+    ok = ok && prm->kappa >= 0.0 && prm->kappa < 1e6 && prm->hf < prm->h && prm->hr < prm->h &&
+         prm->hf >= 0.0 && prm->hr >= 0.0 && prm->cphi_f >= 0.0 && prm->cphi_r >= 0.0 &&
+         prm->reg_eps > 0.0 && prm->reg_eps < 1.0 && prm->nis_max >= 0.0 && prm->phi_max > 0.0;
+    if (ok) {
+        /* suspension roll stiffness with the tyres in series removed, the bar is what the springs
+         * leave (as the plant, docs/chassis_plant.md): both must be physical */
+        const double ksf = 1.0 / (1.0 / prm->kphi_f - 1.0 / (2.0 * prm->kt * prm->tf * prm->tf));
+        const double ksr = 1.0 / (1.0 / prm->kphi_r - 1.0 / (2.0 * prm->kt * prm->tr * prm->tr));
+        ok = ksf > 0.0 && ksr > 0.0 && ksf - 2.0 * prm->k_f * prm->tf * prm->tf >= 0.0 &&
+             ksr - 2.0 * prm->k_r * prm->tr * prm->tr >= 0.0;
+    }
+    return ok ? 0 : -1;
+}
+
+int vh_roll_smc_params_check(const vh_roll_smc_params_t *prm)
+{
+    double v[16];
+    int i, ok = 1;
+    if (prm == NULL) {
+        return -1;
+    }
+    v[0] = prm->lambda; v[1] = prm->k; v[2] = prm->p; v[3] = prm->ref_tau; v[4] = prm->m_max_f;
+    v[5] = prm->m_max_r; v[6] = prm->rate_max_f; v[7] = prm->rate_max_r; v[8] = prm->fade_time;
+    v[9] = prm->dt; v[10] = prm->i_roll; v[11] = prm->ms_e; v[12] = prm->kphi;
+    v[13] = prm->recover_time + 1.0; v[14] = prm->cphi + 1.0; v[15] = prm->ay_tau;
+    for (i = 0; i < 16; ++i) {
+        ok = ok && v[i] > 0.0 && v[i] < 1e12;
+    }
+    ok = ok && prm->ref_frac >= 0.0 && prm->ref_frac <= 1.0 && prm->front_share >= 0.0 &&
+         prm->front_share <= 1.0 && prm->recover_time >= 0.0 && prm->not_ok_debounce >= 0.0 &&
+         prm->not_ok_debounce < 1e3 && prm->cphi >= 0.0 &&
+         prm->fade_time * prm->rate_max_f >= prm->m_max_f * (1.0 - 1e-9) &&
+         prm->fade_time * prm->rate_max_r >= prm->m_max_r * (1.0 - 1e-9); /* the rate limit can follow the fade */
+    return ok ? 0 : -1;
+}

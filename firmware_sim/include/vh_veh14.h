@@ -213,5 +213,8 @@ int vh_v14_arc_config(vh_v14_t *p, const vh_v14_arc_params_t *front, const vh_v1
  * limited command by at most rate_max dt towards it, clamps it to +-m_max, and the applied moment
  * follows with the lag (exact first-order discretisation over the step) and acts over that step. */
 void vh_v14_set_roll_moment(vh_v14_t *p, double m_front, double m_rear);
+/* Fail safe: both commands and limited commands to zero at once, past the rate limit (the
+ * stabiliser's motor is shorted, the bar goes passive); the applied moments decay with the lag. */
+void vh_v14_roll_fail_safe(vh_v14_t *p);
 
 #endif /* VH_VEH14_H */

@@ -493,6 +493,15 @@ void vh_v14_set_roll_moment(vh_v14_t *p, double m_front, double m_rear)
     p->arc.cmd[1] = isfinite(m_rear) ? m_rear : 0.0;
 }
 
+void vh_v14_roll_fail_safe(vh_v14_t *p)
+{
+    int j;
+    for (j = 0; j < 2; ++j) {
+        p->arc.cmd[j] = 0.0;
+        p->arc.lim[j] = 0.0;
+    }
+}
+
 /* One step of the actuators: rate limit, torque limit, then the lag; the result acts over the step. */
 static void arc_advance(vh_v14_arc_t *a)
 {

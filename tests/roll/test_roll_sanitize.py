@@ -15,7 +15,7 @@ SAN = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-f
 @pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
 def test_roll_under_asan_ubsan(tmp_path):
     exe = tmp_path / "sanitize_roll"
-    srcs = [ROLL / "vh_roll_f32.c", ROLL / "vh_roll_f64.c", ROLL / "vh_roll_params.c",
+    srcs = [ROLL / "vh_roll_f32.c", ROLL / "vh_roll_f64_host.c", ROLL / "vh_roll_params.c",
             Path(__file__).parent / "c" / "sanitize_roll.c"]
     build = subprocess.run(["cc", *STRICT, *SAN, f"-I{ROLL}", *map(str, srcs), "-lm", "-o", str(exe)],
                            capture_output=True, text=True)

@@ -16,7 +16,7 @@ PKG = Path(systems.__file__).parent.parent
 
 
 def test_the_shipped_systems_are_registered():
-    assert [s.name for s in registered()] == ["camber", "driveline", "tireforce"]
+    assert [s.name for s in registered()] == ["camber", "driveline", "roll", "tireforce"]
     for s in registered():
         assert (PKG / "systems" / s.name / "system.py").is_file()
 

@@ -746,8 +746,8 @@ def test_node_rejects_bad_config_and_small_buffers():
 # ---- chassis DBC -------------------------------------------------------------------------------
 
 def test_ch_dbc_loads_strict_with_e2e_and_cycle_attributes(ch_db):
-    assert {m.name for m in ch_db.messages} == {"CHS_Sensors", "VEHEST_TireForceEst", "VEHEST_ChassisStatus"}
-    assert {nd.name for nd in ch_db.nodes} == {"CHS", "VEHEST"}
+    assert {m.name for m in ch_db.messages} >= {"CHS_Sensors", "VEHEST_TireForceEst", "VEHEST_ChassisStatus"}
+    assert {nd.name for nd in ch_db.nodes} >= {"CHS", "VEHEST"}  # and the roll system's (docs/roll.md)
     pt = cantools.database.load_file(str(ROOT / "dbc" / "vehest_pt.dbc"))
     pt_ids = {m.frame_id for m in pt.messages}
     pt_data_ids = {m.dbc.attributes["E2EDataID"].value for m in pt.messages if "E2EDataID" in m.dbc.attributes}
@@ -792,7 +792,7 @@ def test_ch_bus_load_within_budget(capsys):
     load = bus_load(ROOT / "dbc" / "vehest_ch.dbc")
     assert (load.bitrate, load.data_bitrate) == (500_000, 4_000_000)
     assert load.worst_pct <= 60.0
-    assert load.worst_pct == pytest.approx(45.87, abs=0.01)
+    assert load.worst_pct == pytest.approx(55.89, abs=0.01)  # 45.87 % + the roll frames at 5 ms (docs/roll.md)
     assert cli_main(["busload", str(ROOT / "dbc" / "vehest_ch.dbc")]) == 0
     meta = (ROOT / "build" / "generated" / "vh_ch_meta.h").read_text()
     assert "VH_CH_CHS_SENSORS_CYCLE_TIME_US (500u)" in meta

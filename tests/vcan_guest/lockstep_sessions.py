@@ -29,8 +29,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import guestlib  # noqa: E402
 
-from vehest_can.sim.scenario import load_scenario  # noqa: E402
-from vehest_can.sim.session import SimMaster, drive_from_scenario  # noqa: E402
+from vehest_can.sim.session import SimMaster  # noqa: E402
+from vehest_can.systems import load_any_scenario  # noqa: E402
 
 
 def main() -> None:
@@ -55,8 +55,8 @@ def main() -> None:
         result["handshake_resets"] = guestlib.wait_for_lockstep_daemon(bus)
         result["daemon_start_s"] = time.monotonic() - t0
         for name in args.scenarios:
-            sc = load_scenario(name)
-            drive = drive_from_scenario(sc, args.duration)
+            system, sc = load_any_scenario(name)   # any registered system's scenario
+            drive = system.car(sc, args.duration)
             entry = result["sessions"][sc.name] = {"ticks": drive.n}
             dump = None
             if args.capture:

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..bus.bus import open_bus
 from ..bus.busload import bus_load
-from ..bus.frames import TICK_S, database, frame_id, to_message
+from ..bus.frames import TICK_S, database, message, to_message
 from ..errors import ConfigError
 from ..paths import dbc_path
 from ..service.daemon import EcuDaemon
@@ -84,9 +84,12 @@ def run_with_faults(drive, config: FaultConfig | None = None, *, bitrate: int = 
     for spec in config.floods:
         wire.add_flood(spec, "FLOOD")
     car, ecu = (Car(drive) if isinstance(drive, Drive) else drive), Ecu()
+    car.reset()
+    closed = hasattr(car, "rx")   # the car takes the ECU's frames (actuators): from the wire, as they arrive
     sensors, vehest = FaultInjector(config, stream=0), FaultInjector(config, stream=1)
-    est_id, sensor_id = frame_id(study.estimate_message), frame_id(study.sensor_message)
-    cnt = ecu.c.cnt
+    est_id, sensor_id = message(study.estimate_message).frame_id, message(study.sensor_message).frame_id
+    # the counters of the study's application (default: the powertrain side's)
+    cnt = study.counters_of(ecu) if hasattr(study, "counters_of") else ecu.c.cnt
     n = drive.n
     est = np.zeros((n, 16), dtype=np.uint8)
     counters = np.zeros((n, len(COUNTERS)), dtype=np.int64)
@@ -101,7 +104,12 @@ def run_with_faults(drive, config: FaultConfig | None = None, *, bitrate: int = 
             wire.submit(msg, t + delay, study.sensor_node)
         for msg, delay in vehest.apply(out, t):
             wire.submit(msg, t + delay, "VEHEST")
-        got = [tr.msg for tr in wire.advance(t + TICK_S) if tr.node != "VEHEST"]
+        delivered = wire.advance(t + TICK_S)
+        got = [tr.msg for tr in delivered if tr.node != "VEHEST"]
+        if closed:   # the ECU's frames of step k - 1, on the wire in tick k: applied from tick k + 1
+            for tr in delivered:
+                if tr.node == "VEHEST":
+                    car.rx(tr.msg)  # type: ignore[union-attr]
         for msg in got:
             refused = cnt.crc_error + cnt.counter_repeat + cnt.dlc_error
             ecu.rx(msg)
@@ -110,6 +118,8 @@ def run_with_faults(drive, config: FaultConfig | None = None, *, bitrate: int = 
                 sample_t = msg.timestamp   # when the sensor node made it
         out = ecu.step(timestamp=t + TICK_S)
         rx.append(got)
+        if k > 0:   # an estimate frame slower than the tick: its last payload holds
+            est[k] = est[k - 1]
         for msg in out:
             tx.append((k, msg))
             if msg.arbitration_id == est_id:

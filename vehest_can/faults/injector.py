@@ -10,9 +10,9 @@ import can
 import numpy as np
 
 from ..bus.busload import FD_LENGTHS
-from ..bus.frames import database, e2e_data_id
+from ..bus.frames import database, e2e_data_id, message
 from ..native import ffi, lib
-from .spec import _SYNC, FaultConfig, FaultSpec, _target_ids
+from .spec import _SYNC, FaultConfig, FaultSpec, _by_id, _target_ids
 
 
 class Injected(NamedTuple):
@@ -47,11 +47,12 @@ class FaultInjector:
         self.db = database(bus)
         self._targets = [None if f.target in (None, "*") else _target_ids(f.target, bus)
                          for f in self.config.faults]
-        self._sync_ids = frozenset(self.db.get_message_by_name(n).frame_id for n in _SYNC)
+        self._sync_ids = frozenset(message(n).frame_id for n in _SYNC)
         self._data_ids: dict[int, int] = {}
         self.reset()
 
     def reset(self) -> None:
+        self._held: dict[int, int] = {}   # stuck faults: the raw value each holds
         seed = self.config.seed
         self._rng = [np.random.default_rng([seed, i, self.stream]) for i in range(len(self.config.faults))]
         self._state: dict[tuple[int, bool], _State] = {}
@@ -84,7 +85,7 @@ class FaultInjector:
         data_id = self._data_ids.get(msg.arbitration_id)
         if data_id is None:
             try:
-                data_id = e2e_data_id(self.db.get_message_by_frame_id(msg.arbitration_id))
+                data_id = e2e_data_id(_by_id(msg.arbitration_id))
             except KeyError:
                 data_id = 0
             self._data_ids[msg.arbitration_id] = data_id
@@ -97,6 +98,22 @@ class FaultInjector:
         self._counter[0] = counter
         lib.vh_e2e_p01_protect(self._buf, n, data_id, self._counter)
         return bytearray(ffi.buffer(self._buf, n))
+
+    def _signal_fault(self, i: int, spec: FaultSpec, data: bytearray, data_id: int) -> bytearray:
+        """A sensor's fault inside its node: the signal's raw value replaced (SNA and its qualifier
+        INVALID, or the value held since the fault began), the frame re-protected with its own counter."""
+        msg = message(str(spec.target))
+        raw = msg.decode(bytes(data), decode_choices=False, scaling=False)
+        sig = msg.get_signal_by_name(str(spec.signal))
+        if spec.kind == "sna":
+            raw[spec.signal] = next(int(k) for k, v in (sig.choices or {}).items() if str(v) == "SNA")
+            if f"Qf_{spec.signal}" in raw:
+                raw[f"Qf_{spec.signal}"] = 0
+        else:
+            raw[spec.signal] = self._held.setdefault(i, int(raw[spec.signal]))
+        out = bytearray(msg.encode(raw, scaling=False, strict=False, padding=False))
+        out += bytearray(max(0, len(data) - len(out)))
+        return self._reprotect(out, data_id, data[1] & 0x0F) if data_id and len(out) >= 2 else out
 
     def apply(self, frames: list[can.Message], t_s: float) -> list[Injected]:
         """The frames as they leave the node at time t_s (s since the run started), each with its delay."""
@@ -123,6 +140,9 @@ class FaultInjector:
                         state.counter_offset += spec.by - 1
                 if state.counter_offset:
                     data = self._reprotect(data, data_id, ((data[1] & 0x0F) + state.counter_offset) % 15)
+            for i, spec in enumerate(faults):
+                if spec.kind in ("sna", "stuck") and self._hits(i, spec, original, t_s):
+                    data = self._signal_fault(i, spec, data, data_id)
             for i, spec in enumerate(faults):
                 if spec.kind == "freeze_counter" and state.last_payload is not None and \
                         self._hits(i, spec, original, t_s):

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import cast
 
 from ..bus.busload import FD_LENGTHS
-from ..bus.frames import database, e2e_data_id
+from ..bus.frames import BUSES, database, e2e_data_id, message
 from ..errors import ConfigError
 from ..schema import Checker, read_toml
 
@@ -38,6 +38,8 @@ KINDS: dict[str, tuple[str, ...]] = {
     "flood": ("id", "length", "load"),
     "latency": ("us",),
     "jitter": ("max_us",),
+    "sna": ("signal",),
+    "stuck": ("signal",),
 }
 #: What each kind does, for help texts and the docs.
 DESCRIPTIONS = {
@@ -50,8 +52,13 @@ DESCRIPTIONS = {
     "flood": "a babbling node sends frame `id` (`length` bytes, classic CAN) taking `load` of the bus",
     "latency": "every frame of the target leaves `us` microseconds late",
     "jitter": "every frame of the target leaves a uniform random 0..`max_us` microseconds late",
+    "sna": "the target message's `signal` is sent as not available (its SNA value, its Qf_ qualifier INVALID): "
+           "a dead sensor; CRC recomputed",
+    "stuck": "the target message's `signal` keeps the value it had when the fault began (qualifier untouched): "
+             "a stuck sensor; CRC recomputed",
 }
-_DEFAULTS = {"p": 1.0, "by": 2, "length": None, "id": 0x001, "load": 1.0, "us": 0.0, "max_us": 0.0}
+_DEFAULTS = {"p": 1.0, "by": 2, "length": None, "id": 0x001, "load": 1.0, "us": 0.0, "max_us": 0.0,
+             "signal": None}
 _SYNC = ("SIM_Sync", "VEHEST_SyncAck")
 _NO_TARGET = ("flood",)
 
@@ -71,6 +78,7 @@ class FaultSpec:
     load: float = 1.0
     us: float = 0.0
     max_us: float = 0.0
+    signal: str | None = None
 
     def active(self, t_s: float) -> bool:
         return self.start_s <= t_s < self.end_s
@@ -81,7 +89,8 @@ class FaultSpec:
         for key in KINDS[self.kind]:
             value = getattr(self, key)
             if value != _DEFAULTS[key]:
-                parts.append(f"{key}=0x{value:03X}" if key == "id" else f"{key}={_num(value)}")
+                parts.append(f"{key}=0x{value:03X}" if key == "id" else
+                             f"{key}={value}" if key == "signal" else f"{key}={_num(value)}")
         if self.start_s > 0 or math.isfinite(self.end_s):
             end = _num(self.end_s) if math.isfinite(self.end_s) else ""
             parts.append(f"{_num(self.start_s)}-{end}")
@@ -116,8 +125,9 @@ class FaultConfig:
 # ---- validation --------------------------------------------------------------------------------
 
 def _names(bus: str = "pt") -> tuple[set[str], set[str]]:
-    db = database(bus)
-    return {m.name for m in db.messages}, {n.name for n in db.nodes}
+    """Messages and nodes of every bus (names are unique across them; `bus` is kept for callers)."""
+    dbs = [database(b) for b in BUSES]
+    return {m.name for db in dbs for m in db.messages}, {n.name for db in dbs for n in db.nodes}
 
 
 def _validate(spec: FaultSpec, where: str, bus: str = "pt") -> None:
@@ -162,17 +172,39 @@ def _validate(spec: FaultSpec, where: str, bus: str = "pt") -> None:
                            f"not {spec.length!r}")
         if spec.kind == "flood" and spec.length > 8:
             fail("length", f"a flood frame is classic CAN: 0..8 bytes, not {spec.length}")
+    if spec.kind in ("sna", "stuck"):
+        if spec.target not in messages:
+            fail("target", f"a {spec.kind} fault names one message, not {spec.target!r}")
+        sig = {s.name: s for s in message(spec.target).signals}.get(spec.signal or "")
+        if sig is None:
+            names = sorted(s.name for s in message(spec.target).signals)
+            fail("signal", f"{spec.signal!r} is not a signal of {spec.target} ({', '.join(names)})")
+        if spec.kind == "sna" and not any(str(v) == "SNA" for v in (sig.choices or {}).values()):
+            fail("signal", f"{spec.signal} has no SNA value in the DBC")
+    elif spec.signal is not None:
+        fail("signal", f"only sna and stuck faults take a signal, not {spec.kind}")
     if spec.kind == "skip_counter" and spec.target != "*":
         ids = _target_ids(cast(str, spec.target), bus)   # _validate: every kind but flood has one
-        if not any(e2e_data_id(database(bus).get_message_by_frame_id(i)) for i in ids):
+        if not any(e2e_data_id(_by_id(i)) for i in ids):
             fail("target", f"{spec.target} sends no E2E-protected frame: there is no counter to skip")
 
 
+def _by_id(frame_id: int):
+    """The message of either bus with this standard ID (IDs are unique across the buses)."""
+    for b in BUSES:
+        try:
+            return database(b).get_message_by_frame_id(frame_id)
+        except KeyError:
+            continue
+    raise KeyError(frame_id)
+
+
 def _target_ids(target: str, bus: str = "pt") -> frozenset[int]:
-    db = database(bus)
-    if target in {m.name for m in db.messages}:
-        return frozenset({db.get_message_by_name(target).frame_id})
-    return frozenset(m.frame_id for m in db.messages
+    """The standard IDs a target names, on every bus (`bus` is kept for callers)."""
+    msgs = [m for b in BUSES for m in database(b).messages]
+    if target in {m.name for m in msgs}:
+        return frozenset({message(target).frame_id})
+    return frozenset(m.frame_id for m in msgs
                      if target in m.senders and m.name not in _SYNC and not m.is_extended_frame)
 
 
@@ -205,7 +237,7 @@ def parse_fault(text: str) -> FaultSpec:
                 raise ConfigError(f"{where}: {key!r} is not an amount of {kind} (it takes: {allowed})")
             if key in values:
                 raise ConfigError(f"{where}: {key} given twice")
-            values[key] = _number(raw.strip(), key, where)
+            values[key] = raw.strip() if key == "signal" else _number(raw.strip(), key, where)
         elif window and part != "-":
             if "start_s" in values:
                 raise ConfigError(f"{where}: two time windows")
@@ -278,7 +310,7 @@ def faults_from_dict(table: dict, where: str = "<faults>") -> FaultConfig:
         for k, v in values.items():
             if k in _INT_KEYS and (isinstance(v, bool) or not isinstance(v, int)):
                 fail(f"{key}.{k}", f"must be an integer, not {v!r}")
-            if k == "target" and not isinstance(v, str):
+            if k in ("target", "signal") and not isinstance(v, str):
                 fail(f"{key}.{k}", f"must be a string, not {v!r}")
         spec = FaultSpec(**values)
         try:

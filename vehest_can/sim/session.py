@@ -32,7 +32,7 @@ log = logging.getLogger(__name__)
 TRUTH_DTYPE = struct_dtype("vh_dlp_truth_t")
 INPROCESS_CHUNK = 8192  # ticks per C call of run_inprocess
 #: DBC nodes the simulated car plays (everything but the ECU)
-CAR_NODES = frozenset({"DLS", "CIS", "SIM", "CHS"})
+CAR_NODES = frozenset({"DLS", "CIS", "SIM", "CHS", "ROLL"})
 
 
 @dataclass
@@ -156,6 +156,7 @@ def run_inprocess(drive, ecu) -> Session:
 
 def _run_car_inprocess(car, ecu) -> Session:
     car.reset()
+    closed = hasattr(car, "rx")  # a car that takes the ECU's frames (the roll actuators): the loop closes
     truth = np.zeros(car.n, dtype=car.truth_dtype)
     frames, ticks = [], []
     t0 = time.perf_counter()
@@ -168,6 +169,8 @@ def _run_car_inprocess(car, ecu) -> Session:
         for f in ecu.step_frames():
             frames.append(bytes(ffi.buffer(ffi.addressof(f))))
             ticks.append(k)
+            if closed:  # the ECU's commands reach the car before its next tick
+                car.rx(ffi.addressof(f))
         truth[k] = car.truth()
     wall = time.perf_counter() - t0
     out = np.frombuffer(b"".join(frames), dtype=FRAME_DTYPE).copy() if frames else np.zeros(0, FRAME_DTYPE)
@@ -265,6 +268,9 @@ class SimMaster:
         self.car.reset()
         self.connect()
         n = self.car.n
+        closed = hasattr(self.car, "rx")
+        if closed:  # the car acts on the ECU's frames of each tick before its next: one tick in flight
+            window = 1
         truth = np.zeros(n, dtype=self.car.truth_dtype)
         sent: dict[int, list] = {}
         t0 = time.perf_counter()
@@ -285,6 +291,8 @@ class SimMaster:
             self._log(lockstep.sync_message(k_done), k_done)
             for msg in answer:
                 self._record(msg, k_done)
+                if closed:
+                    self.car.rx(msg)  # type: ignore[union-attr]
             k_done += 1
             if self.progress and k_done % 200 == 0:
                 self.progress(k_done, n)
@@ -318,6 +326,7 @@ class SimMaster:
                     errors["recv_errors"] += 1
                     stop_event.wait(0.005)
 
+        closed = hasattr(self.car, "rx")
         notifier = can.Notifier(self.bus, [Inbox()], timeout=0.005)
         ticker = Ticker(TICK_S)
         sent = 0
@@ -339,7 +348,10 @@ class SimMaster:
                     self._record(msg, k)
                 truth[k] = self.car.truth()
                 while not inbox.empty():
-                    self._record(inbox.get_nowait(), k)
+                    msg = inbox.get_nowait()
+                    self._record(msg, k)
+                    if closed:  # applied from the car's next tick (zero-order hold)
+                        self.car.rx(msg)  # type: ignore[union-attr]
                 if self.progress and k % 200 == 0:
                     self.progress(k, n)
             time.sleep(settle_s)  # the ECU's answers to the last ticks

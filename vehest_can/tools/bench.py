@@ -121,7 +121,47 @@ def run(quick: bool = False) -> dict:
     res["tireforce"] = tireforce(c_samples=4000 if quick else 40000, ref_steps=100 if quick else 400,
                                  repeats=1 if quick else 3)
     res["chassis_plant"] = chassis_plant(seconds=1.0 if quick else 10.0, repeats=3 if quick else 9)
+    res["roll"] = roll(steps=400 if quick else 1200, ref_steps=20 if quick else 60, repeats=3 if quick else 7)
     return res
+
+
+def roll(steps: int = 1200, ref_steps: int = 60, repeats: int = 7) -> dict:
+    """Seed-003 roll UKF step (n = 16, 33 sigma points): the C float32 and double builds through the
+    array API (one call per run) against filterpy's UnscentedKalmanFilter on the same model and
+    sigma points (ref.filterpy_ukf), on the paper's 72 km/h case at the ECU's 5 ms step."""
+    from ..systems.roll import evaluate as ev
+    from ..systems.roll import native as rn
+    from ..systems.roll import ref
+
+    prm = rn.default_params()
+    prm.dt = 0.005
+    truth = ev.run_plant(ev.paper_case(72.0, duration_s=max(1.0, steps * prm.dt + 0.01)))
+    u, z, _ = ev.synthesise(truth, decim=10, prm=prm)
+    u, z = u[:steps], z[:steps]
+    out: dict = {"steps": len(u)}
+    for prec in ("f32", "f64"):
+        k = rn.Ukf(prm, prec)
+
+        def run_c(k=k):
+            k.reset()
+            k.run(u, z)
+
+        out[f"c_{prec}_ns"] = _median_time(run_c, repeats) / len(u) * 1e9
+    try:
+        p = rn.params_dict(prm)
+        ref.filterpy_ukf(p)
+    except ImportError:
+        out["filterpy_ns"] = None
+        return out
+    m = min(ref_steps, len(u))
+
+    def run_fp():
+        f = ref.filterpy_ukf(p)
+        for i in range(m):
+            ref.filterpy_step(f, u[i], z[i])
+
+    out["filterpy_ns"] = _median_time(run_fp, max(1, repeats // 3)) / m * 1e9
+    return out
 
 
 def skf_inputs(n: int):
@@ -220,6 +260,20 @@ def table(res: dict, lockstep: dict[str, float] | None = None) -> str:
     if "car_tick" in c:
         lines.append(f"{'car tick (plant + sensor node), C loop':<44}{c['car_tick'][0] / 1000:>9.2f} µs/tick"
                      f"   = {500 / (c['car_tick'][0] / 1000):.0f}x real time")
+    rl = res.get("roll") or {}
+    if rl:
+        fpu = rl.get("filterpy_ns")
+        for key, name in (("c_f32_ns", "roll UKF step, C float32 (array API)"),
+                          ("c_f64_ns", "roll UKF step, C double (array API)")):
+            vs = f"   {fpu / rl[key]:.0f}x filterpy UKF (target >= 100x)" if fpu else ""
+            lines.append(f"{name:<44}{rl[key] / 1000:>9.2f} µs/step{vs}")
+        if fpu:
+            lines.append(f"{'roll UKF step, filterpy UnscentedKalmanFilter':<44}{fpu / 1000:>9.0f} µs/step")
+        lines.append(f"roll UKF float32 / double step time: {rl['c_f32_ns'] / rl['c_f64_ns']:.2f}")
+    if "ecu_tick_all" in c:
+        mx = f", longest {c['ecu_all_roll'][1] / 1000:.1f} µs (target <= 100 µs)" if "ecu_all_roll" in c else ""
+        lines.append(f"{'ECU tick, every system (+ roll UKF + SMC)':<44}{c['ecu_tick_all'][0] / 1000:>9.2f} µs/tick"
+                     f"   p99 {c['ecu_tick_all'][1] / 1000:.2f} µs{mx} (target median <= 15 µs)")
     for name, factor in (lockstep or {}).items():
         lines.append(f"{'in-process lockstep ' + name:<44}{factor:>9.0f}x real time (target >= 100x)")
     if fp:

@@ -1,5 +1,5 @@
-/* vh_roll_f64.c - the roll UKF and SMC in double precision (the reference build of the same
- * source, vh_roll_impl.c). */
+/* vh_roll_f64_host.c - the roll UKF and SMC in double precision (the reference build of the same
+ * source, vh_roll_impl.inc). */
 #include <math.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -13,4 +13,4 @@
 #define VH_COS cos
 #define VH_ATAN atan
 #define VH_FABS fabs
-#include "vh_roll_impl.c"
+#include "vh_roll_impl.inc"

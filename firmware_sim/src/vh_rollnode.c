@@ -1,0 +1,256 @@
+/* vh_rollnode.c - see vh_rollnode.h. */
+#include "vh_rollnode.h"
+
+#include <math.h>
+
+#include "vh_ch.h"
+#include "vh_ch_enc.h"
+#include "vh_ch_meta.h"
+
+#define TICKS(cycle_us) ((cycle_us) / VH_TICK_US)
+#define SENS_TICKS TICKS(VH_CH_ROLL_SENSORS_CYCLE_TIME_US)
+#define MODE_TICKS TICKS(VH_CH_ROLL_MODE_CMD_CYCLE_TIME_US)
+#define CMD_TIMEOUT_TICKS (VH_CH_VEHEST_ROLL_CMD_RX_TIMEOUT_CYCLES * TICKS(VH_CH_VEHEST_ROLL_CMD_CYCLE_TIME_US))
+
+/* One channel through the generated encoder, or its SNA value when the sensor is dead. */
+#define ENC(msg, MSG, sig, SIG, ch) \
+    (ok[ch] ? vh_ch_##msg##_##sig##_encode_round(n->sent[ch]) : VH_CH_##MSG##_##SIG##_SNA_CHOICE)
+#define SENS(sig, SIG, ch) ENC(roll_sensors, ROLL_SENSORS, sig, SIG, ch)
+
+void vh_rln_config_default(vh_rln_config_t *cfg)
+{
+    int i;
+    /* Per 2 kHz sample, the figures of docs/roll.md: a_y 0.05 m/s^2 (MEMS, as the chassis cluster),
+     * unsprung accelerometers 0.2 m/s^2, tyre deflection 0.2 mm (a wheel-centre height sensor),
+     * suspension deflection 0.5 mm (ride-height sensor), yaw rate 0.005 rad/s. */
+    cfg->noise_std[VH_RLN_CH_AY] = 0.05;
+    for (i = 0; i < 4; ++i) {
+        cfg->noise_std[VH_RLN_CH_AZU + i] = 0.2;
+        cfg->noise_std[VH_RLN_CH_DT + i] = 0.0002;
+        cfg->noise_std[VH_RLN_CH_DS + i] = 0.0005;
+    }
+    cfg->noise_std[VH_RLN_CH_R] = 0.005;
+    for (i = 0; i < VH_RLN_NCH; ++i) {
+        cfg->bias[i] = 0.0;
+    }
+    cfg->seed = 0x524F4C4Cu; /* "ROLL" */
+    cfg->fail_mask = 0u;
+    cfg->stuck_mask = 0u;
+    cfg->mode_active = 0u;
+}
+
+int vh_rln_init(vh_rln_t *n, const vh_rln_config_t *cfg)
+{
+    int i;
+    if (n == NULL || cfg == NULL) {
+        return VH_EINVAL;
+    }
+    for (i = 0; i < VH_RLN_NCH; ++i) {
+        if (!(cfg->noise_std[i] >= 0.0) || !isfinite(cfg->noise_std[i]) || !isfinite(cfg->bias[i])) {
+            return VH_EINVAL;
+        }
+    }
+    n->cfg = *cfg;
+    vh_rln_reset(n);
+    return VH_OK;
+}
+
+void vh_rln_reset(vh_rln_t *n)
+{
+    int i;
+    vh_rng_seed(&n->rng, n->cfg.seed);
+    for (i = 0; i < VH_RLN_NCH; ++i) {
+        n->acc[i] = 0.0;
+        n->sent[i] = 0.0;
+    }
+    for (i = 0; i < VH_V14_NW; ++i) {
+        n->vzu[i] = 0.0;
+    }
+    for (i = 0; i < 4; ++i) {
+        n->counter[i] = 0u;
+    }
+    n->n_acc = 0u;
+    n->tick = 0u;
+    vh_e2e_rx_init(&n->cmd_e2e);
+    n->cmd_new = n->heard = n->cmd_mode = 0u;
+    n->state = VH_RLN_ARC_PASSIVE;
+    n->cmd[0] = n->cmd[1] = 0.0;
+    n->cmd_age = 0u;
+    n->cnt_timeout = n->cnt_rejected = 0u;
+    n->applied_tick = 0u;
+}
+
+void vh_rln_rx(vh_rln_t *n, const vh_frame_t *f)
+{
+    struct vh_ch_vehest_roll_cmd_t m;
+    vh_e2e_status_t st;
+    if (f->id != VH_CH_VEHEST_ROLL_CMD_FRAME_ID || (f->flags & VH_FRAME_EXT) != 0u) {
+        return;
+    }
+    st = f->len == VH_CH_VEHEST_ROLL_CMD_LENGTH
+             ? vh_e2e_p01_check(&n->cmd_e2e, f->data, f->len, VH_CH_VEHEST_ROLL_CMD_E2E_DATA_ID)
+             : VH_E2E_BAD_LEN;
+    if (st != VH_E2E_OK && st != VH_E2E_INITIAL && st != VH_E2E_SKIPPED) {
+        ++n->cnt_rejected;
+        return;
+    }
+    (void)vh_ch_vehest_roll_cmd_unpack(&m, f->data, f->len);
+    if (m.moment_cmd_f == VH_CH_VEHEST_ROLL_CMD_MOMENT_CMD_F_SNA_CHOICE ||
+        m.moment_cmd_r == VH_CH_VEHEST_ROLL_CMD_MOMENT_CMD_R_SNA_CHOICE) {
+        ++n->cnt_rejected;
+        return;
+    }
+    n->cmd[0] = vh_ch_vehest_roll_cmd_moment_cmd_f_decode(m.moment_cmd_f);
+    n->cmd[1] = vh_ch_vehest_roll_cmd_moment_cmd_r_decode(m.moment_cmd_r);
+    n->cmd_mode = m.roll_mode_cmd;
+    n->cmd_new = 1u;
+}
+
+void vh_rln_actuate(vh_rln_t *n, vh_v14_t *p)
+{
+    if (n->cmd_new) {
+        n->cmd_new = 0u;
+        n->heard = 1u;
+        n->cmd_age = 0u;
+        n->applied_tick = n->tick;
+        n->state = (n->cmd_mode || n->cmd[0] != 0.0 || n->cmd[1] != 0.0) ? VH_RLN_ARC_ACTIVE : VH_RLN_ARC_PASSIVE;
+        vh_v14_set_roll_moment(p, n->cmd[0], n->cmd[1]);
+        return;
+    }
+    if (!n->heard) {
+        return; /* nothing commanded yet: passive, not a timeout */
+    }
+    if (n->cmd_age < UINT32_MAX) {
+        ++n->cmd_age;
+    }
+    if (n->cmd_age == CMD_TIMEOUT_TICKS) {
+        n->state = VH_RLN_ARC_HOLD; /* the last command stays in the plant */
+        ++n->cnt_timeout;
+    } else if (n->cmd_age == 2u * CMD_TIMEOUT_TICKS) {
+        n->state = VH_RLN_ARC_FAILSAFE;
+    }
+    if (n->state == VH_RLN_ARC_FAILSAFE) {
+        vh_v14_roll_fail_safe(p);
+    }
+}
+
+static vh_frame_t *slot(vh_frame_t *out, size_t *k, size_t cap, uint32_t id, size_t len)
+{
+    vh_frame_t *f;
+    int i;
+    if (*k >= cap) {
+        return NULL;
+    }
+    f = &out[(*k)++];
+    for (i = 0; i < VH_FRAME_MAX_LEN; ++i) {
+        f->data[i] = 0u;
+    }
+    f->id = id;
+    f->len = (uint8_t)len;
+    f->flags = (uint8_t)(VH_FRAME_FD | VH_FRAME_BRS);
+    return f;
+}
+
+static uint8_t sat8(uint32_t v) { return (uint8_t)(v > 255u ? 255u : v); }
+
+size_t vh_rln_step(vh_rln_t *n, const vh_v14_t *p, vh_frame_t *out, size_t cap)
+{
+    const vh_v14_truth_t *t = &p->truth;
+    double phys[VH_RLN_NCH];
+    uint8_t ok[VH_RLN_NCH];
+    size_t k = 0u;
+    vh_frame_t *f;
+    int i;
+
+    phys[VH_RLN_CH_AY] = t->ay;
+    for (i = 0; i < VH_V14_NW; ++i) {
+        const double vzu = p->x[VH_V14_X_VZU + i];
+        const double zs = t->z + p->cy[i] * t->phi - p->cx[i] * t->theta; /* body corner height */
+        phys[VH_RLN_CH_AZU + i] = (vzu - n->vzu[i]) / VH_V14_DT; /* mean over the tick */
+        n->vzu[i] = vzu;
+        phys[VH_RLN_CH_DT + i] = -t->zu[i];
+        phys[VH_RLN_CH_DS + i] = t->zu[i] - zs;
+    }
+    phys[VH_RLN_CH_R] = t->r;
+    for (i = 0; i < VH_RLN_NCH; ++i) {
+        n->acc[i] += phys[i] + n->cfg.bias[i] + n->cfg.noise_std[i] * vh_rng_gauss(&n->rng);
+    }
+    ++n->n_acc;
+
+    if (n->tick % SENS_TICKS == 0u) {
+        struct vh_ch_roll_sensors_t m;
+        struct vh_ch_roll_yaw_rate_t y;
+        struct vh_ch_roll_actuator_status_t s;
+        for (i = 0; i < VH_RLN_NCH; ++i) {
+            const double v = n->acc[i] / (double)n->n_acc;
+            if (!(n->cfg.stuck_mask & (1u << i))) {
+                n->sent[i] = v;
+            }
+            ok[i] = (uint8_t)(isfinite(n->sent[i]) && !(n->cfg.fail_mask & (1u << i)));
+            n->acc[i] = 0.0;
+        }
+        n->n_acc = 0u;
+        (void)vh_ch_roll_sensors_init(&m);
+        m.roll_lat_accel = SENS(roll_lat_accel, ROLL_LAT_ACCEL, VH_RLN_CH_AY);
+        m.wheel_vert_accel_fl = SENS(wheel_vert_accel_fl, WHEEL_VERT_ACCEL_FL, VH_RLN_CH_AZU + 0);
+        m.wheel_vert_accel_fr = SENS(wheel_vert_accel_fr, WHEEL_VERT_ACCEL_FR, VH_RLN_CH_AZU + 1);
+        m.wheel_vert_accel_rl = SENS(wheel_vert_accel_rl, WHEEL_VERT_ACCEL_RL, VH_RLN_CH_AZU + 2);
+        m.wheel_vert_accel_rr = SENS(wheel_vert_accel_rr, WHEEL_VERT_ACCEL_RR, VH_RLN_CH_AZU + 3);
+        m.tyre_defl_fl = SENS(tyre_defl_fl, TYRE_DEFL_FL, VH_RLN_CH_DT + 0);
+        m.tyre_defl_fr = SENS(tyre_defl_fr, TYRE_DEFL_FR, VH_RLN_CH_DT + 1);
+        m.tyre_defl_rl = SENS(tyre_defl_rl, TYRE_DEFL_RL, VH_RLN_CH_DT + 2);
+        m.tyre_defl_rr = SENS(tyre_defl_rr, TYRE_DEFL_RR, VH_RLN_CH_DT + 3);
+        m.susp_defl_fl = SENS(susp_defl_fl, SUSP_DEFL_FL, VH_RLN_CH_DS + 0);
+        m.susp_defl_fr = SENS(susp_defl_fr, SUSP_DEFL_FR, VH_RLN_CH_DS + 1);
+        m.susp_defl_rl = SENS(susp_defl_rl, SUSP_DEFL_RL, VH_RLN_CH_DS + 2);
+        m.susp_defl_rr = SENS(susp_defl_rr, SUSP_DEFL_RR, VH_RLN_CH_DS + 3);
+        m.qf_roll_lat_accel = ok[VH_RLN_CH_AY];
+        m.qf_wheel_vert_accel_fl = ok[VH_RLN_CH_AZU + 0];
+        m.qf_wheel_vert_accel_fr = ok[VH_RLN_CH_AZU + 1];
+        m.qf_wheel_vert_accel_rl = ok[VH_RLN_CH_AZU + 2];
+        m.qf_wheel_vert_accel_rr = ok[VH_RLN_CH_AZU + 3];
+        m.qf_tyre_defl_fl = ok[VH_RLN_CH_DT + 0];
+        m.qf_tyre_defl_fr = ok[VH_RLN_CH_DT + 1];
+        m.qf_tyre_defl_rl = ok[VH_RLN_CH_DT + 2];
+        m.qf_tyre_defl_rr = ok[VH_RLN_CH_DT + 3];
+        m.qf_susp_defl_fl = ok[VH_RLN_CH_DS + 0];
+        m.qf_susp_defl_fr = ok[VH_RLN_CH_DS + 1];
+        m.qf_susp_defl_rl = ok[VH_RLN_CH_DS + 2];
+        m.qf_susp_defl_rr = ok[VH_RLN_CH_DS + 3];
+        if ((f = slot(out, &k, cap, VH_CH_ROLL_SENSORS_FRAME_ID, VH_CH_ROLL_SENSORS_LENGTH)) != NULL) {
+            (void)vh_ch_roll_sensors_pack(f->data, &m, VH_CH_ROLL_SENSORS_LENGTH);
+            vh_e2e_p01_protect(f->data, VH_CH_ROLL_SENSORS_LENGTH, VH_CH_ROLL_SENSORS_E2E_DATA_ID, &n->counter[0]);
+        }
+
+        (void)vh_ch_roll_yaw_rate_init(&y);
+        y.roll_yaw_rate = ENC(roll_yaw_rate, ROLL_YAW_RATE, roll_yaw_rate, ROLL_YAW_RATE, VH_RLN_CH_R);
+        y.qf_roll_yaw_rate = ok[VH_RLN_CH_R];
+        if ((f = slot(out, &k, cap, VH_CH_ROLL_YAW_RATE_FRAME_ID, VH_CH_ROLL_YAW_RATE_LENGTH)) != NULL) {
+            (void)vh_ch_roll_yaw_rate_pack(f->data, &y, VH_CH_ROLL_YAW_RATE_LENGTH);
+            vh_e2e_p01_protect(f->data, VH_CH_ROLL_YAW_RATE_LENGTH, VH_CH_ROLL_YAW_RATE_E2E_DATA_ID, &n->counter[1]);
+        }
+
+        (void)vh_ch_roll_actuator_status_init(&s);
+        s.arc_state = n->state;
+        s.applied_moment_f = vh_ch_roll_actuator_status_applied_moment_f_encode_round(p->arc.m[0]);
+        s.applied_moment_r = vh_ch_roll_actuator_status_applied_moment_r_encode_round(p->arc.m[1]);
+        s.cnt_cmd_timeout = sat8(n->cnt_timeout);
+        s.cnt_cmd_rejected = sat8(n->cnt_rejected);
+        if ((f = slot(out, &k, cap, VH_CH_ROLL_ACTUATOR_STATUS_FRAME_ID, VH_CH_ROLL_ACTUATOR_STATUS_LENGTH)) != NULL) {
+            (void)vh_ch_roll_actuator_status_pack(f->data, &s, VH_CH_ROLL_ACTUATOR_STATUS_LENGTH);
+            vh_e2e_p01_protect(f->data, VH_CH_ROLL_ACTUATOR_STATUS_LENGTH, VH_CH_ROLL_ACTUATOR_STATUS_E2E_DATA_ID,
+                               &n->counter[2]);
+        }
+    }
+    if (n->tick % MODE_TICKS == 0u) {
+        struct vh_ch_roll_mode_cmd_t mc;
+        (void)vh_ch_roll_mode_cmd_init(&mc);
+        mc.roll_mode_req = n->cfg.mode_active ? 1u : 0u;
+        if ((f = slot(out, &k, cap, VH_CH_ROLL_MODE_CMD_FRAME_ID, VH_CH_ROLL_MODE_CMD_LENGTH)) != NULL) {
+            (void)vh_ch_roll_mode_cmd_pack(f->data, &mc, VH_CH_ROLL_MODE_CMD_LENGTH);
+            vh_e2e_p01_protect(f->data, VH_CH_ROLL_MODE_CMD_LENGTH, VH_CH_ROLL_MODE_CMD_E2E_DATA_ID, &n->counter[3]);
+        }
+    }
+    ++n->tick;
+    return k;
+}

@@ -1,0 +1,218 @@
+"""The roll system's figures of one session: the ECU's UKF estimates from the bus (VEHEST_RollEst)
+against the plant's truth, the actuators' moments, and for an active run its passive twin (the same
+scenario in passive mode, in-process: bit for bit what the bus gives, tests/roll/test_roll_bus.py);
+the terminal table with the acceptance lines, and the plots like the paper's Fig. 3-6 and 8-15."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ...sim.report import decode
+from ...sim.scenario import DT
+
+#: acceptance (issue 11): UKF RMS error as a fraction of the peak, roll angle and roll rate
+TARGET_PHI, TARGET_P = 0.05, 0.10
+#: active vs passive at 72 km/h: peak roll reduced by at least this
+TARGET_REDUCTION = 0.50
+
+
+def chatter(m: np.ndarray, dt: float = DT, f_hz: float = 50.0) -> tuple[float, float]:
+    """(total variation [N m], fraction of the signal's energy (mean removed) above f_hz)."""
+    tv = float(np.sum(np.abs(np.diff(m))))
+    spec = np.abs(np.fft.rfft(m - np.mean(m))) ** 2
+    f = np.fft.rfftfreq(len(m), dt)
+    tot = spec.sum()
+    return tv, float(spec[f > f_hz].sum() / tot) if tot > 0 else 0.0
+
+
+def estimates(session) -> dict[str, np.ndarray]:
+    """The ticks with a VEHEST_RollEst frame and its signals there."""
+    est = decode(session, "VEHEST_RollEst")
+    k = np.flatnonzero(~np.isnan(est["RollUkf_Health"]))
+    return {"tick": k, **{name: v[k] for name, v in est.items()}}
+
+
+def evaluate(session, arc_limits: tuple[tuple[float, float], ...] | None = None) -> dict[str, Any]:
+    """Figures of one session: UKF vs truth (where the estimate is published), peaks, moments."""
+    tr = session.truth
+    e = estimates(session)
+    k = e["tick"]
+    on = k[~np.isnan(e["RollEstAngle"])]
+    sel = ~np.isnan(e["RollEstAngle"])
+    peak_phi, peak_p = float(np.abs(tr["phi"]).max()), float(np.abs(tr["p"]).max())
+    err_phi = float(np.sqrt(np.mean((e["RollEstAngle"][sel] - tr["phi"][on]) ** 2))) if on.size else float("nan")
+    err_p = float(np.sqrt(np.mean((e["RollEstRate"][sel] - tr["p"][on]) ** 2))) if on.size else float("nan")
+    m = tr["m_applied"]
+    tv, hf = chatter(m.sum(axis=1))
+    rate = np.abs(np.diff(m, axis=0)).max(axis=0) / DT if len(m) > 1 else np.zeros(2)
+    out: dict[str, Any] = {
+        "peak_roll_deg": float(np.degrees(peak_phi)), "peak_roll_rate_deg_s": float(np.degrees(peak_p)),
+        "peak_yaw_rate_deg_s": float(np.degrees(np.abs(tr["r"]).max())),
+        "peak_ay_m_s2": float(np.abs(tr["ay"]).max()),
+        "ukf_roll_rms_deg": float(np.degrees(err_phi)), "ukf_roll_rate_rms_deg_s": float(np.degrees(err_p)),
+        "ukf_roll_rms_pct_of_peak": 100 * err_phi / peak_phi, "ukf_roll_rate_rms_pct_of_peak": 100 * err_p / peak_p,
+        "estimates": int(on.size), "ukf_health_ok_pct": 100 * float(np.mean(e["RollUkf_Health"] == 1)) if k.size else 0.0,
+        "ukf_resets": int(np.nanmax(e["RollCntReset"])) if k.size else 0,
+        "moment_peak_nm": [float(x) for x in np.abs(m).max(axis=0)],
+        "moment_rate_peak_nm_s": [float(x) for x in rate],
+        "moment_total_variation_nm": tv, "moment_energy_above_50hz_pct": 100 * hf,
+        "arc_states": sorted({int(s) for s in tr["arc_state"]}),
+    }
+    if arc_limits is not None:
+        out["limits_respected"] = bool(all(out["moment_peak_nm"][i] <= arc_limits[i][0] + 1e-6 and
+                                           out["moment_rate_peak_nm_s"][i] <= arc_limits[i][1] * (1 + 1e-9)
+                                           for i in range(2)))
+    return out
+
+
+def compare(active: dict, passive: dict) -> dict:
+    """Active against its passive twin: the peak roll's reduction, the changes the paper notes."""
+    return {
+        "peak_roll_reduction_pct": 100 * (1 - active["peak_roll_deg"] / passive["peak_roll_deg"]),
+        "peak_yaw_rate_change_pct": 100 * (active["peak_yaw_rate_deg_s"] / passive["peak_yaw_rate_deg_s"] - 1),
+        "peak_ay_change_pct": 100 * (active["peak_ay_m_s2"] / passive["peak_ay_m_s2"] - 1),
+        "passive_peak_roll_deg": passive["peak_roll_deg"],
+        "passive_moment_total_variation_nm": passive["moment_total_variation_nm"],
+    }
+
+
+def acceptance(m: dict) -> list[tuple[str, str, bool]]:
+    """(line, figure, pass) of the acceptance lines that apply to one session."""
+    rows = [(f"UKF roll RMS <= {100 * TARGET_PHI:.0f} % of peak", f"{m['ukf_roll_rms_pct_of_peak']:.2f} %",
+             m["ukf_roll_rms_pct_of_peak"] <= 100 * TARGET_PHI),
+            (f"UKF roll rate RMS <= {100 * TARGET_P:.0f} % of peak", f"{m['ukf_roll_rate_rms_pct_of_peak']:.2f} %",
+             m["ukf_roll_rate_rms_pct_of_peak"] <= 100 * TARGET_P)]
+    if "limits_respected" in m:
+        rows.append(("actuator limits respected", "yes" if m["limits_respected"] else "NO", m["limits_respected"]))
+    if "vs_passive" in m and m.get("speed_kmh", 0) >= 70:
+        red = m["vs_passive"]["peak_roll_reduction_pct"]
+        rows.append((f"peak roll reduced >= {100 * TARGET_REDUCTION:.0f} % (72 km/h)", f"{red:.1f} %",
+                     red >= 100 * TARGET_REDUCTION))
+    return rows
+
+
+def table(m: dict) -> str:
+    lines = [f"roll: {m['scenario']} ({m['mode']})",
+             f"  peak roll {m['peak_roll_deg']:.3f} deg, roll rate {m['peak_roll_rate_deg_s']:.3f} deg/s, "
+             f"yaw rate {m['peak_yaw_rate_deg_s']:.2f} deg/s, a_y {m['peak_ay_m_s2']:.2f} m/s^2",
+             f"  UKF (float32, ECU, from the bus): roll RMS {m['ukf_roll_rms_deg']:.4f} deg, roll rate RMS "
+             f"{m['ukf_roll_rate_rms_deg_s']:.4f} deg/s; health OK {m['ukf_health_ok_pct']:.1f} %, resets {m['ukf_resets']}",
+             f"  moments: peak front/rear {m['moment_peak_nm'][0]:.0f} / {m['moment_peak_nm'][1]:.0f} N m, total "
+             f"variation {m['moment_total_variation_nm']:.0f} N m, energy above 50 Hz {m['moment_energy_above_50hz_pct']:.3f} %"]
+    if "f32_vs_f64_roll_deg" in m:
+        lines.append(f"  float32 (ECU) vs double on the same bus samples: max |d roll| {m['f32_vs_f64_roll_deg']:.1e} deg, "
+                     f"max |d roll rate| {m['f32_vs_f64_roll_rate_deg_s']:.1e} deg/s; ECU == array API: "
+                     f"{'yes' if m['ecu_equals_array_api'] else 'NO'}")
+    if "vs_passive" in m:
+        v = m["vs_passive"]
+        lines.append(f"  vs passive: peak roll {v['passive_peak_roll_deg']:.3f} -> {m['peak_roll_deg']:.3f} deg "
+                     f"({-v['peak_roll_reduction_pct']:+.1f} %), peak yaw rate {v['peak_yaw_rate_change_pct']:+.2f} %, "
+                     f"peak a_y {v['peak_ay_change_pct']:+.2f} %")
+    for line, fig, ok in acceptance(m):
+        lines.append(f"  {'PASS' if ok else 'FAIL'}  {line}: {fig}")
+    return "\n".join(lines)
+
+
+def plots(session, out_dir: Path, title: str, passive=None) -> list[Path]:
+    """Fig. 3-6: estimated against true roll angle and rate; with a passive twin, Fig. 8-15: control
+    moments, yaw rate, roll angle and rate, passive against active."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    tr = session.truth
+    t = np.arange(len(tr)) * DT
+    e = estimates(session)
+    te = e["tick"] * DT
+    files = []
+    fig, ax = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    ax[0].plot(t, np.degrees(tr["phi"]), label="truth (14-DOF plant)")
+    ax[0].plot(te, np.degrees(e["RollEstAngle"]), "--", label="UKF (ECU, from the bus)")
+    ax[0].set_ylabel("roll angle [deg]")
+    ax[1].plot(t, np.degrees(tr["p"]), label="truth")
+    ax[1].plot(te, np.degrees(e["RollEstRate"]), "--", label="UKF")
+    ax[1].set_ylabel("roll rate [deg/s]")
+    ax[1].set_xlabel("t [s]")
+    for a in ax:
+        a.grid(True)
+        a.legend()
+    fig.suptitle(f"{title}: roll estimate (cf. seed 003 Fig. 3-6)")
+    files.append(out_dir / f"{title}_estimate.png")
+    fig.savefig(files[-1], dpi=100)
+    plt.close(fig)
+    if passive is not None:
+        tp = passive.truth
+        fig, ax = plt.subplots(4, 1, figsize=(8, 10), sharex=True)
+        ax[0].plot(t, tr["m_applied"][:, 0], label="front, active")
+        ax[0].plot(t, tr["m_applied"][:, 1], label="rear, active")
+        ax[0].set_ylabel("roll moment [N m]")
+        for a, key, unit in ((ax[1], "r", "yaw rate [deg/s]"), (ax[2], "phi", "roll angle [deg]"),
+                             (ax[3], "p", "roll rate [deg/s]")):
+            a.plot(t, np.degrees(tp[key]), label="passive")
+            a.plot(t, np.degrees(tr[key]), label="active")
+            a.set_ylabel(unit)
+        ax[3].set_xlabel("t [s]")
+        for a in ax:
+            a.grid(True)
+            a.legend()
+        fig.suptitle(f"{title}: passive against active (cf. seed 003 Fig. 8-15)")
+        files.append(out_dir / f"{title}_passive_vs_active.png")
+        fig.savefig(files[-1], dpi=100)
+        plt.close(fig)
+    return files
+
+
+def _by_tick(session, name: str, n: int, scaling: bool = True) -> dict[str, np.ndarray]:
+    from ...bus.frames import message
+
+    msg = message(name)
+    out = {s.name: np.full(n, np.nan) for s in msg.signals}
+    sel = session.frames["id"] == msg.frame_id
+    for f, k in zip(session.frames[sel], session.frame_tick[sel]):
+        for key, v in msg.decode(bytes(f["data"][: f["len"]]), decode_choices=False, scaling=scaling).items():
+            out[key][k] = v
+    return out
+
+
+def rerun(session) -> dict[str, Any]:
+    """The ECU's float32 UKF once more, through the array API (``vehest_can._roll``) on the samples
+    decoded from the bus, and the double build on the same: whether the published estimates equal the
+    array API's at the DBC's resolution (bit for bit), and how far float32 is from double. Assumes a
+    clean run (every measurement valid at every step), as the shipped cases are."""
+    from ...native import ffi as nffi
+    from ...native import lib as nlib
+    from . import native as rn
+
+    cfg = nffi.new("vh_roll_app_config_t *")
+    nlib.vh_roll_app_config_default(cfg)
+    over = {name: (list(getattr(cfg.ukf, name)) if f.type.kind == "array" else getattr(cfg.ukf, name))
+            for name, f in nffi.typeof(cfg.ukf).fields}
+    prm = rn.make_params(**over)
+    n = len(session.truth)
+    sens = _by_tick(session, "ROLL_Sensors", n)
+    yaw = _by_tick(session, "ROLL_YawRate", n)
+    act = _by_tick(session, "ROLL_ActuatorStatus", n)
+    chs = _by_tick(session, "CHS_Sensors", n)
+    steps = np.flatnonzero(~np.isnan(sens["RollLatAccel"]))
+    names = ["RollLatAccel"] + [f"{g}{w}" for g in ("WheelVertAccel", "TyreDefl", "SuspDefl") for w in ("FL", "FR", "RL", "RR")]
+    z = np.column_stack([sens[s][steps] for s in names] + [yaw["RollYawRate"][steps]])
+    w = [chs[f"WheelSpeed{x}"][steps] for x in ("FL", "FR", "RL", "RR")]
+    vx = float(cfg.rw) * (((w[0] + w[1]) + w[2]) + w[3]) / 4.0   # as the ECU sums them
+    u = np.column_stack([chs["SteerAngle"][steps], vx, act["AppliedMomentF"][steps], act["AppliedMomentR"][steps]])
+    x32, _, _ = rn.Ukf(prm, "f32").run(u, z)
+    x64, _, _ = rn.Ukf(prm, "f64").run(u, z)
+    raw = _by_tick(session, "VEHEST_RollEst", n, scaling=False)
+    est_ticks = np.flatnonzero(~np.isnan(raw["RollEstAngle"]))
+    row = np.searchsorted(steps, est_ticks)
+    from ...bus.frames import message
+
+    sig = message("VEHEST_RollEst").get_signal_by_name
+    same = all(np.array_equal(np.floor(x32[row, i].astype(np.float64) / sig(s).scale + 0.5), raw[s][est_ticks])
+               for i, s in ((4, "RollEstAngle"), (5, "RollEstRate")))
+    return {"ecu_equals_array_api": bool(same), "steps": int(len(steps)),
+            "f32_vs_f64_roll_deg": float(np.degrees(np.abs(x32[:, 4] - x64[:, 4]).max())),
+            "f32_vs_f64_roll_rate_deg_s": float(np.degrees(np.abs(x32[:, 5] - x64[:, 5]).max()))}

@@ -1,0 +1,288 @@
+"""Roll scenarios (``kind = "roll"``): the 14-DOF chassis plant with its active roll actuators, the
+chassis sensor node and the roll node (vh_rollnode: roll sensors, actuator supervision, the driver's
+mode switch), and the car they make.
+
+A roll scenario is a tyre-force scenario (``driver``, ``road``, ``vehicle``, ``tyre``, ``sensors``:
+the 14-DOF plant and the chassis sensor node, read by the tyre-force loader) plus three tables of its
+own, read here with the one schema reader (:mod:`vehest_can.schema`):
+
+* ``[control] mode = [[t, "passive" | "active"], ...]``: the driver's switch over time (ROLL_ModeCmd),
+  held from each point to the next;
+* ``[actuators]``: per axle the roll-moment limit on the body, the rate limit, the lag (defaults of
+  ``vh_v14_arc_params_default``: 4800 N m, 16 kN m/s, 30 ms; docs/roll.md);
+* ``[roll_sensors]``: noise (per 2 kHz sample) and bias of the roll node's channels.
+
+Shipped roll scenarios are in ``firmware_sim/scenarios/roll/``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ...errors import ScenarioError
+from ...paths import shipped_dir, shipped_file
+from ...schema import Checker, Num, read_toml, type_name
+from ...sim.scenario import DT, _native
+from ..tireforce.scenario import TireForceScenario, tireforce_scenario_from_dict, truth_dtype
+
+KINDS = ("roll",)
+#: the tables a roll scenario adds to a tyre-force scenario
+_ROLL_TABLES = ("control", "actuators", "roll_sensors")
+MODES = ("passive", "active")
+
+# [actuators]: key -> (axle, vh_v14_arc_params_t field, range)
+_ACTUATORS = {
+    "moment_limit_front_nm": (0, "m_max", Num(0.0, 20000.0)),
+    "moment_limit_rear_nm": (1, "m_max", Num(0.0, 20000.0)),
+    "rate_limit_front_nm_per_s": (0, "rate_max", Num(1.0, 1e6)),
+    "rate_limit_rear_nm_per_s": (1, "rate_max", Num(1.0, 1e6)),
+    "lag_front_s": (0, "tau", Num(0.0, 1.0)),
+    "lag_rear_s": (1, "tau", Num(0.0, 1.0)),
+}
+# [roll_sensors]: key -> (vh_rln_config_t array, channels, range); channels in the UKF's order
+_AY, _AZU, _DT, _DS, _R = (0,), (1, 2, 3, 4), (5, 6, 7, 8), (9, 10, 11, 12), (13,)
+_ROLL_SENSORS = {
+    "lat_accel_std_m_s2": ("noise_std", _AY, Num(0.0, 10.0)),
+    "wheel_accel_std_m_s2": ("noise_std", _AZU, Num(0.0, 50.0)),
+    "tyre_deflection_std_m": ("noise_std", _DT, Num(0.0, 0.01)),
+    "suspension_deflection_std_m": ("noise_std", _DS, Num(0.0, 0.01)),
+    "yaw_rate_std_rad_s": ("noise_std", _R, Num(0.0, 1.0)),
+    "lat_accel_bias_m_s2": ("bias", _AY, Num(-10.0, 10.0)),
+    "wheel_accel_bias_m_s2": ("bias", _AZU, Num(-50.0, 50.0)),
+    "tyre_deflection_bias_m": ("bias", _DT, Num(-0.05, 0.05)),
+    "suspension_deflection_bias_m": ("bias", _DS, Num(-0.05, 0.05)),
+    "yaw_rate_bias_rad_s": ("bias", _R, Num(-1.0, 1.0)),
+}
+#: the roll node's channels by name (for the dead / stuck sensor faults)
+CHANNELS = ("lat_accel", "wheel_accel_fl", "wheel_accel_fr", "wheel_accel_rl", "wheel_accel_rr",
+            "tyre_defl_fl", "tyre_defl_fr", "tyre_defl_rl", "tyre_defl_rr",
+            "susp_defl_fl", "susp_defl_fr", "susp_defl_rl", "susp_defl_rr", "yaw_rate")
+
+
+def roll_scenario_dir() -> Path:
+    return shipped_dir("scenarios/roll", "firmware_sim/scenarios/roll", "*.toml")
+
+
+def roll_scenario_path(name_or_path: str | Path) -> Path:
+    return shipped_file(name_or_path, roll_scenario_dir())
+
+
+def list_roll_scenarios() -> list[str]:
+    return sorted(p.stem for p in roll_scenario_dir().glob("*.toml"))
+
+
+@dataclass(frozen=True)
+class RollScenario:
+    """A validated roll scenario: the plant's part (a tyre-force scenario) and the roll node's."""
+
+    plant: TireForceScenario
+    mode: tuple[tuple[float, str], ...]            # (t, "passive" | "active")
+    actuators: tuple[tuple[str, float], ...] = ()  # only the keys written
+    roll_sensors: tuple[tuple[str, float], ...] = ()
+
+    @property
+    def name(self) -> str:
+        return self.plant.name
+
+    @property
+    def description(self) -> str:
+        return self.plant.description
+
+    @property
+    def duration_s(self) -> float:
+        return self.plant.duration_s
+
+    @property
+    def n_steps(self) -> int:
+        return self.plant.n_steps
+
+    @property
+    def path(self):
+        return self.plant.path
+
+    def active_at(self, t) -> np.ndarray:
+        """The driver's switch at times t: True where active."""
+        ts = np.array([p[0] for p in self.mode])
+        on = np.array([p[1] == "active" for p in self.mode])
+        i = np.searchsorted(ts, np.asarray(t, dtype=float), side="right") - 1
+        return np.where(i >= 0, on[np.maximum(i, 0)], False)
+
+    @property
+    def active(self) -> bool:
+        """Active at any time of the run."""
+        return any(m == "active" for _, m in self.mode)
+
+    def with_mode(self, mode: str) -> RollScenario:
+        """The same run in one mode throughout (e.g. the passive twin of an active case)."""
+        return replace(self, mode=((0.0, mode),))
+
+    def arc_params(self, ffi, lib):
+        arc = ffi.new("vh_v14_arc_params_t[2]")
+        lib.vh_v14_arc_params_default(ffi.addressof(arc[0]))
+        lib.vh_v14_arc_params_default(ffi.addressof(arc[1]))
+        for key, value in self.actuators:
+            axle, field, _ = _ACTUATORS[key]
+            setattr(arc[axle], field, value)
+        return arc
+
+    @property
+    def node_seed(self) -> int:
+        """The roll node's random stream, derived from the scenario's seed (apart from the CHS node's)."""
+        return (self.plant.seed * 0x9E3779B97F4A7C15 + 0x524F4C4C) % 2**64
+
+    def node_config(self, ffi, lib):
+        cfg = ffi.new("vh_rln_config_t *")
+        lib.vh_rln_config_default(cfg)
+        for key, value in self.roll_sensors:
+            array, chans, _ = _ROLL_SENSORS[key]
+            for ch in chans:
+                getattr(cfg, array)[ch] = value
+        cfg.seed = self.node_seed
+        cfg.mode_active = int(self.active_at(0.0))
+        return cfg
+
+
+#: the car's truth: the plant's, then the actuators' (applied and commanded moments, supervision state)
+_ARC_FIELDS = [("m_applied", "<f8", (2,)), ("m_cmd", "<f8", (2,)), ("arc_state", "u1"), ("mode_active", "u1")]
+
+
+def _names(dt: np.dtype) -> tuple[str, ...]:
+    return tuple(dt.names or ())
+
+
+def roll_truth_dtype() -> np.dtype:
+    base = truth_dtype(None)
+    fields: dict = dict(base.fields or {})
+    return np.dtype([(n, fields[n][0]) for n in _names(base)] + _ARC_FIELDS)
+
+
+class RollCar:
+    """The 14-DOF plant with its active roll actuators, the chassis sensor node and the roll node, as a
+    car on the bus (the interface of :class:`vehest_can.sim.session.Car`, plus ``rx``: the ECU's
+    frames reach the roll node, which applies a command from the tick after the one it arrived in)."""
+
+    def __init__(self, sc: RollScenario, duration_s: float | None = None):
+        ffi, lib = _native()
+        self._ffi, self._lib = ffi, lib
+        self.scenario = sc
+        self.name = sc.name
+        self.n = sc.n_steps if duration_s is None else int(round(duration_s / DT))
+        if not 0 < self.n <= sc.n_steps:
+            raise ScenarioError(f"{sc.plant._where()}: duration must be in (0, {sc.duration_s}] s")
+        self.truth_dtype = roll_truth_dtype()
+        self._base_names = _names(truth_dtype(None))
+        self._inputs = sc.plant.inputs(ffi)
+        self._active = sc.active_at(np.arange(sc.n_steps) * DT)
+        self._arc = sc.arc_params(ffi, lib)
+        self._out = ffi.new("vh_frame_t[5]")
+        self._rxf = ffi.new("vh_frame_t *")
+        self.node = ffi.new("vh_rln_t *")
+        self.reset()
+
+    def reset(self) -> None:
+        ffi, lib = self._ffi, self._lib
+        self._plant = self.scenario.plant.make_plant(ffi, lib)
+        if lib.vh_v14_arc_config(self._plant, ffi.addressof(self._arc[0]), ffi.addressof(self._arc[1])) != lib.VH_OK:
+            raise ScenarioError(f"{self.scenario.plant._where()}: actuators: the plant refuses these limits")
+        self._chs = self.scenario.plant.make_node(ffi, lib)
+        if lib.vh_rln_init(self.node, self.scenario.node_config(ffi, lib)) != lib.VH_OK:
+            raise ScenarioError(f"{self.scenario.plant._where()}: roll_sensors: the roll node refuses them")
+        self._k = 0
+
+    def rx(self, frame) -> None:
+        """One ECU frame (``can.Message`` or ``vh_frame_t`` cdata) to the roll node."""
+        if hasattr(frame, "arbitration_id"):
+            if frame.is_error_frame or frame.is_remote_frame:
+                return
+            from ...bus.frames import to_frame
+
+            frame = to_frame(frame, self._rxf)
+        self._lib.vh_rln_rx(self.node, frame)
+
+    def tick(self, k: int) -> list:
+        ffi, lib = self._ffi, self._lib
+        self._k = k
+        self.node.cfg.mode_active = int(self._active[k])
+        lib.vh_rln_actuate(self.node, self._plant)
+        lib.vh_v14_step(self._plant, self._inputs + k)
+        n = lib.vh_chs_step(self._chs, ffi.addressof(self._plant, "truth"), self._out, 1)
+        n += lib.vh_rln_step(self.node, self._plant, self._out + n, 4)
+        return [self._out[i] for i in range(n)]
+
+    def truth(self) -> np.void:
+        base = np.frombuffer(self._ffi.buffer(self._ffi.addressof(self._plant, "truth")),
+                             dtype=truth_dtype(None))[0]
+        out = np.zeros((), dtype=self.truth_dtype)
+        for name in self._base_names:
+            out[name] = base[name]
+        arc = self._plant.arc
+        out["m_applied"] = (arc.m[0], arc.m[1])
+        out["m_cmd"] = (arc.cmd[0], arc.cmd[1])
+        out["arc_state"] = self.node.state
+        out["mode_active"] = self.node.cfg.mode_active
+        return out[()]  # type: ignore[return-value]
+
+    def set_sensor_fault(self, kind: str, channel: str) -> None:
+        """A dead (SNA, qualifier INVALID) or stuck (last value repeated) roll sensor from now on."""
+        bit = 1 << CHANNELS.index(channel)
+        if kind == "dead":
+            self.node.cfg.fail_mask |= bit
+        elif kind == "stuck":
+            self.node.cfg.stuck_mask |= bit
+        else:
+            raise ValueError(f"sensor fault must be dead or stuck, not {kind!r}")
+
+
+# ---- loading -------------------------------------------------------------------------------------
+
+def load_roll_scenario(path: str | Path) -> RollScenario:
+    path = roll_scenario_path(path)
+    return roll_scenario_from_dict(read_toml(path), path)
+
+
+def roll_scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> RollScenario:
+    """Validate a parsed roll scenario (``path`` names it in errors)."""
+    ffi, lib = _native()
+    c = Checker(Path(path))
+    if not isinstance(doc, dict):
+        c.fail("", f"must be a TOML document (a table), not {type_name(doc)}")
+    if doc.get("kind") not in KINDS:
+        c.fail("kind", f'must be "roll", not {doc.get("kind")!r}')
+    plant_doc = {k: v for k, v in doc.items() if k not in _ROLL_TABLES}
+    plant_doc["kind"] = "tireforce"
+    plant = tireforce_scenario_from_dict(plant_doc, path)
+
+    control = c.table(doc.get("control", {}), "control", {"mode"})
+    mode_doc = control.get("mode", [[0.0, "passive"]])
+    if not isinstance(mode_doc, list) or not mode_doc:
+        c.fail("control.mode", 'must be a non-empty list of [time_s, "passive" | "active"] points')
+    mode: list[tuple[float, str]] = []
+    for i, pt in enumerate(mode_doc):
+        key = f"control.mode[{i}]"
+        if not isinstance(pt, list) or len(pt) != 2:
+            c.fail(key, f'must be a [time_s, "passive" | "active"] point, not {pt!r}')
+        t = c.number(pt[0], f"{key}[0]", Num(0.0, 1e6))
+        m = c.string(pt[1], f"{key}[1]")
+        if m not in MODES:
+            c.fail(f"{key}[1]", f'must be "passive" or "active", not {m!r}')
+        if mode and not t > mode[-1][0]:
+            c.fail(key, f"time {t:g} s does not come after the previous point's {mode[-1][0]:g} s")
+        mode.append((t, m))
+
+    act_doc = c.table(doc.get("actuators", {}), "actuators", set(_ACTUATORS))
+    actuators = tuple(sorted((k, c.number(v, f"actuators.{k}", _ACTUATORS[k][2])) for k, v in act_doc.items()))
+    rs_doc = c.table(doc.get("roll_sensors", {}), "roll_sensors", set(_ROLL_SENSORS))
+    roll_sensors = tuple(sorted((k, c.number(v, f"roll_sensors.{k}", _ROLL_SENSORS[k][2])) for k, v in rs_doc.items()))
+    sc = RollScenario(plant=plant, mode=tuple(mode), actuators=actuators, roll_sensors=roll_sensors)
+    arc = sc.arc_params(ffi, lib)
+    if lib.vh_v14_arc_config(plant.make_plant(ffi, lib), ffi.addressof(arc[0]), ffi.addressof(arc[1])) != lib.VH_OK:
+        c.fail("actuators", "the plant refuses these actuator limits")
+    if lib.vh_rln_init(ffi.new("vh_rln_t *"), sc.node_config(ffi, lib)) != lib.VH_OK:
+        c.fail("roll_sensors", "the roll node refuses this configuration")
+    return sc
+
+
+__all__ = ["KINDS", "CHANNELS", "RollScenario", "RollCar", "load_roll_scenario", "roll_scenario_from_dict",
+           "roll_scenario_dir", "roll_scenario_path", "list_roll_scenarios", "roll_truth_dtype"]

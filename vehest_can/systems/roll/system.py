@@ -1,0 +1,68 @@
+"""The roll system's registration (seed 003): what the demo and the reports ask of it
+(:class:`~vehest_can.systems.System`)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from .. import Setup
+from . import report
+from .faults import FAULTS
+from .scenario import KINDS, RollCar, load_roll_scenario, roll_scenario_dir
+
+
+class Roll:
+    name = "roll"
+    kinds = KINDS
+    realtime = True
+    faults = FAULTS
+    campaign = None
+
+    def scenario_dir(self) -> Path:
+        return roll_scenario_dir()
+
+    def claims(self, doc: dict) -> bool:
+        return doc.get("kind") in KINDS
+
+    def load(self, path: Path):
+        return load_roll_scenario(path)
+
+    def car(self, scenario, duration_s: float | None = None):
+        return RollCar(scenario, duration_s)
+
+    def setup(self, scenarios: list, out: Path) -> Setup:
+        return Setup()
+
+    def metrics(self, scenario, session, out_dir: Path, setup: Setup) -> dict:
+        """Against the plant, from the bus: the ECU's float32 UKF estimates (VEHEST_RollEst), the
+        actuators' moments; an active run also against its passive twin (in-process)."""
+        from ...sim.session import run_inprocess
+        from ..ecu import Ecu
+
+        sc = scenario
+        arc = sc.arc_params(*_native())
+        limits = tuple((float(arc[i].m_max), float(arc[i].rate_max)) for i in range(2))
+        m = {"scenario": sc.name, "description": sc.description, "mode": session.mode,
+             "control": "active" if sc.active else "passive", "speed_kmh": sc.plant.initial_speed_kmh,
+             **report.evaluate(session, limits), **report.rerun(session)}
+        print(f"  ECU's float32 UKF on the bus == array API on the decoded samples: "
+              f"{'identical' if m['ecu_equals_array_api'] else 'DIFFERENT'} ({m['steps']} steps)")
+        passive = None
+        if sc.active:
+            twin = sc.with_mode("passive")
+            passive = run_inprocess(RollCar(twin, len(session.truth) * 0.0005), Ecu())
+            m["vs_passive"] = report.compare(m, report.evaluate(passive))
+        m["acceptance"] = [{"line": a, "figure": f, "pass": ok} for a, f, ok in report.acceptance(m)]
+        m["plots"] = [str(p) for p in report.plots(session, out_dir, sc.name, passive)]
+        return m
+
+    def tables(self, metrics: list[dict]) -> list[str]:
+        return [report.table(m) for m in metrics]
+
+
+def _native():
+    from ...native import ffi, lib
+
+    return ffi, lib
+
+
+SYSTEM = Roll()
