@@ -10,7 +10,7 @@
 
 /* Ticks per cycle of a message; the meta headers refuse a cycle that is not whole ticks. */
 #define TICKS(cycle_us) ((cycle_us) / VH_TICK_US)
-/* room in a tick's TX for the XCP frames (vh_ecu_xcp_tx) beside the systems' six */
+/* room in a tick's TX for the XCP frames (vh_ecu_xcp_tx) beside the systems' eight */
 typedef char vh_ecu_tx_room_check[(VH_ECU_MAX_TX >= 8 + VH_ECU_XCP_MAX_TX) ? 1 : -1];
 
 int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_params_t *prm)
