@@ -19,7 +19,7 @@ int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_
     vh_skfq_t qprobe;
     if (vh_drv_app_check(cfg->gear_ratio, cfg->we_min) != VH_OK || !(cfg->camber_still_ww >= 0.0) ||
         !isfinite(cfg->camber_still_ww) || vh_camber_init(&cprobe, &cfg->camber, NULL) != VH_OK ||
-        vh_skfq_init(&qprobe, prm) != VH_OK) {
+        vh_skfq_init(&qprobe, prm) != VH_OK || !vh_tf_app_check(prm)) {
         return VH_EINVAL;
     }
     for (i = 0; i < VH_ECU_N_DKF; ++i) {
@@ -113,7 +113,7 @@ static int drv_status(vh_ecu_t *ecu, uint8_t *d)
     return vh_drv_app_fill_status(&ecu->drv, ecu->dkf, &ecu->cnt, ecu->tick, d);
 }
 static int cmb_tx(vh_ecu_t *ecu, uint8_t *d) { return vh_cmb_app_fill(&ecu->cis, d); }
-static int tf_est(vh_ecu_t *ecu, uint8_t *d) { return vh_tf_app_fill_est(&ecu->chs, ecu->cfg.skf.s, d); }
+static int tf_est(vh_ecu_t *ecu, uint8_t *d) { return vh_tf_app_fill_est(&ecu->chs, d); }
 static int tf_status(vh_ecu_t *ecu, uint8_t *d) { return vh_tf_app_fill_status(&ecu->chs, d); }
 
 /* A step (step != NULL) or a TX frame (fill: its payload; 0 = nothing to send this time), run in

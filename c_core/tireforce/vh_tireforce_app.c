@@ -1,9 +1,7 @@
 /* vh_tireforce_app.c - the tyre-force ECU application, see vh_tireforce_app.h. */
-#include <math.h>
 #include <string.h>
 
 #include "vh_ch.h"
-#include "vh_ch_enc.h"
 #include "vh_ch_meta.h"
 #include "vh_ch_q.h"
 #include "vh_e2e.h"
@@ -96,14 +94,30 @@ void vh_tf_app_step(vh_ecu_chs_t *c, unsigned burst_limit)
     }
 }
 
-/* An estimate while the filter is usable, else the signal's SNA (the encoders map NaN to SNA). */
-#define EST(sig, v) vh_ch_vehest_tire_force_est_##sig##_encode_round(ok ? (v) : (double)NAN)
+/* The published states: their scaling S is the exact fraction s_num/s_den of the configuration,
+ * so x* (Q.FX) -> raw is one integer rounding of an exact rational (vh_ch_q.h, no double). */
+#define STATES(X)                                                                                  \
+    X(fyf, FYF, VH_SKF_FYF) X(fyr, FYR, VH_SKF_FYR) X(est_vx, EST_VX, VH_SKF_VX) X(est_vy, EST_VY, VH_SKF_VY) \
+    X(est_yaw_rate, EST_YAW_RATE, VH_SKF_R) X(est_roll_angle, EST_ROLL_ANGLE, VH_SKF_PHI)
+#define QS_OK(sig, SIG, i) &&vh_ch_vehest_tire_force_est_##sig##_qs_ok(prm->s_num[i], prm->s_den[i])
 
-int vh_tf_app_fill_est(vh_ecu_chs_t *c, const double s[VH_SKF_NX], uint8_t *data)
+int vh_tf_app_check(const vh_skfq_params_t *prm)
+{
+    return 1 STATES(QS_OK);
+}
+
+/* An estimate while the filter is usable, else the signal's SNA. */
+#define EST(sig, SIG, i)                                                                                  \
+    m.sig = ok ? vh_ch_vehest_tire_force_est_##sig##_encode_qs(f->x[i], VH_SKFQ_FX, f->prm.s_num[i], \
+                                                               f->prm.s_den[i])                   \
+               : VH_CH_VEHEST_TIRE_FORCE_EST_##SIG##_SNA_CHOICE;
+#define FY(k, sig, SIG) \
+    m.sig = ok ? vh_ch_vehest_tire_force_est_##sig##_encode_q(f->fy[k], VH_SKFQ_FN) : VH_CH_VEHEST_TIRE_FORCE_EST_##SIG##_SNA_CHOICE
+
+int vh_tf_app_fill_est(vh_ecu_chs_t *c, uint8_t *data)
 {
     struct vh_ch_vehest_tire_force_est_t m;
     const vh_skfq_t *f = &c->skf;
-    const double fx = 1.0 / (double)(1L << VH_SKFQ_FX);
     const int ok = !c->rx.timed_out && (f->health == VH_HEALTH_OK || f->health == VH_HEALTH_DEGRADED);
     if (!c->heard) {
         return 0;
@@ -111,18 +125,12 @@ int vh_tf_app_fill_est(vh_ecu_chs_t *c, const double s[VH_SKF_NX], uint8_t *data
     memset(&m, 0, sizeof m);
     m.skfmec_q_health = f->health;
     m.skfmec_q_valid = !c->rx.timed_out && f->health == VH_HEALTH_OK;
-    /* the tyre forces in integers (Q.FN -> raw, exact); the states below still through double:
-     * their scaling S is a double of the configuration, not a DBC fraction (docs/firmware.md) */
-    m.fy1 = ok ? vh_ch_vehest_tire_force_est_fy1_encode_q(f->fy[0], VH_SKFQ_FN) : VH_CH_VEHEST_TIRE_FORCE_EST_FY1_SNA_CHOICE;
-    m.fy2 = ok ? vh_ch_vehest_tire_force_est_fy2_encode_q(f->fy[1], VH_SKFQ_FN) : VH_CH_VEHEST_TIRE_FORCE_EST_FY2_SNA_CHOICE;
-    m.fy3 = ok ? vh_ch_vehest_tire_force_est_fy3_encode_q(f->fy[2], VH_SKFQ_FN) : VH_CH_VEHEST_TIRE_FORCE_EST_FY3_SNA_CHOICE;
-    m.fy4 = ok ? vh_ch_vehest_tire_force_est_fy4_encode_q(f->fy[3], VH_SKFQ_FN) : VH_CH_VEHEST_TIRE_FORCE_EST_FY4_SNA_CHOICE;
-    m.fyf = EST(fyf, f->x[VH_SKF_FYF] * fx / s[VH_SKF_FYF]);
-    m.fyr = EST(fyr, f->x[VH_SKF_FYR] * fx / s[VH_SKF_FYR]);
-    m.est_vx = EST(est_vx, f->x[VH_SKF_VX] * fx / s[VH_SKF_VX]);
-    m.est_vy = EST(est_vy, f->x[VH_SKF_VY] * fx / s[VH_SKF_VY]);
-    m.est_yaw_rate = EST(est_yaw_rate, f->x[VH_SKF_R] * fx / s[VH_SKF_R]);
-    m.est_roll_angle = EST(est_roll_angle, f->x[VH_SKF_PHI] * fx / s[VH_SKF_PHI]);
+    /* Q.FN -> raw and x* -> raw: exact integer scalings, the DBC's fraction (times S for the states) */
+    FY(0, fy1, FY1);
+    FY(1, fy2, FY2);
+    FY(2, fy3, FY3);
+    FY(3, fy4, FY4);
+    STATES(EST)
     (void)vh_ch_vehest_tire_force_est_pack(data, &m, VH_CH_VEHEST_TIRE_FORCE_EST_LENGTH);
     vh_e2e_p01_protect(data, VH_CH_VEHEST_TIRE_FORCE_EST_LENGTH, VH_CH_VEHEST_TIRE_FORCE_EST_E2E_DATA_ID,
                        &c->tx_counter[0]);

@@ -5,7 +5,9 @@
  * fraction, vh_ch_q.h: no double). Step: one fixed-point SKFMEC step per tick on the fresh sample (prediction only,
  * DEGRADED, without one), restarted after a timeout so that it re-seeds from live data. TX:
  * VEHEST_TireForceEst and VEHEST_ChassisStatus at their DBC cycles, once the chassis bus has been
- * heard (a powertrain-only car sees no chassis frames). Its own counters (VEHEST_ChassisStatus).
+ * heard (a powertrain-only car sees no chassis frames), each estimate raw by an exact integer
+ * scaling (the DBC's fraction, times the filter's scaling S for the states): raw frame to raw
+ * frame, no double. Its own counters (VEHEST_ChassisStatus).
  */
 #ifndef VH_TIREFORCE_APP_H
 #define VH_TIREFORCE_APP_H
@@ -32,9 +34,12 @@ void vh_tf_app_reset(vh_ecu_chs_t *c);
 void vh_tf_app_rx(vh_ecu_chs_t *c, const vh_frame_t *f);
 /* Once per tick: RX timeout/burst and one filter step. */
 void vh_tf_app_step(vh_ecu_chs_t *c, unsigned burst_limit);
-/* The payloads of VEHEST_TireForceEst (states back to physical units by the scaling s of the
- * configuration) and VEHEST_ChassisStatus; 0 (send nothing) before the chassis bus is heard. */
-int vh_tf_app_fill_est(vh_ecu_chs_t *c, const double s[VH_SKF_NX], uint8_t *data);
+/* 1 if the filter's scaling S (prm->s_num/s_den) times each state's DBC scale is a fraction the
+ * integer TX can use (vh_ch_q.h ..._qs_ok), else 0: checked once, at vh_ecu_init. */
+int vh_tf_app_check(const vh_skfq_params_t *prm);
+/* The payloads of VEHEST_TireForceEst and VEHEST_ChassisStatus, integer only (raw frame out);
+ * 0 (send nothing) before the chassis bus is heard. */
+int vh_tf_app_fill_est(vh_ecu_chs_t *c, uint8_t *data);
 int vh_tf_app_fill_status(vh_ecu_chs_t *c, uint8_t *data);
 
 #endif /* VH_TIREFORCE_APP_H */
