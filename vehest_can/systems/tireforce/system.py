@@ -53,7 +53,8 @@ class TireForce:
                    "mode": session.mode, "ecu_equals_array_api": same,
                    **report.evaluate(session.truth, runs), "relations": report.relations(session.truth)}
         files = report.plots("relations", session.truth, None, out_dir, title=sc.name)
-        files += report.plots("forces", session.truth, runs, out_dir, title=sc.name)
+        files += report.plots("forces", session.truth, runs, out_dir, title=sc.name,
+                              true_mass_kg=tf.SkfConfig.default().m + sc.mass_delta_kg)
         metrics["plots"] = [str(p) for p in files]
         return metrics
 
