@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from vehest_can.native import ffi, lib
 from vehest_can.systems.tireforce import adaptive as A
 from vehest_can.systems.tireforce import api as tf
 from vehest_can.systems.tireforce import report as tr
@@ -47,8 +48,9 @@ def test_split_keeps_the_axle_force_and_shares_small_forces_by_cornering_stiffne
     assert np.allclose(fy[:, :2].sum(1), 2 * axle[:, 0]) and np.allclose(fy[:, 2:].sum(1), 2 * axle[:, 1])
     a3, a4, a5 = cfg.tyre_a[3:6]
     bcd = lambda z: a3 * math.sin(a4 * math.atan(a5 * z * 1e-3 / cfg.tyre_fz_scale))  # noqa: E731
-    assert fy[0, 0] / fy[0, 1] == pytest.approx(bcd(3000) / bcd(7000), rel=1e-4)
-    assert fy[0, 2] / fy[0, 3] == pytest.approx(bcd(2500) / bcd(5000), rel=1e-4)
+    # the table's first segment (0.25 deg) is the cornering stiffness to within the curve's bend
+    assert fy[0, 0] / fy[0, 1] == pytest.approx(bcd(3000) / bcd(7000), rel=5e-3)
+    assert fy[0, 2] / fy[0, 3] == pytest.approx(bcd(2500) / bcd(5000), rel=5e-3)
     assert fy[1, 2] == pytest.approx(fy[1, 3])
     # near the pair's peak the share approaches that of the friction limits D(Fz) = a1 Fz^2 + a2 Fz
     big = A.load_sensitive_split(np.array([[6500.0, 0.0]]), fz[:1], cfg)
@@ -100,3 +102,36 @@ def test_stress_within_ten_percent_and_the_mass_within_five(name):
 def test_split_mu_braking_within_ten_percent():
     a, _, _, _ = pct(load_tireforce_scenario(STRESS / "stress_split_mu_braking.toml"))
     assert all(a["rms_pct"][w] <= 10.0 for w in tf.WHEELS), a["rms_pct"]
+
+
+# ---- fixed point (c_core/tireforce/vh_tfa.c) -------------------------------------------------
+
+@pytest.mark.parametrize("name", ["chassis_paper_mu_drop", "chassis_relation_70kph",
+                                  "stress/stress_highway_step_payload", "stress/stress_split_mu_braking"])
+def test_fixed_point_matches_double(name):
+    """Fixed vs double <= 0.5 % of peak per tyre (the issue's line), no saturation, the same health
+    and the same mass to 0.1 kg; the same integers from a fresh instance (bit-exact)."""
+    sc = load_tireforce_scenario(tireforce_scenario_dir() / f"{name}.toml")
+    truth, dec, _ = tr.simulate(sc, variants=())
+    u = dec.for_filter()
+    dbl = A.AdaptiveSkfmec().run(u, dec.mask)
+    fix = A.AdaptiveFixed().run(u, dec.mask)
+    sel = truth["t"] >= truth["t"][0] + 0.2
+    peak = np.abs(truth["fy"]).max(0)
+    diff = 100 * np.sqrt(((fix.fy - dbl.fy)[sel] ** 2).mean(0)) / peak
+    print(f"\n{name}: fixed - double, % of peak:", diff.round(4))
+    assert np.all(diff <= 0.5) and fix.saturations == 0
+    assert np.array_equal(fix.health, dbl.health)
+    assert np.abs(fix.mass - dbl.mass).max() < 0.1
+    again = A.AdaptiveFixed().run(u, dec.mask)
+    assert np.array_equal(again.fy, fix.fy) and np.array_equal(again.mass, fix.mass)
+
+
+def test_fixed_point_refuses_bad_constants():
+    p = A.fixed_params(tf.SkfConfig.default(), A.AdaptiveConfig())
+    a = ffi.new("vh_tfa_t *")
+    assert lib.vh_tfa_init(a, p) == lib.VH_OK
+    for field, bad in (("decim", 0), ("p_floor", 0), ("k_hi", p.k_lo), ("inv_forget", 2**29)):
+        q = ffi.new("vh_tfa_params_t *", p[0])
+        setattr(q, field, bad)
+        assert lib.vh_tfa_init(a, q) == lib.VH_EINVAL, field

@@ -34,7 +34,8 @@ sys.path.insert(0, str(ROOT / "c_core"))
 import dbcgen  # noqa: E402
 
 INCLUDE = ROOT / "c_core" / "common"
-FIXED_SOURCES = [ROOT / "c_core" / "tireforce" / "vh_skfq.c", ROOT / "c_core" / "common" / "vh_fix.c"]
+FIXED_SOURCES = [ROOT / "c_core" / "tireforce" / "vh_skfq.c", ROOT / "c_core" / "tireforce" / "vh_tfa.c",
+                 ROOT / "c_core" / "common" / "vh_fix.c"]
 I32_MIN, I32_MAX = -(2**31), 2**31 - 1
 
 
@@ -385,7 +386,7 @@ SOFT_FLOAT = re.compile(r"^(__aeabi_(?:[fd]\w*|\w*2[fd]\w*)|__\w+[sdt]f\d?|__\w+
 
 def tyre_force_path(tmp: Path) -> tuple[list[Path], list[Path], Path]:
     """The tyre-force ECU path from raw frame to raw frame, as translation units: the app (RX,
-    step, TX), the fixed-point filter, the fixed-point helpers, RX checks and E2E; their include
+    step, TX), the fixed-point filters (SKFMEC and SKFMEC-A), the fixed-point helpers, RX checks and E2E; their include
     folders; and the chassis bus's generated codec (vh_ch.c), which is checked per function (it
     also holds cantools' double ``_encode``/``_decode`` helpers, which no firmware calls on this bus)."""
     gen = tmp / "gen"

@@ -14,10 +14,10 @@ the SKFMEC unchanged and adds, per step (docs/skfmec.md, "SKFMEC-A"):
    balance both scale with the mass, so a payload at the CG scales the SKFMEC's axle estimate by
    m_true/m_model (a first-order correction: Iz and the CG height are kept);
 3. **normal loads** times m̂/m (every term of eq. 39 is proportional to the mass);
-4. **load-sensitive split** instead of Fyi/Fyf = Fzi/Fzf (eq. 33-34): at one slip angle per axle the
-   tyres' forces share as their cornering stiffnesses, Cα(Fz) = BCD(Fz) of the tyre's Magic Formula
-   (Bakker, Nyborg & Pacejka 1987: BCD = a3 sin(a4 atan(a5 Fz)), Fz in kN, with the tyre's size
-   factor), which falls relative to Fz as the load grows: F_yi = 2 F_y,axle Cα(F_zi) / (Cα(F_z,in) + Cα(F_z,out)).
+4. **load-sensitive split** instead of Fyi/Fyf = Fzi/Fzf (eq. 33-34): at one slip angle per axle,
+   the tyres' Magic Formula forces (Bakker, Nyborg & Pacejka 1987, from a table over slip angle
+   and load) that add up to the axle's: small forces share as the cornering stiffnesses
+   Cα(Fz) = a3 sin(a4 atan(a5 Fz)), which grow less than the load, large ones as the friction limits.
 
 Health: INIT while the SKFMEC is, DEGRADED until the mass estimate has converged (its standard
 deviation below ``mass_sigma_ok`` of the model mass) or whenever the SKFMEC is DEGRADED; FAULT with it.
@@ -29,6 +29,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ...errors import ConfigError
+from ...native import check, ffi, lib
 from . import api as tf
 
 ADAPTIVE = "skfmec-a"
@@ -57,7 +59,6 @@ class AdaptiveConfig:
     tyre_a: tuple = (1.30, -22.1, 1011.0, 1078.0, 1.82, 0.208, 0.0, -0.354, 0.707)
     tyre_fz_scale: float = 1.75
     mu: float = 1.0
-    alpha_max_deg: float = 8.0
     mass: bool = True            # ablation switches
     split: bool = True
 
@@ -83,25 +84,51 @@ def lateral_force(alpha_deg: np.ndarray, fz: np.ndarray, cfg: AdaptiveConfig) ->
     return sc * d * np.sin(a[0] * np.arctan(bx - e * (bx - np.arctan(bx))))
 
 
-def load_sensitive_split(axle: np.ndarray, fz: np.ndarray, cfg: AdaptiveConfig) -> np.ndarray:
+N_ALPHA, ALPHA_STEP_DEG = 33, 0.25  # the split's table: slip angle knots 0, 0.25, ..., 8 deg
+N_FZ, FZ_STEP_N = 29, 500.0         # and load knots 0, 500, ..., 14 000 N
+
+
+def force_table(cfg: AdaptiveConfig) -> np.ndarray:
+    """(N_FZ, N_ALPHA) lateral force [N] of the tyre at the knots (made off-line: the ECU's table)."""
+    al, fz = np.meshgrid(np.arange(N_ALPHA) * ALPHA_STEP_DEG, np.arange(N_FZ) * FZ_STEP_N)
+    tab = lateral_force(al, fz, cfg)
+    tab[0] = 0.0
+    return tab
+
+
+def load_sensitive_split(axle: np.ndarray, fz: np.ndarray, cfg: AdaptiveConfig,
+                         table: np.ndarray | None = None) -> np.ndarray:
     """Per-tyre forces from the (n, 2) axle means and (n, 4) loads: the one slip angle α per axle at
-    which the two tyres' Magic Formula forces add up to the axle's (bisection), each tyre's force
-    at it. Small forces share as the cornering stiffnesses Cα(Fz) (BCD), large ones as the
-    friction limits D(Fz); beyond the pair's peak, as the peaks."""
+    which the two tyres' forces add up to the axle's, each tyre's force at it. The tyre's force is
+    the table of its Magic Formula, linear between the knots (in load, then in α), so the pair's
+    sum is piecewise linear in α and its inverse is exact: the first knot j where the sum reaches
+    the axle's force, then linear between j - 1 and j (the fixed-point version does the same).
+    Small forces share as the cornering stiffnesses (the first segment), large ones as the
+    friction limits; beyond the pair's peak, as at the peak."""
+    tab = force_table(cfg) if table is None else table
     out = np.empty_like(fz)
+    rows = np.arange(len(fz))
     for a, (i, j) in enumerate(((0, 1), (2, 3))):
+        f = []
+        for w in (i, j):
+            x = np.clip(fz[:, w] / FZ_STEP_N, 0.0, N_FZ - 1.0)
+            iz = np.minimum(x.astype(int), N_FZ - 2)
+            wz = (x - iz)[:, None]
+            f.append(tab[iz] * (1.0 - wz) + tab[iz + 1] * wz)  # (n, N_ALPHA)
+        tot = f[0] + f[1]
         want = 2.0 * np.abs(axle[:, a])
-        lo, hi = np.zeros(len(want)), np.full(len(want), cfg.alpha_max_deg)
-        for _ in range(40):
-            mid = 0.5 * (lo + hi)
-            more = lateral_force(mid, fz[:, i], cfg) + lateral_force(mid, fz[:, j], cfg) < want
-            lo = np.where(more, mid, lo)
-            hi = np.where(more, hi, mid)
-        alpha = np.maximum(0.5 * (lo + hi), 1e-6)
-        fi, fj = lateral_force(alpha, fz[:, i], cfg), lateral_force(alpha, fz[:, j], cfg)
-        tot = np.maximum(fi + fj, 1e-9)
-        out[:, i] = 2.0 * axle[:, a] * fi / tot
-        out[:, j] = 2.0 * axle[:, a] * fj / tot
+        reach = tot[:, 1:] >= want[:, None]
+        k = np.where(reach.any(1), reach.argmax(1) + 1, 0)  # first knot that reaches it; 0: none
+        top = tot.argmax(1)
+        kk = np.where(k > 0, k, 1)
+        lo_t, hi_t = tot[rows, kk - 1], tot[rows, kk]
+        lo_f, hi_f = f[0][rows, kk - 1], f[0][rows, kk]
+        t = np.where(hi_t > lo_t, (want - lo_t) / np.where(hi_t > lo_t, hi_t - lo_t, 1.0), 0.0)
+        f_in = lo_f + t * (hi_f - lo_f)
+        share = np.where(want > 0, f_in / np.where(want > 0, want, 1.0), f[0][:, 1] / tot[:, 1])
+        share = np.where(k > 0, share, f[0][rows, top] / tot[rows, top])
+        out[:, i] = 2.0 * axle[:, a] * share
+        out[:, j] = 2.0 * axle[:, a] - out[:, i]
     return out
 
 
@@ -130,7 +157,7 @@ def estimate_mass(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf: tf
     wdot = np.zeros(4)
     w_prev = u.omega[0].copy()
     yf = phif = 0.0
-    all_valid = int(tf.lib.VH_SKF_ALL_VALID)
+    all_valid = int(lib.VH_SKF_ALL_VALID)
     valid_run = 0
     for k in range(n):
         w = u.omega[k]
@@ -172,7 +199,7 @@ class AdaptiveSkfmec:
     def run(self, inputs: tf.Inputs, mask=None) -> AdaptiveRun:
         cfg, skf = self.adaptive, self.config
         n = len(inputs)
-        m = np.full(n, int(tf.lib.VH_SKF_ALL_VALID), np.uint8) if mask is None else np.asarray(mask, np.uint8)
+        m = np.full(n, int(lib.VH_SKF_ALL_VALID), np.uint8) if mask is None else np.asarray(mask, np.uint8)
         base = tf.estimator(tf.SKFMEC, skf).run(inputs, m)
         if cfg.mass:
             mass, std = estimate_mass(inputs, base, m, skf, cfg)
@@ -192,3 +219,77 @@ class AdaptiveSkfmec:
 
 
 STRESS_DIR = "stress"  # firmware_sim/scenarios/chassis/stress/: scenarios of SKFMEC-A, not in any tuning
+
+
+# ---- fixed point (c_core/tireforce/vh_tfa.c): its constants, made here (the host side) -----------
+
+def _kconst(v: float) -> tuple[int, int]:
+    """vh_fix_k_t of v: m 2^-e with |m| in [2^30, 2^31), rounded half up (vh_skfq_host.c's kconst)."""
+    if v == 0.0:
+        return 0, 0
+    fr, ex = math.frexp(v)
+    m, e = math.floor(math.ldexp(fr, 31) + 0.5), 31 - ex
+    if abs(m) >= 2**31:
+        m, e = math.floor(math.ldexp(fr, 30) + 0.5), e - 1
+    return m, e
+
+
+def _q(v: float, frac: int) -> int:
+    r = math.floor(math.ldexp(v, frac) + 0.5)
+    if not -(2**31) <= r < 2**31:
+        raise ConfigError(f"SKFMEC-A constant {v!r} does not fit Q.{frac}")
+    return r
+
+
+def fixed_params(skf: tf.SkfConfig, cfg: AdaptiveConfig):
+    """The ``vh_tfa_params_t`` of a configuration (the integer constants of vh_tfa.h)."""
+    p = ffi.new("vh_tfa_params_t *")
+    fn = lib.VH_SKFQ_FN
+    for i, v in enumerate(force_table(cfg).ravel()):
+        p.table[i] = _q(float(v), fn)
+    s_vx = skf.s[0]
+    for name, v in (("k_inv_fz_step", 1.0 / FZ_STEP_N), ("k_phi", skf.m / cfg.sigma_y), ("k_y", 1.0 / cfg.sigma_y),
+                    ("k_drag", 0.5 * cfg.rho * cfg.cda / s_vx**2)):
+        k = getattr(p, name)
+        k.m, k.e = _kconst(v)
+    p.alpha_lp = _q(skf.ts / (cfg.tau_lp + skf.ts), 30)
+    p.ax_gate, p.ay_gate = _q(cfg.ax_gate, lib.VH_SKFQ_FA), _q(cfg.ay_gate, lib.VH_SKFQ_FA)
+    p.vx_gate = _q(cfg.vx_gate * s_vx, lib.VH_SKFQ_FX)
+    p.valid_min = round(5 * cfg.tau_lp / skf.ts)
+    p.decim = cfg.decim
+    p.inv_forget = _q(1.0 / cfg.forget, 30)
+    p.p0, p.p_floor, p.p_ok = (_q(x**2, lib.VH_TFA_FP) for x in (cfg.mass_sigma0, cfg.mass_sigma_floor, cfg.mass_sigma_ok))
+    p.k_lo, p.k_hi = (_q(x, lib.VH_TFA_FK) for x in cfg.mass_range)
+    return p
+
+
+class AdaptiveFixed:
+    """SKFMEC-A in fixed point (``vh_tfa_t`` over ``vh_skfq_t``): the ECU's version."""
+
+    def __init__(self, config: tf.SkfConfig | None = None, adaptive: AdaptiveConfig | None = None):
+        self.config = config or tf.SkfConfig.default(tf.SKFMEC)
+        self.adaptive = adaptive or AdaptiveConfig()
+        self._skf = tf.TireForceFixed(self.config)
+        self.params = fixed_params(self.config, self.adaptive)
+        self._a = ffi.new("vh_tfa_t *")
+        check(lib.vh_tfa_init(self._a, self.params), "SKFMEC-A fixed-point constants")
+
+    @property
+    def saturations(self) -> int:
+        return int(self._a.sat) + self._skf.saturations
+
+    def run(self, inputs: tf.Inputs, mask=None) -> AdaptiveRun:
+        q = np.ascontiguousarray(self._skf.quantise(inputs), dtype=np.int32)
+        n = len(q)
+        m = np.full(n, int(lib.VH_SKF_ALL_VALID), np.uint8) if mask is None else np.ascontiguousarray(mask, np.uint8)
+        fy, fz = np.empty((n, 4), np.int32), np.empty((n, 4), np.int32)
+        k, p, health = np.empty(n, np.int32), np.empty(n, np.int32), np.empty(n, np.uint8)
+        sat0 = self.saturations
+        ptr = tf._ptr
+        lib.vh_tfa_run(self._a, self._skf._f, n, ptr(q, "int32_t *"), ptr(m, "uint8_t *"), ptr(fy, "int32_t *"),
+                       ptr(fz, "int32_t *"), ptr(k, "int32_t *"), ptr(p, "int32_t *"), ptr(health, "uint8_t *"))
+        fn = 2.0 ** -lib.VH_SKFQ_FN
+        m0 = self.config.m
+        return AdaptiveRun(x=np.zeros((n, 7)), fy=fy * fn, fz=fz * fn, health=health, resets=0,
+                           saturations=self.saturations - sat0, mass=k * 2.0 ** -lib.VH_TFA_FK * m0,
+                           mass_std=np.sqrt(p * 2.0 ** -lib.VH_TFA_FP) * m0)
