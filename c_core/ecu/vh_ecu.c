@@ -11,7 +11,8 @@
 /* Ticks per cycle of a message; the meta headers refuse a cycle that is not whole ticks. */
 #define TICKS(cycle_us) ((cycle_us) / VH_TICK_US)
 
-int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_params_t *prm)
+int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_params_t *prm,
+                       const vh_tfa_params_t *tprm)
 {
     int i;
     vh_dkf_t probe;
@@ -19,7 +20,7 @@ int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_
     vh_skfq_t qprobe;
     if (vh_drv_app_check(cfg->gear_ratio, cfg->we_min) != VH_OK || !(cfg->camber_still_ww >= 0.0) ||
         !isfinite(cfg->camber_still_ww) || vh_camber_init(&cprobe, &cfg->camber, NULL) != VH_OK ||
-        vh_skfq_init(&qprobe, prm) != VH_OK || !vh_tf_app_check(prm)) {
+        vh_skfq_init(&qprobe, prm) != VH_OK || !vh_tf_app_check(prm, tprm)) {
         return VH_EINVAL;
     }
     for (i = 0; i < VH_ECU_N_DKF; ++i) {
@@ -30,6 +31,7 @@ int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_
     memset(ecu, 0, sizeof *ecu);
     ecu->cfg = *cfg;
     ecu->chs.skf.prm = *prm; /* the filter keeps its constants; vh_ecu_reset re-initialises from them */
+    ecu->chs.tfa.prm = *tprm;
     vh_ecu_reset(ecu);
     return VH_OK;
 }
@@ -79,6 +81,7 @@ static const struct {
     {VH_PT_VEHEST_CAMBER_FRAME_ID, rx_none},
     {VH_CH_VEHEST_TIRE_FORCE_EST_FRAME_ID, rx_none},
     {VH_CH_VEHEST_CHASSIS_STATUS_FRAME_ID, rx_none},
+    {VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_FRAME_ID, rx_none},
 };
 
 void vh_ecu_rx(vh_ecu_t *ecu, const vh_frame_t *frame)
@@ -115,6 +118,7 @@ static int drv_status(vh_ecu_t *ecu, uint8_t *d)
 static int cmb_tx(vh_ecu_t *ecu, uint8_t *d) { return vh_cmb_app_fill(&ecu->cis, d); }
 static int tf_est(vh_ecu_t *ecu, uint8_t *d) { return vh_tf_app_fill_est(&ecu->chs, d); }
 static int tf_status(vh_ecu_t *ecu, uint8_t *d) { return vh_tf_app_fill_status(&ecu->chs, d); }
+static int tf_adaptive(vh_ecu_t *ecu, uint8_t *d) { return vh_tf_app_fill_adaptive(&ecu->chs, d); }
 
 /* A step (step != NULL) or a TX frame (fill: its payload; 0 = nothing to send this time), run in
  * this order every period_ticks ticks (at tick 0, then each multiple). */
@@ -134,6 +138,7 @@ static const struct {
     {tf_step, NULL, 0u, 0u, 0u, 1u},
     {TX(tf_est, VH_CH_VEHEST_TIRE_FORCE_EST)},
     {TX(tf_status, VH_CH_VEHEST_CHASSIS_STATUS)},
+    {TX(tf_adaptive, VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE)},
 };
 
 size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap)

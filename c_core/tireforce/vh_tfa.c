@@ -35,20 +35,28 @@ static int32_t abs32(int32_t x)
     return x < 0 ? (x == INT32_MIN ? INT32_MAX : -x) : x;
 }
 
-int vh_tfa_init(vh_tfa_t *a, const vh_tfa_params_t *prm)
+int vh_tfa_check(const vh_tfa_params_t *prm)
 {
     int i;
     if (!k_ok(prm->k_inv_fz_step) || !k_ok(prm->k_phi) || !k_ok(prm->k_y) || !k_ok(prm->k_drag) ||
         prm->k_inv_fz_step.m <= 0 || prm->k_phi.m <= 0 || prm->k_y.m <= 0 || prm->k_drag.m < 0 ||
         prm->alpha_lp <= 0 || prm->alpha_lp > ONE30 || prm->decim == 0u || prm->ax_gate < 0 || prm->ay_gate < 0 ||
         prm->inv_forget < ONE30 || prm->p_floor <= 0 || prm->p0 < prm->p_floor || prm->p_ok <= 0 ||
-        prm->k_lo <= 0 || prm->k_hi <= prm->k_lo) {
+        prm->k_lo <= 0 || prm->k_hi <= prm->k_lo || prm->m_num <= 0 || prm->m_den <= 0) {
         return VH_EINVAL;
     }
     for (i = 0; i < NZ * NA; ++i) {
         if (prm->table[i] < 0) {
             return VH_EINVAL;
         }
+    }
+    return VH_OK;
+}
+
+int vh_tfa_init(vh_tfa_t *a, const vh_tfa_params_t *prm)
+{
+    if (vh_tfa_check(prm) != VH_OK) {
+        return VH_EINVAL;
     }
     {
         static const vh_tfa_t zero = {0};
@@ -73,6 +81,7 @@ void vh_tfa_reset(vh_tfa_t *a)
         a->fy[i] = 0;
         a->fz[i] = 0;
     }
+    a->sat = 0u;
     a->health = VH_HEALTH_INIT;
 }
 

@@ -41,6 +41,7 @@ typedef struct {
     int32_t inv_forget;         /* 1 / lambda, Q30 */
     int32_t p0, p_floor, p_ok;  /* Q30: prior (= ceiling), floor, converged below */
     int32_t k_lo, k_hi;         /* Q29: the ratio's clamp */
+    int32_t m_num, m_den;       /* the model mass m = m_num / m_den [kg], exactly: m^ = k m to raw, integer only */
 } vh_tfa_params_t;
 
 typedef struct {
@@ -55,9 +56,11 @@ typedef struct {
     uint8_t health;             /* vh_health_t */
 } vh_tfa_t;
 
+/* VH_OK, or VH_EINVAL if a constant is out of its documented range. */
+int vh_tfa_check(const vh_tfa_params_t *prm);
 /* VH_OK, or VH_EINVAL if a constant is out of its documented range (nothing changed). */
 int vh_tfa_init(vh_tfa_t *a, const vh_tfa_params_t *prm);
-/* Back to the prior: k = 1, P = p0, filters cleared. */
+/* Back to the prior: k = 1, P = p0, filters and counters cleared (the constants kept). */
 void vh_tfa_reset(vh_tfa_t *a);
 /* One step after vh_skfq_step(f, in, mask) on the same inputs and mask. */
 void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask);

@@ -236,3 +236,32 @@ if __name__ == "__main__":
              if m.arbitration_id in (TFE.frame_id, CST.frame_id)]
     (GOLDEN / "chassis_golden_expected.txt").write_text("\n".join(lines) + "\n")
     print(len(msgs), "sensor frames,", len(lines), "expected frames")
+
+
+TFA = DB.get_message_by_name("VEHEST_TireForceAdaptive")
+
+
+def test_ecu_adaptive_equals_its_array_api_bit_for_bit(paper_session):
+    """SKFMEC-A in the ECU (VEHEST_TireForceAdaptive, every 10 ms): its forces, mass and mass std
+    equal the fixed-point array API (systems.tireforce.adaptive.AdaptiveFixed) on the same decoded
+    samples, raw for raw; DEGRADED until the mass has converged, then OK; the mass within 5 %."""
+    from vehest_can.systems.tireforce.adaptive import AdaptiveFixed
+
+    ticks, raw = decoded(paper_session, TFA, scaling=False)
+    assert len(raw) == PAPER.n_steps // 20
+    ref = AdaptiveFixed().run(inputs_of(paper_session))
+    health = np.array([e["SkfmecA_Health"] for e in raw])
+    assert np.array_equal(health, ref.health[ticks])
+    ok = (health == 1) | (health == 2)
+    assert ok.mean() > 0.95 and (health == 2).any() and health[-1] == 1
+    m0 = Fraction(repr(tf.SkfConfig.default().m))
+    for i in range(4):
+        want = [math.floor(Fraction(int(v), 2**lib.VH_SKFQ_FN) / Fraction(1, 2) + Fraction(1, 2))
+                for v in ref.raw["fy"][ticks, i][ok]]
+        assert [e[f"FyA{i + 1}"] for e, g in zip(raw, ok) if g] == want
+    mass = [math.floor(Fraction(int(k), 2**lib.VH_TFA_FK) * m0 * 2 + Fraction(1, 2)) for k in ref.raw["k"][ticks][ok]]
+    std = [math.floor(Fraction(math.isqrt(int(p)), 2**15) * m0 * 10 + Fraction(1, 2)) for p in ref.raw["p"][ticks][ok]]
+    assert [e["EstMass"] for e, g in zip(raw, ok) if g] == mass
+    assert [e["EstMassStd"] for e, g in zip(raw, ok) if g] == std
+    assert abs(raw[-1]["EstMass"] * 0.5 / (float(m0) + PAPER.mass_delta_kg) - 1) < 0.05
+    assert all(e["SkfmecA_Valid"] == (h == 1) for e, h in zip(raw, health))

@@ -461,7 +461,8 @@ def test_fixed_point_units_need_no_soft_float_on_cortex_m(tmp_path):
     for src in srcs:
         assert arm_soft_float_symbols(src, tmp_path, inc) == [], src.name
     calls = {s for s in undefined(tmp_path / "vh_tireforce_app.arm.o", "arm-none-eabi-nm") if s.startswith("vh_ch_")}
-    assert calls == {"vh_ch_chs_sensors_unpack", "vh_ch_vehest_tire_force_est_pack", "vh_ch_vehest_chassis_status_pack"}
+    assert calls == {"vh_ch_chs_sensors_unpack", "vh_ch_vehest_tire_force_est_pack", "vh_ch_vehest_chassis_status_pack",
+                     "vh_ch_vehest_tire_force_adaptive_pack"}
     obj = tmp_path / "vh_ch.arm.o"
     subprocess.run(["arm-none-eabi-gcc", "-std=c99", "-ffreestanding", "-O2", "-mcpu=cortex-m3", "-mthumb",
                     "-mfloat-abi=soft", "-ffunction-sections", *(f"-I{d}" for d in inc), "-c", str(codec), "-o", str(obj)],
@@ -482,7 +483,8 @@ def test_fixed_point_units_need_no_soft_float_on_cortex_m(tmp_path):
 def build_bench(tmp: Path, name: str, flags: list[str]) -> Path:
     exe = tmp / name
     sources = [ROOT / "c_core" / "bench" / "vh_bench_skf.c"] + [ROOT / "c_core" / f for f in (
-        "tireforce/vh_skf.c", "tireforce/vh_skfq.c", "tireforce/vh_skfq_host.c", "common/vh_fix.c")]
+        "tireforce/vh_skf.c", "tireforce/vh_skfq.c", "tireforce/vh_skfq_host.c", "tireforce/vh_tfa.c",
+        "tireforce/vh_tfa_host.c", "common/vh_fix.c")]
     build = subprocess.run(["cc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", *flags, f"-I{INCLUDE}",
              f"-I{INCLUDE.parent / 'tireforce'}",
                             *map(str, sources), "-lm", "-o", str(exe)], capture_output=True, text=True)
@@ -508,5 +510,6 @@ def test_estimators_under_sanitizers_and_bit_exact_across_builds(tmp_path):
                                                       "-fno-sanitize-recover=all"]))
     fast = run_bench(build_bench(tmp_path, "skf_o3", ["-O3"]))
     assert {"skfmec_double_step", "ekf_double_step", "skfmec_fixed_step"} <= set(san)
-    assert san["skfmec_fixed_saturations"][0] == "0"
+    assert san["skfmec_fixed_saturations"][0] == "0" and san["skfmec_a_fixed_saturations"][0] == "0"
+    assert "skfmec_a_fixed_step" in san
     assert san["skfmec_fixed_checksum"] == fast["skfmec_fixed_checksum"]

@@ -29,7 +29,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ...errors import ConfigError
 from ...native import check, ffi, lib
 from . import api as tf
 
@@ -69,6 +68,7 @@ class AdaptiveRun(tf.TireForceRun):
 
     mass: np.ndarray | None = None      # (n,) m̂ [kg]
     mass_std: np.ndarray | None = None  # (n,) its standard deviation [kg]
+    raw: dict | None = None             # fixed point: the integers (fy, fz FN; k Q2.29; p Q1.30)
 
 
 def lateral_force(alpha_deg: np.ndarray, fz: np.ndarray, cfg: AdaptiveConfig) -> np.ndarray:
@@ -223,43 +223,23 @@ STRESS_DIR = "stress"  # firmware_sim/scenarios/chassis/stress/: scenarios of SK
 
 # ---- fixed point (c_core/tireforce/vh_tfa.c): its constants, made here (the host side) -----------
 
-def _kconst(v: float) -> tuple[int, int]:
-    """vh_fix_k_t of v: m 2^-e with |m| in [2^30, 2^31), rounded half up (vh_skfq_host.c's kconst)."""
-    if v == 0.0:
-        return 0, 0
-    fr, ex = math.frexp(v)
-    m, e = math.floor(math.ldexp(fr, 31) + 0.5), 31 - ex
-    if abs(m) >= 2**31:
-        m, e = math.floor(math.ldexp(fr, 30) + 0.5), e - 1
-    return m, e
-
-
-def _q(v: float, frac: int) -> int:
-    r = math.floor(math.ldexp(v, frac) + 0.5)
-    if not -(2**31) <= r < 2**31:
-        raise ConfigError(f"SKFMEC-A constant {v!r} does not fit Q.{frac}")
-    return r
+def config_to_c(cfg: AdaptiveConfig):
+    """The ``vh_tfa_config_t`` of a configuration (its fields, for the C calibration function)."""
+    c = ffi.new("vh_tfa_config_t *")
+    for name in ("cda", "rho", "tau_lp", "decim", "ax_gate", "ay_gate", "vx_gate", "forget", "sigma_y",
+                 "mass_sigma0", "mass_sigma_floor", "mass_sigma_ok", "tyre_fz_scale", "mu"):
+        setattr(c, name, getattr(cfg, name))
+    c.mass_lo, c.mass_hi = cfg.mass_range
+    for i, v in enumerate(cfg.tyre_a):
+        c.tyre_a[i] = v
+    return c
 
 
 def fixed_params(skf: tf.SkfConfig, cfg: AdaptiveConfig):
-    """The ``vh_tfa_params_t`` of a configuration (the integer constants of vh_tfa.h)."""
+    """The ``vh_tfa_params_t`` of a configuration, by the C calibration function (vh_tfa_host.c),
+    the same one the ECU uses."""
     p = ffi.new("vh_tfa_params_t *")
-    fn = lib.VH_SKFQ_FN
-    for i, v in enumerate(force_table(cfg).ravel()):
-        p.table[i] = _q(float(v), fn)
-    s_vx = skf.s[0]
-    for name, v in (("k_inv_fz_step", 1.0 / FZ_STEP_N), ("k_phi", skf.m / cfg.sigma_y), ("k_y", 1.0 / cfg.sigma_y),
-                    ("k_drag", 0.5 * cfg.rho * cfg.cda / s_vx**2)):
-        k = getattr(p, name)
-        k.m, k.e = _kconst(v)
-    p.alpha_lp = _q(skf.ts / (cfg.tau_lp + skf.ts), 30)
-    p.ax_gate, p.ay_gate = _q(cfg.ax_gate, lib.VH_SKFQ_FA), _q(cfg.ay_gate, lib.VH_SKFQ_FA)
-    p.vx_gate = _q(cfg.vx_gate * s_vx, lib.VH_SKFQ_FX)
-    p.valid_min = round(5 * cfg.tau_lp / skf.ts)
-    p.decim = cfg.decim
-    p.inv_forget = _q(1.0 / cfg.forget, 30)
-    p.p0, p.p_floor, p.p_ok = (_q(x**2, lib.VH_TFA_FP) for x in (cfg.mass_sigma0, cfg.mass_sigma_floor, cfg.mass_sigma_ok))
-    p.k_lo, p.k_hi = (_q(x, lib.VH_TFA_FK) for x in cfg.mass_range)
+    check(lib.vh_tfa_params_from_config(skf.to_c(), config_to_c(cfg), p), "SKFMEC-A constants")
     return p
 
 
@@ -292,4 +272,4 @@ class AdaptiveFixed:
         m0 = self.config.m
         return AdaptiveRun(x=np.zeros((n, 7)), fy=fy * fn, fz=fz * fn, health=health, resets=0,
                            saturations=self.saturations - sat0, mass=k * 2.0 ** -lib.VH_TFA_FK * m0,
-                           mass_std=np.sqrt(p * 2.0 ** -lib.VH_TFA_FP) * m0)
+                           mass_std=np.sqrt(p * 2.0 ** -lib.VH_TFA_FP) * m0, raw={"fy": fy, "fz": fz, "k": k, "p": p})
