@@ -135,3 +135,15 @@ def test_fixed_point_refuses_bad_constants():
         q = ffi.new("vh_tfa_params_t *", p[0])
         setattr(q, field, bad)
         assert lib.vh_tfa_init(a, q) == lib.VH_EINVAL, field
+
+
+def test_nan_inputs_are_masked_not_used():
+    """A non-finite sample is a masked step in both versions (DEGRADED, mass held), never a number."""
+    sc = load_tireforce_scenario("chassis_paper_mu_drop")
+    _, dec, _ = tr.simulate(sc, variants=())
+    u = dec.for_filter()
+    u.ax[8000:8100] = np.nan
+    for run in (A.AdaptiveSkfmec().run(u, dec.mask), A.AdaptiveFixed().run(u, dec.mask)):
+        assert np.all(np.isfinite(run.fy)) and np.all(np.isfinite(run.mass))
+        assert np.all(run.health[8000:8100] == A.H_DEGRADED)
+        assert np.all(run.mass[8000:8100] == run.mass[7999])

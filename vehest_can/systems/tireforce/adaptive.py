@@ -261,7 +261,8 @@ class AdaptiveFixed:
     def run(self, inputs: tf.Inputs, mask=None) -> AdaptiveRun:
         q = np.ascontiguousarray(self._skf.quantise(inputs), dtype=np.int32)
         n = len(q)
-        m = np.full(n, int(lib.VH_SKF_ALL_VALID), np.uint8) if mask is None else np.ascontiguousarray(mask, np.uint8)
+        m = np.full(n, int(lib.VH_SKF_ALL_VALID), np.uint8) if mask is None else np.array(mask, np.uint8)
+        m[~np.all(np.isfinite(inputs.matrix()), axis=1)] = 0  # an integer cannot carry NaN (as TireForceFixed)
         fy, fz = np.empty((n, 4), np.int32), np.empty((n, 4), np.int32)
         k, p, health = np.empty(n, np.int32), np.empty(n, np.int32), np.empty(n, np.uint8)
         sat0 = self.saturations
