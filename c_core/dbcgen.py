@@ -12,7 +12,9 @@ For each ``dbc/vehest_<bus>.dbc`` this writes into the output folder:
   undefined for NaN, so the firmware transmits through these; either way the scale is the DBC's;
 * ``vh_<bus>_q.h``: for the fixed-point path, ``..._decode_q(raw, frac, sat)`` /
   ``..._encode_q(v, frac)``: raw to Q.frac and back with the scale as the exact fraction num/den
-  (integer only, vh_fix.h);
+  (integer only, vh_fix.h), and ``..._encode_qs(v, frac, s_num, s_den)`` for a value carried
+  scaled by an exact fraction s_num/s_den (a filter's scaling S), so the scale factor between the
+  Q format and the DBC raw unit is always the DBC's fraction times the filter's;
 * ``vh_<bus>.cdef``: cffi declarations of the generated structs and functions, so Python
   tests can call the generated C directly.
 
@@ -149,6 +151,24 @@ def fixed_header(db, name: str) -> str:
             f"static inline {ct} {base}_encode_q(int32_t v, int frac)",
             "{",
             f"    const int64_t r = vh_fix_to_raw(v, frac, {q.numerator}, {q.denominator});",
+            f"    return r > {hi} ? ({ct})({hi}) : (r < {lo} ? ({ct})({lo}) : ({ct})r);",
+            "}",
+            "",
+        ]
+        body += [
+            "/* a value v 2^-frac = s x in the signal's units times s = s_num / s_den, in raw units of x",
+            " * (round half up), clamped to the DBC range: integer only. The fraction (s_num / s_den) /",
+            f" * scale must have numerator <= 2^31 - 1 and denominator <= 2^30 ({base}_qs_ok), else 0. */",
+            f"static inline int {base}_qs_ok(int32_t s_num, int32_t s_den)",
+            "{",
+            f"    return s_num > 0 && s_den > 0 && (int64_t)s_num * {q.numerator} <= INT32_MAX &&",
+            f"           (int64_t)s_den * {q.denominator} <= ((int64_t)1 << 30);",
+            "}",
+            "",
+            f"static inline {ct} {base}_encode_qs(int32_t v, int frac, int32_t s_num, int32_t s_den)",
+            "{",
+            f"    const int64_t r = {base}_qs_ok(s_num, s_den) ?",
+            f"        vh_fix_to_raw(v, frac, s_num * {q.numerator}, s_den * {q.denominator}) : 0;",
             f"    return r > {hi} ? ({ct})({hi}) : (r < {lo} ? ({ct})({lo}) : ({ct})r);",
             "}",
             "",

@@ -88,6 +88,7 @@ def test_every_scaled_signal_goes_through_the_generated_codec(preprocessed):
                     if m.group(1):  # a write
                         rhs = m.group(2)
                         assert (f"{prefix}_{sig}_encode_round(" in rhs or f"{prefix}_{sig}_encode_q(" in rhs
+                                or f"{prefix}_{sig}_encode_qs(" in rhs
                                 or re.fullmatch(r"\s*\(?-?\d+u?\)?\s*", rhs)), \
                             f"{src.name}: {var}.{sig} = {rhs.strip()[:60]} (not the DBC's encoder)"
                     else:  # a read: the generated decode, or a comparison with a raw constant (SNA)

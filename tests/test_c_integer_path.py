@@ -1,15 +1,20 @@
-"""The tyre-force ECU application's integer path (issue 10, item 5, as far as it goes).
+"""The tyre-force ECU application's integer path (issue 10, item 5): raw frame to raw frame.
 
 CHS_Sensors raw signals reach the fixed-point SKFMEC by an exact integer scaling (the DBC scale as
 a fraction, generated vh_ch_q.h): checked here against the double path it replaced (decode in
 double, then round to the Q format) for every raw value of every signal, so the ECU's inputs are
-the same integers as before. The tyre forces Fy1..Fy4 go out the same way (Q.FN -> raw, exact).
+the same integers as before. The tyre forces Fy1..Fy4 go out the same way (Q.FN -> raw, exact), and
+the six states (Fyf, Fyr, vx, vy, r, phi) through ``..._encode_qs``: the DBC's fraction times the
+filter's scaling S as an exact fraction (vh_skfq_params_t.s_num/s_den). The soft-float check of the
+whole path is in tests/tireforce/test_tireforce_filters.py.
 """
 import math
 import os
+import re
 import shutil
 import subprocess
 import sys
+from fractions import Fraction
 from pathlib import Path
 
 import cantools
@@ -60,6 +65,41 @@ def test_the_ecu_sees_every_chassis_channel_through_the_integer_path():
     src = (ROOT / "c_core" / "tireforce" / "vh_tireforce_app.c").read_text()
     assert "vh_skfq_host.h" not in src and "quantise_inputs" not in src and "_decode(" not in src
     assert src.count("_decode_q(") >= 1 and src.count("TAKE(") == 14  # the macro and 13 channels
+    code = re.sub(r"/\*.*?\*/", "", src, flags=re.S)
+    assert not re.search(r"\b(double|float)\b", code) and "math.h" not in code and "_enc.h" not in code
+
+
+STATES = {"Fyf": 5, "Fyr": 6, "EstVx": 0, "EstVy": 1, "EstYawRate": 2, "EstRollAngle": 3}
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(I32_MIN, I32_MAX), st.sampled_from(sorted(STATES)),
+       st.sampled_from([(1, 10), (10, 1), (1000, 1), (100, 1), (1, 1000), (3, 7), (1, 1)]))
+def test_states_go_out_by_one_exact_rounding(v, name, s):
+    """x* in Q.FX scaled by s = num/den -> raw: floor(x* / (2^FX s scale) + 1/2), clamped; exact."""
+    sig = TFE.get_signal_by_name(name)
+    lo, hi, _ = dbcgen._raw_bounds(sig)
+    exact = Fraction(v) / (Fraction(2**lib.VH_SKFQ_FX) * Fraction(*s) * Fraction(repr(sig.scale)))
+    assert fn(TFE, sig, "encode_qs")(v, lib.VH_SKFQ_FX, *s) == max(lo, min(hi, math.floor(exact + Fraction(1, 2))))
+
+
+def test_scaling_is_an_exact_fraction_or_refused():
+    """The calibration tool turns each s_i into the shortest fraction with that exact double (the
+    paper's S: 1/10, 10, 10, 1000, 100, 1/1000, 1/1000); an s with no short fraction is refused,
+    and an ECU whose S times a state's DBC scale does not fit the integer TX does not start."""
+    from vehest_can.systems.tireforce import api as tf
+    prm = ffi.new("vh_skfq_params_t *")
+    cfg = tf.SkfConfig.default()
+    assert lib.vh_skfq_params_from_config(cfg.to_c(), prm) == lib.VH_OK
+    assert [Fraction(n, d) for n, d in zip(prm.s_num, prm.s_den)] == [Fraction(repr(x)) for x in cfg.s]
+    assert [(n, d) for n, d in zip(prm.s_num, prm.s_den)] == [(1, 10), (10, 1), (10, 1), (1000, 1), (100, 1),
+                                                              (1, 1000), (1, 1000)]
+    odd = cfg.to_c()
+    odd.s[3] = math.pi * 100
+    assert lib.vh_skfq_params_from_config(odd, prm) == lib.VH_EINVAL
+    assert lib.vh_ch_vehest_tire_force_est_est_roll_angle_qs_ok(1000, 1)
+    assert not lib.vh_ch_vehest_tire_force_est_est_roll_angle_qs_ok(1, 100000)  # den 10^10 > 2^30
+    assert lib.vh_ch_vehest_tire_force_est_est_roll_angle_encode_qs(2**21, 21, 1, 100000) == 0
 
 
 @settings(max_examples=500, deadline=None)

@@ -1,7 +1,7 @@
 /* vh_bench_skf.c - C-loop benchmark of the tire-force estimators' step (seed 000).
  *
  * Prints "name n median_ns p99_ns" per estimator (the format of vh_bench.c): one step of SKFMEC
- * in double, of the plain EKF, and of SKFMEC in fixed point, timed call by call with
+ * in double, of the plain EKF, of SKFMEC in fixed point and of SKFMEC-A in fixed point (vh_tfa.c), timed call by call with
  * CLOCK_MONOTONIC (the clock's own cost is measured and subtracted: vh_bench_common.h).
  * Inputs: a 0.5 Hz sine steer at 70 km/h with a consistent yaw rate and lateral acceleration, small deterministic noise.
  * Build: cc -O3 -Ic_core/include c_core/bench/vh_bench_skf.c c_core/src/vh_skf.c
@@ -18,6 +18,7 @@
 #include "vh_skf.h"
 #include "vh_skfq.h"
 #include "vh_skfq_host.h"
+#include "vh_tfa_host.h"
 
 #define N_SAMPLES 40000 /* 20 s of driving at 2 kHz */
 
@@ -28,7 +29,10 @@ static int32_t qinputs[N_SAMPLES * VH_SKFQ_NU];
 int main(int argc, char **argv)
 {
     static vh_skf_t kf;
-    static vh_skfq_t kq;
+    static vh_skfq_t kq, kq2;
+    static vh_tfa_t ka;
+    vh_tfa_config_t acfg;
+    vh_tfa_params_t aprm;
     vh_skf_config_t cfg;
     vh_skfq_params_t prm;
     double clock_ns, t0;
@@ -94,6 +98,21 @@ int main(int argc, char **argv)
         samples[i] = vh_bench_now_ns() - t0;
     }
     vh_bench_report("skfmec_fixed_step", samples, n, clock_ns);
+    /* SKFMEC-A: the same SKFMEC step and vh_tfa_step after it, timed together */
+    vh_tfa_config_default(&acfg);
+    if (vh_skfq_init(&kq2, &prm) != VH_OK || vh_tfa_params_from_config(&cfg, &acfg, &aprm) != VH_OK ||
+        vh_tfa_init(&ka, &aprm) != VH_OK) {
+        return 1;
+    }
+    for (i = 0; i < n; ++i) {
+        const vh_skfq_input_t *in = (const vh_skfq_input_t *)(const void *)(qinputs + i * VH_SKFQ_NU); /* same layout */
+        t0 = vh_bench_now_ns();
+        sink += vh_skfq_step(&kq2, in, VH_SKF_ALL_VALID);
+        vh_tfa_step(&ka, &kq2, in, VH_SKF_ALL_VALID);
+        samples[i] = vh_bench_now_ns() - t0;
+    }
+    vh_bench_report("skfmec_a_fixed_step", samples, n, clock_ns);
+    printf("skfmec_a_fixed_saturations %u 0 0\n", (unsigned)ka.sat);
     printf("skfmec_fixed_saturations %u 0 0\n", (unsigned)kq.sat);
     { /* FNV-1a of the final integer state: equal for every build of the same sources */
         uint32_t h = 2166136261u;

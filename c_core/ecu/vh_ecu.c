@@ -10,10 +10,11 @@
 
 /* Ticks per cycle of a message; the meta headers refuse a cycle that is not whole ticks. */
 #define TICKS(cycle_us) ((cycle_us) / VH_TICK_US)
-/* room in a tick's TX for the XCP frames (vh_ecu_xcp_tx) beside the systems' eight */
-typedef char vh_ecu_tx_room_check[(VH_ECU_MAX_TX >= 8 + VH_ECU_XCP_MAX_TX) ? 1 : -1];
+/* room in a tick's TX for the XCP frames (vh_ecu_xcp_tx) beside the systems' nine */
+typedef char vh_ecu_tx_room_check[(VH_ECU_MAX_TX >= 9 + VH_ECU_XCP_MAX_TX) ? 1 : -1];
 
-int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_params_t *prm)
+int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_params_t *prm,
+                       const vh_tfa_params_t *tprm)
 {
     int i;
     vh_dkf_t probe;
@@ -21,7 +22,7 @@ int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_
     vh_skfq_t qprobe;
     if (vh_drv_app_check(cfg->gear_ratio, cfg->we_min) != VH_OK || !(cfg->camber_still_ww >= 0.0) ||
         !isfinite(cfg->camber_still_ww) || vh_camber_init(&cprobe, &cfg->camber, NULL) != VH_OK ||
-        vh_skfq_init(&qprobe, prm) != VH_OK || vh_roll_app_check(&cfg->roll) != VH_OK) {
+        vh_skfq_init(&qprobe, prm) != VH_OK || !vh_tf_app_check(prm, tprm) || vh_roll_app_check(&cfg->roll) != VH_OK) {
         return VH_EINVAL;
     }
     for (i = 0; i < VH_ECU_N_DKF; ++i) {
@@ -32,6 +33,7 @@ int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_
     memset(ecu, 0, sizeof *ecu);
     ecu->cfg = *cfg;
     ecu->chs.skf.prm = *prm; /* the filter keeps its constants; vh_ecu_reset re-initialises from them */
+    ecu->chs.tfa.prm = *tprm;
     vh_ecu_reset(ecu);
     return VH_OK;
 }
@@ -91,6 +93,7 @@ static const struct {
     {VH_PT_VEHEST_CAMBER_FRAME_ID, rx_none},
     {VH_CH_VEHEST_TIRE_FORCE_EST_FRAME_ID, rx_none},
     {VH_CH_VEHEST_CHASSIS_STATUS_FRAME_ID, rx_none},
+    {VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_FRAME_ID, rx_none},
     {VH_CH_VEHEST_ROLL_CMD_FRAME_ID, rx_none},
     {VH_CH_VEHEST_ROLL_EST_FRAME_ID, rx_none},
 };
@@ -129,8 +132,9 @@ static int drv_status(vh_ecu_t *ecu, uint8_t *d)
     return vh_drv_app_fill_status(&ecu->drv, ecu->dkf, &ecu->cnt, ecu->tick, d);
 }
 static int cmb_tx(vh_ecu_t *ecu, uint8_t *d) { return vh_cmb_app_fill(&ecu->cis, d); }
-static int tf_est(vh_ecu_t *ecu, uint8_t *d) { return vh_tf_app_fill_est(&ecu->chs, ecu->cfg.skf.s, d); }
+static int tf_est(vh_ecu_t *ecu, uint8_t *d) { return vh_tf_app_fill_est(&ecu->chs, d); }
 static int tf_status(vh_ecu_t *ecu, uint8_t *d) { return vh_tf_app_fill_status(&ecu->chs, d); }
+static int tf_adaptive(vh_ecu_t *ecu, uint8_t *d) { return vh_tf_app_fill_adaptive(&ecu->chs, d); }
 static void roll_tick(vh_ecu_t *ecu) { vh_roll_app_tick(&ecu->roll, ecu->cfg.rx_burst_frames); }
 static void roll_step(vh_ecu_t *ecu) { vh_roll_app_step(&ecu->roll); }
 static int roll_cmd(vh_ecu_t *ecu, uint8_t *d) { return vh_roll_app_fill_cmd(&ecu->roll, d); }
@@ -161,6 +165,7 @@ static const struct {
     {tf_step, NULL, 0u, 0u, 0u, 1u},
     {TX(tf_est, VH_CH_VEHEST_TIRE_FORCE_EST)},
     {TX(tf_status, VH_CH_VEHEST_CHASSIS_STATUS)},
+    {TX(tf_adaptive, VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE)},
     /* roll: RX ages every tick; UKF + SMC every ROLL_Sensors cycle (5 ms: its 30-45 us stay out of
      * 9 ticks in 10), the command right after */
     {roll_tick, NULL, 0u, 0u, 0u, 1u},

@@ -23,10 +23,11 @@
 #include "vh_roll_app.h"
 #include "vh_rx.h"
 #include "vh_skf.h"
+#include "vh_tfa_host.h"
 #include "vh_tireforce_app.h"
 #include "vh_types.h"
 
-#define VH_ECU_MAX_TX 9 /* the systems' 8 + VH_ECU_XCP_MAX_TX */
+#define VH_ECU_MAX_TX 10 /* the systems' 9 + VH_ECU_XCP_MAX_TX */
 
 typedef struct {
     vh_dkf_config_t dkf[VH_ECU_N_DKF]; /* ri is taken from gear_ratio[gear] at run time */
@@ -39,6 +40,7 @@ typedef struct {
     vh_skf_config_t skf;               /* tyre-force SKFMEC (seed 000), scaled = mec = 1; the ECU runs its
                                           fixed-point translation (vh_skfq_params_from_config) */
     vh_roll_app_config_t roll;         /* roll UKF + sliding-mode control (seed 003), float32 */
+    vh_tfa_config_t tfa;               /* SKFMEC-A over it (vh_tfa_params_from_config) */
 } vh_ecu_config_t;
 
 typedef struct {
@@ -59,7 +61,8 @@ void vh_ecu_config_default(vh_ecu_config_t *cfg);
 int vh_ecu_init(vh_ecu_t *ecu, const vh_ecu_config_t *cfg);
 /* The flashed init: the filter's constants come ready (on a target, a calibration block).
  * VH_OK, or VH_EINVAL for an invalid configuration or constants (nothing changed). */
-int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_params_t *prm);
+int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_params_t *prm,
+                       const vh_tfa_params_t *tprm);
 void vh_ecu_reset(vh_ecu_t *ecu);
 /* Hand in one received frame; checked and counted now, used at the next vh_ecu_step. */
 void vh_ecu_rx(vh_ecu_t *ecu, const vh_frame_t *frame);

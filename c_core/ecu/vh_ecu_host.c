@@ -6,6 +6,7 @@
 
 #include "vh_ecu.h"
 #include "vh_skfq_host.h"
+#include "vh_tfa_host.h"
 
 void vh_ecu_config_default(vh_ecu_config_t *cfg)
 {
@@ -24,14 +25,17 @@ void vh_ecu_config_default(vh_ecu_config_t *cfg)
     cfg->rx_burst_frames = VH_ECU_BURST_FRAMES;
     vh_skf_config_default(&cfg->skf, VH_SKF_SKFMEC);
     vh_roll_app_config_default(&cfg->roll);
+    vh_tfa_config_default(&cfg->tfa);
 }
 
 int vh_ecu_init(vh_ecu_t *ecu, const vh_ecu_config_t *cfg)
 {
     vh_skfq_params_t prm;
+    vh_tfa_params_t tprm;
     /* the SKFMEC steps once per tick on the 500 us CHS_Sensors samples */
-    if (fabs(cfg->skf.ts - VH_TICK_US * 1e-6) > 1e-12 || vh_skfq_params_from_config(&cfg->skf, &prm) != VH_OK) {
+    if (fabs(cfg->skf.ts - VH_TICK_US * 1e-6) > 1e-12 || vh_skfq_params_from_config(&cfg->skf, &prm) != VH_OK ||
+        vh_tfa_params_from_config(&cfg->skf, &cfg->tfa, &tprm) != VH_OK) {
         return VH_EINVAL;
     }
-    return vh_ecu_init_params(ecu, cfg, &prm);
+    return vh_ecu_init_params(ecu, cfg, &prm, &tprm);
 }

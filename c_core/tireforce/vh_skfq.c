@@ -85,7 +85,7 @@ int vh_skfq_init(vh_skfq_t *f, const vh_skfq_params_t *prm)
         }
     }
     for (i = 0; i < NX; ++i) {
-        if (prm->q[i] < 0 || prm->p0[i] <= 0 || !k_ok(prm->k_gp[i])) {
+        if (prm->q[i] < 0 || prm->p0[i] <= 0 || !k_ok(prm->k_gp[i]) || prm->s_num[i] <= 0 || prm->s_den[i] <= 0) {
             return VH_EINVAL;
         }
     }

@@ -98,6 +98,9 @@ typedef struct vh_skfq_params_s {
     vh_fix_k_t k_seed_vx;         /* s_vx rw / 4: sum of wheel speeds -> vx* */
     vh_fix_k_t k_seed_fy[2];      /* s_Fyf m lr / 2l, s_Fyr m lf / 2l: ay -> Fy* */
     vh_fix_k_t k_seed_phi;        /* s_phi m lr / (2l zeta1): ay -> phi* */
+    /* the scaling S as exact fractions s_i = s_num[i] / s_den[i] (the configuration's double s_i
+     * exactly): x* -> physical units without a double, so the ECU's TX is integer only */
+    int32_t s_num[VH_SKFQ_NX], s_den[VH_SKFQ_NX];
 } vh_skfq_params_t;
 
 typedef struct {

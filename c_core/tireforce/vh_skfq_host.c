@@ -48,6 +48,33 @@ static int32_t qconst(double v, int frac, int *ok)
     return (int32_t)r;
 }
 
+/* The fraction n/d with the smallest d whose double is exactly v (> 0): the continued-fraction
+ * convergents of v, so 0.1 -> 1/10, 1e-3 -> 1/1000. None with n <= 2^30, d <= 2^20: *ok = 0. */
+static void exact_fraction(double v, int32_t *num, int32_t *den, int *ok)
+{
+    double n0 = 0.0, d0 = 1.0, n1 = 1.0, d1 = 0.0, rest = v; /* the last two convergents n/d */
+    int it;
+    *num = 0;
+    *den = 1;
+    for (it = 0; it < 64 && isfinite(rest) && v > 0.0; ++it) {
+        const double a = floor(rest), n = a * n1 + n0, d = a * d1 + d0;
+        if (n > 1073741824.0 || d > 1048576.0) {
+            break;
+        }
+        n0 = n1;
+        d0 = d1;
+        n1 = n;
+        d1 = d;
+        if (n1 > 0.0 && n1 / d1 == v) {
+            *num = (int32_t)n1;
+            *den = (int32_t)d1;
+            return;
+        }
+        rest = 1.0 / (rest - a);
+    }
+    *ok = 0;
+}
+
 int vh_skfq_params_from_config(const vh_skf_config_t *c, vh_skfq_params_t *k)
 {
     const double l = c->lf + c->lr, mse = c->ms * c->e, ixx = c->ix + c->ms * c->e * c->e;
@@ -123,6 +150,9 @@ int vh_skfq_params_from_config(const vh_skf_config_t *c, vh_skfq_params_t *k)
     z.k_seed_fy[0] = kconst(s[VH_SKF_FYF] * c->m * c->lr / (2.0 * l), &ok);
     z.k_seed_fy[1] = kconst(s[VH_SKF_FYR] * c->m * c->lf / (2.0 * l), &ok);
     z.k_seed_phi = kconst(s[VH_SKF_PHI] * c->m * c->lr / (2.0 * l * c->zeta1), &ok);
+    for (i = 0; i < NX; ++i) {
+        exact_fraction(s[i], &z.s_num[i], &z.s_den[i], &ok);
+    }
     if (!ok || !c->scaled) { /* the fixed-point filter only exists scaled */
         return VH_EINVAL;
     }

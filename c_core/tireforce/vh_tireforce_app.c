@@ -1,9 +1,7 @@
 /* vh_tireforce_app.c - the tyre-force ECU application, see vh_tireforce_app.h. */
-#include <math.h>
 #include <string.h>
 
 #include "vh_ch.h"
-#include "vh_ch_enc.h"
 #include "vh_ch_meta.h"
 #include "vh_ch_q.h"
 #include "vh_e2e.h"
@@ -16,9 +14,15 @@
 void vh_tf_app_reset(vh_ecu_chs_t *c)
 {
     const vh_skfq_params_t prm = c->skf.prm;
-    memset(c, 0, sizeof *c);
+    memset(c->u, 0, sizeof c->u);
+    c->valid = 0u;
+    c->heard = 0u;
+    memset(&c->cnt, 0, sizeof c->cnt);
+    memset(c->tx_counter, 0, sizeof c->tx_counter);
+    memset(&c->rx, 0, sizeof c->rx);
     vh_rx_init(&c->rx);
     (void)vh_skfq_init(&c->skf, &prm); /* validated in vh_ecu_init */
+    vh_tfa_reset(&c->tfa);             /* in place: its constants (a 3.7 KB table) are not copied */
 }
 
 /* One chassis channel: a raw SNA value or a cleared qualifier makes it invalid (counted). */
@@ -80,6 +84,7 @@ void vh_tf_app_step(vh_ecu_chs_t *c, unsigned burst_limit)
     if (c->rx.timed_out) {
         if (!was_out) {
             vh_skfq_reset(f);
+            vh_tfa_reset(&c->tfa);
         }
     } else {
         unsigned mask = 0u;
@@ -87,23 +92,44 @@ void vh_tf_app_step(vh_ecu_chs_t *c, unsigned burst_limit)
         if (usable) {
             mask = (c->valid & 0xFu) | ((c->valid & CHS_ALL_INPUTS) == CHS_ALL_INPUTS ? VH_SKF_U_VALID : 0u);
         }
-        if (vh_skfq_step(f, (const vh_skfq_input_t *)(const void *)c->u, mask)) { /* same layout (vh_skfq.c) */
+        const vh_skfq_input_t *in = (const vh_skfq_input_t *)(const void *)c->u; /* same layout (vh_skfq.c) */
+        const uint32_t tsat0 = c->tfa.sat;
+        if (vh_skfq_step(f, in, mask)) {
             vh_rx_count(&c->cnt.filter_reset);
         }
-        if (f->sat != sat0) {
+        vh_tfa_step(&c->tfa, f, in, mask);
+        if (f->sat != sat0 || c->tfa.sat != tsat0) {
             vh_rx_count(&c->cnt.saturation);
         }
     }
 }
 
-/* An estimate while the filter is usable, else the signal's SNA (the encoders map NaN to SNA). */
-#define EST(sig, v) vh_ch_vehest_tire_force_est_##sig##_encode_round(ok ? (v) : (double)NAN)
+/* The published states: their scaling S is the exact fraction s_num/s_den of the configuration,
+ * so x* (Q.FX) -> raw is one integer rounding of an exact rational (vh_ch_q.h, no double). */
+#define STATES(X)                                                                                  \
+    X(fyf, FYF, VH_SKF_FYF) X(fyr, FYR, VH_SKF_FYR) X(est_vx, EST_VX, VH_SKF_VX) X(est_vy, EST_VY, VH_SKF_VY) \
+    X(est_yaw_rate, EST_YAW_RATE, VH_SKF_R) X(est_roll_angle, EST_ROLL_ANGLE, VH_SKF_PHI)
+#define QS_OK(sig, SIG, i) &&vh_ch_vehest_tire_force_est_##sig##_qs_ok(prm->s_num[i], prm->s_den[i])
 
-int vh_tf_app_fill_est(vh_ecu_chs_t *c, const double s[VH_SKF_NX], uint8_t *data)
+int vh_tf_app_check(const vh_skfq_params_t *prm, const vh_tfa_params_t *tprm)
+{
+    return vh_tfa_check(tprm) == VH_OK &&
+           vh_ch_vehest_tire_force_adaptive_est_mass_qs_ok(tprm->m_den, tprm->m_num) &&
+           vh_ch_vehest_tire_force_adaptive_est_mass_std_qs_ok(tprm->m_den, tprm->m_num) STATES(QS_OK);
+}
+
+/* An estimate while the filter is usable, else the signal's SNA. */
+#define EST(sig, SIG, i)                                                                                  \
+    m.sig = ok ? vh_ch_vehest_tire_force_est_##sig##_encode_qs(f->x[i], VH_SKFQ_FX, f->prm.s_num[i], \
+                                                               f->prm.s_den[i])                   \
+               : VH_CH_VEHEST_TIRE_FORCE_EST_##SIG##_SNA_CHOICE;
+#define FY(k, sig, SIG) \
+    m.sig = ok ? vh_ch_vehest_tire_force_est_##sig##_encode_q(f->fy[k], VH_SKFQ_FN) : VH_CH_VEHEST_TIRE_FORCE_EST_##SIG##_SNA_CHOICE
+
+int vh_tf_app_fill_est(vh_ecu_chs_t *c, uint8_t *data)
 {
     struct vh_ch_vehest_tire_force_est_t m;
     const vh_skfq_t *f = &c->skf;
-    const double fx = 1.0 / (double)(1L << VH_SKFQ_FX);
     const int ok = !c->rx.timed_out && (f->health == VH_HEALTH_OK || f->health == VH_HEALTH_DEGRADED);
     if (!c->heard) {
         return 0;
@@ -111,18 +137,12 @@ int vh_tf_app_fill_est(vh_ecu_chs_t *c, const double s[VH_SKF_NX], uint8_t *data
     memset(&m, 0, sizeof m);
     m.skfmec_q_health = f->health;
     m.skfmec_q_valid = !c->rx.timed_out && f->health == VH_HEALTH_OK;
-    /* the tyre forces in integers (Q.FN -> raw, exact); the states below still through double:
-     * their scaling S is a double of the configuration, not a DBC fraction (docs/firmware.md) */
-    m.fy1 = ok ? vh_ch_vehest_tire_force_est_fy1_encode_q(f->fy[0], VH_SKFQ_FN) : VH_CH_VEHEST_TIRE_FORCE_EST_FY1_SNA_CHOICE;
-    m.fy2 = ok ? vh_ch_vehest_tire_force_est_fy2_encode_q(f->fy[1], VH_SKFQ_FN) : VH_CH_VEHEST_TIRE_FORCE_EST_FY2_SNA_CHOICE;
-    m.fy3 = ok ? vh_ch_vehest_tire_force_est_fy3_encode_q(f->fy[2], VH_SKFQ_FN) : VH_CH_VEHEST_TIRE_FORCE_EST_FY3_SNA_CHOICE;
-    m.fy4 = ok ? vh_ch_vehest_tire_force_est_fy4_encode_q(f->fy[3], VH_SKFQ_FN) : VH_CH_VEHEST_TIRE_FORCE_EST_FY4_SNA_CHOICE;
-    m.fyf = EST(fyf, f->x[VH_SKF_FYF] * fx / s[VH_SKF_FYF]);
-    m.fyr = EST(fyr, f->x[VH_SKF_FYR] * fx / s[VH_SKF_FYR]);
-    m.est_vx = EST(est_vx, f->x[VH_SKF_VX] * fx / s[VH_SKF_VX]);
-    m.est_vy = EST(est_vy, f->x[VH_SKF_VY] * fx / s[VH_SKF_VY]);
-    m.est_yaw_rate = EST(est_yaw_rate, f->x[VH_SKF_R] * fx / s[VH_SKF_R]);
-    m.est_roll_angle = EST(est_roll_angle, f->x[VH_SKF_PHI] * fx / s[VH_SKF_PHI]);
+    /* Q.FN -> raw and x* -> raw: exact integer scalings, the DBC's fraction (times S for the states) */
+    FY(0, fy1, FY1);
+    FY(1, fy2, FY2);
+    FY(2, fy3, FY3);
+    FY(3, fy4, FY4);
+    STATES(EST)
     (void)vh_ch_vehest_tire_force_est_pack(data, &m, VH_CH_VEHEST_TIRE_FORCE_EST_LENGTH);
     vh_e2e_p01_protect(data, VH_CH_VEHEST_TIRE_FORCE_EST_LENGTH, VH_CH_VEHEST_TIRE_FORCE_EST_E2E_DATA_ID,
                        &c->tx_counter[0]);
@@ -150,5 +170,55 @@ int vh_tf_app_fill_status(vh_ecu_chs_t *c, uint8_t *data)
     (void)vh_ch_vehest_chassis_status_pack(data, &st, VH_CH_VEHEST_CHASSIS_STATUS_LENGTH);
     vh_e2e_p01_protect(data, VH_CH_VEHEST_CHASSIS_STATUS_LENGTH, VH_CH_VEHEST_CHASSIS_STATUS_E2E_DATA_ID,
                        &c->tx_counter[1]);
+    return 1;
+}
+
+/* floor(sqrt(v)) of a non-negative int32 (bit by bit): the std of the mass ratio from its variance */
+static int32_t isqrt32(int32_t v)
+{
+    uint32_t x = v > 0 ? (uint32_t)v : 0u, r = 0u, bit = 1u << 30;
+    while (bit > x) {
+        bit >>= 2;
+    }
+    while (bit != 0u) {
+        if (x >= r + bit) {
+            x -= r + bit;
+            r = (r >> 1) + bit;
+        } else {
+            r >>= 1;
+        }
+        bit >>= 2;
+    }
+    return (int32_t)r;
+}
+
+#define FYA(k, sig, SIG)                                                                                 \
+    m.sig = ok ? vh_ch_vehest_tire_force_adaptive_##sig##_encode_q(a->fy[k], VH_SKFQ_FN)               \
+               : VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_##SIG##_SNA_CHOICE
+
+int vh_tf_app_fill_adaptive(vh_ecu_chs_t *c, uint8_t *data)
+{
+    struct vh_ch_vehest_tire_force_adaptive_t m;
+    const vh_tfa_t *a = &c->tfa;
+    const int ok = !c->rx.timed_out && (a->health == VH_HEALTH_OK || a->health == VH_HEALTH_DEGRADED);
+    if (!c->heard) {
+        return 0;
+    }
+    memset(&m, 0, sizeof m);
+    m.skfmec_a_health = a->health;
+    m.skfmec_a_valid = !c->rx.timed_out && a->health == VH_HEALTH_OK;
+    FYA(0, fy_a1, FY_A1);
+    FYA(1, fy_a2, FY_A2);
+    FYA(2, fy_a3, FY_A3);
+    FYA(3, fy_a4, FY_A4);
+    /* the mass ratio k (Q.FK) and its std sqrt(P) (Q.FP/2) times m = m_num / m_den: exact, integer */
+    m.est_mass = ok ? vh_ch_vehest_tire_force_adaptive_est_mass_encode_qs(a->k, VH_TFA_FK, a->prm.m_den, a->prm.m_num)
+                    : VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_EST_MASS_SNA_CHOICE;
+    m.est_mass_std = ok ? vh_ch_vehest_tire_force_adaptive_est_mass_std_encode_qs(isqrt32(a->p), VH_TFA_FP / 2,
+                                                                                  a->prm.m_den, a->prm.m_num)
+                        : VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_EST_MASS_STD_SNA_CHOICE;
+    (void)vh_ch_vehest_tire_force_adaptive_pack(data, &m, VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_LENGTH);
+    vh_e2e_p01_protect(data, VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_LENGTH, VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_E2E_DATA_ID,
+                       &c->tx_counter[2]);
     return 1;
 }

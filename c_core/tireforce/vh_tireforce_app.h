@@ -4,14 +4,18 @@
  * burst; each raw signal to the filter's Q format by an exact integer scaling (the DBC's scale as a
  * fraction, vh_ch_q.h: no double). Step: one fixed-point SKFMEC step per tick on the fresh sample (prediction only,
  * DEGRADED, without one), restarted after a timeout so that it re-seeds from live data. TX:
- * VEHEST_TireForceEst and VEHEST_ChassisStatus at their DBC cycles, once the chassis bus has been
- * heard (a powertrain-only car sees no chassis frames). Its own counters (VEHEST_ChassisStatus).
+ * VEHEST_TireForceEst, VEHEST_ChassisStatus and VEHEST_TireForceAdaptive (SKFMEC-A, vh_tfa.h, stepped
+ * after the SKFMEC on the same sample) at their DBC cycles, once the chassis bus has been
+ * heard (a powertrain-only car sees no chassis frames), each estimate raw by an exact integer
+ * scaling (the DBC's fraction, times the filter's scaling S for the states): raw frame to raw
+ * frame, no double. Its own counters (VEHEST_ChassisStatus).
  */
 #ifndef VH_TIREFORCE_APP_H
 #define VH_TIREFORCE_APP_H
 
 #include "vh_rx.h"
 #include "vh_skfq.h"
+#include "vh_tfa.h"
 #include "vh_tf_types.h"
 #include "vh_types.h"
 
@@ -22,8 +26,9 @@ typedef struct {
     uint8_t heard;         /* a good CHS_Sensors frame has arrived since reset: the chassis bus is alive */
     vh_ecu_rxmsg_t rx;
     vh_skfq_t skf;         /* its integer constants (skf.prm) are set once, at vh_ecu_init */
+    vh_tfa_t tfa;          /* SKFMEC-A over it (tfa.prm likewise) */
     vh_ecu_counters_t cnt;
-    uint8_t tx_counter[2]; /* E2E counters: TireForceEst, ChassisStatus */
+    uint8_t tx_counter[3]; /* E2E counters: TireForceEst, ChassisStatus, TireForceAdaptive */
 } vh_ecu_chs_t;
 
 /* Restart from the filter's constants (kept in c->skf.prm). */
@@ -32,9 +37,14 @@ void vh_tf_app_reset(vh_ecu_chs_t *c);
 void vh_tf_app_rx(vh_ecu_chs_t *c, const vh_frame_t *f);
 /* Once per tick: RX timeout/burst and one filter step. */
 void vh_tf_app_step(vh_ecu_chs_t *c, unsigned burst_limit);
-/* The payloads of VEHEST_TireForceEst (states back to physical units by the scaling s of the
- * configuration) and VEHEST_ChassisStatus; 0 (send nothing) before the chassis bus is heard. */
-int vh_tf_app_fill_est(vh_ecu_chs_t *c, const double s[VH_SKF_NX], uint8_t *data);
+/* 1 if the filter's scaling S (prm->s_num/s_den) times each state's DBC scale is a fraction the
+ * integer TX can use (vh_ch_q.h ..._qs_ok), else 0: checked once, at vh_ecu_init. */
+int vh_tf_app_check(const vh_skfq_params_t *prm, const vh_tfa_params_t *tprm);
+/* The payloads of VEHEST_TireForceEst and VEHEST_ChassisStatus, integer only (raw frame out);
+ * 0 (send nothing) before the chassis bus is heard. */
+int vh_tf_app_fill_est(vh_ecu_chs_t *c, uint8_t *data);
 int vh_tf_app_fill_status(vh_ecu_chs_t *c, uint8_t *data);
+/* The payload of VEHEST_TireForceAdaptive (SKFMEC-A: forces, mass, its std, its health), integer only. */
+int vh_tf_app_fill_adaptive(vh_ecu_chs_t *c, uint8_t *data);
 
 #endif /* VH_TIREFORCE_APP_H */

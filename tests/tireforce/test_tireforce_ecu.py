@@ -5,6 +5,7 @@ integer filter; VEHEST_TireForceEst must equal the array API's fixed-point run o
 samples, bit for bit (after the DBC's encoding), in every drive mode and from a replayed log.
 """
 import math
+from fractions import Fraction
 from pathlib import Path
 
 import can
@@ -15,6 +16,7 @@ from daemonproc import start_daemon, stop_daemon
 from vehest_can.bus.bus import open_bus, private_multicast
 from vehest_can.bus.frames import E2ESender, database
 from vehest_can.bus.log import read_log
+from vehest_can.native import lib
 from vehest_can.service.replay import replay
 from vehest_can.sim.session import SimMaster, run_inprocess
 from vehest_can.systems.ecu import Ecu
@@ -29,9 +31,9 @@ PAPER = load_tireforce_scenario("chassis_paper_mu_drop")
 GOLDEN = Path(__file__).parent / "data"
 
 
-def decoded(session, msg):
+def decoded(session, msg, scaling=True):
     sel = session.frames["id"] == msg.frame_id
-    return session.frame_tick[sel], [msg.decode(bytes(f["data"][: f["len"]]), decode_choices=False)
+    return session.frame_tick[sel], [msg.decode(bytes(f["data"][: f["len"]]), decode_choices=False, scaling=scaling)
                                      for f in session.frames[sel]]
 
 
@@ -62,9 +64,18 @@ def test_ecu_estimates_equal_the_array_api_bit_for_bit(paper_session):
         got = np.array([e[f"Fy{i + 1}"] for e in est])
         assert np.array_equal(got[ok], enc(ref.fy[ticks, i], 0.5)[ok])
         assert np.all(got[~ok] == -16384.0)  # SNA while INIT
-    for sig, col, res in (("Fyf", 5, 0.5), ("Fyr", 6, 0.5), ("EstVy", 1, 0.001), ("EstYawRate", 2, 1e-4)):
-        got = np.array([e[sig] for e in est])
-        assert np.allclose(got[ok], enc(ref.x[ticks, col], res)[ok], atol=res * 1.01, rtol=0)
+    # the six states, raw frame to raw frame: the integer state x* (Q.FX, scaled by S) to the DBC's
+    # raw unit by one exact rounding of the rational x* / (2^FX s scale), as the ECU's integer TX does
+    _, raw = decoded(paper_session, TFE, scaling=False)
+    fixed = tf.estimator(tf.FIXED)
+    xq = fixed.run_raw(fixed.quantise(inputs_of(paper_session)))["x"][ticks]
+    assert np.array_equal(xq / 2.0 ** lib.VH_SKFQ_FX / np.asarray(fixed.config.s), ref.x[ticks])
+    for sig, col in (("Fyf", 5), ("Fyr", 6), ("EstVx", 0), ("EstVy", 1), ("EstYawRate", 2), ("EstRollAngle", 3)):
+        dbc = TFE.get_signal_by_name(sig)
+        unit = Fraction(2**lib.VH_SKFQ_FX) * Fraction(repr(fixed.config.s[col])) * Fraction(repr(dbc.scale))
+        want = [math.floor(Fraction(int(v)) / unit + Fraction(1, 2)) for v in xq[ok, col]]
+        lo, hi = dbc.minimum / dbc.scale, dbc.maximum / dbc.scale
+        assert [e[sig] for e, good in zip(raw, ok) if good] == [max(lo, min(hi, w)) for w in want], sig
     valid = np.array([e["SkfmecQ_Valid"] for e in est])
     assert np.array_equal(valid, (health == 1).astype(valid.dtype))
     _, st = decoded(paper_session, CST)
@@ -225,3 +236,32 @@ if __name__ == "__main__":
              if m.arbitration_id in (TFE.frame_id, CST.frame_id)]
     (GOLDEN / "chassis_golden_expected.txt").write_text("\n".join(lines) + "\n")
     print(len(msgs), "sensor frames,", len(lines), "expected frames")
+
+
+TFA = DB.get_message_by_name("VEHEST_TireForceAdaptive")
+
+
+def test_ecu_adaptive_equals_its_array_api_bit_for_bit(paper_session):
+    """SKFMEC-A in the ECU (VEHEST_TireForceAdaptive, every 10 ms): its forces, mass and mass std
+    equal the fixed-point array API (systems.tireforce.adaptive.AdaptiveFixed) on the same decoded
+    samples, raw for raw; DEGRADED until the mass has converged, then OK; the mass within 5 %."""
+    from vehest_can.systems.tireforce.adaptive import AdaptiveFixed
+
+    ticks, raw = decoded(paper_session, TFA, scaling=False)
+    assert len(raw) == PAPER.n_steps // 20
+    ref = AdaptiveFixed().run(inputs_of(paper_session))
+    health = np.array([e["SkfmecA_Health"] for e in raw])
+    assert np.array_equal(health, ref.health[ticks])
+    ok = (health == 1) | (health == 2)
+    assert ok.mean() > 0.95 and (health == 2).any() and health[-1] == 1
+    m0 = Fraction(repr(tf.SkfConfig.default().m))
+    for i in range(4):
+        want = [math.floor(Fraction(int(v), 2**lib.VH_SKFQ_FN) / Fraction(1, 2) + Fraction(1, 2))
+                for v in ref.raw["fy"][ticks, i][ok]]
+        assert [e[f"FyA{i + 1}"] for e, g in zip(raw, ok) if g] == want
+    mass = [math.floor(Fraction(int(k), 2**lib.VH_TFA_FK) * m0 * 2 + Fraction(1, 2)) for k in ref.raw["k"][ticks][ok]]
+    std = [math.floor(Fraction(math.isqrt(int(p)), 2**15) * m0 * 10 + Fraction(1, 2)) for p in ref.raw["p"][ticks][ok]]
+    assert [e["EstMass"] for e, g in zip(raw, ok) if g] == mass
+    assert [e["EstMassStd"] for e, g in zip(raw, ok) if g] == std
+    assert abs(raw[-1]["EstMass"] * 0.5 / (float(m0) + PAPER.mass_delta_kg) - 1) < 0.05
+    assert all(e["SkfmecA_Valid"] == (h == 1) for e, h in zip(raw, health))

@@ -4,9 +4,10 @@
 * the fixed-point filter against the double one on synthetic manoeuvres (tests/tireforce/manoeuvres.py);
 * saturation counting under a wheel-speed sensor stuck at its maximum; bit-exact determinism;
 * the fixed-point helpers against Python integer arithmetic (hypothesis);
-* "integer only": the fixed-point translation units compile with FP registers forbidden (host gcc
-  -mgeneral-regs-only) and, for a soft-float Cortex-M, reference no soft-float helper; a small
-  file with one double in it fails both checks.
+* "integer only": every translation unit of the tyre-force ECU path from raw CHS_Sensors to raw
+  VEHEST_TireForceEst (the app, the filter, fixed point, RX/E2E, the generated pack/unpack)
+  compiles with FP registers forbidden (host gcc -mgeneral-regs-only) and, for a soft-float
+  Cortex-M, references no soft-float helper; a small file with one double in it fails both checks.
 """
 import hashlib
 import math
@@ -14,6 +15,7 @@ import os
 import re
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -28,8 +30,12 @@ from vehest_can.systems.tireforce import api as tf
 from vehest_can.systems.tireforce import reference as skf_ref
 
 ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "c_core"))
+import dbcgen  # noqa: E402
+
 INCLUDE = ROOT / "c_core" / "common"
-FIXED_SOURCES = [ROOT / "c_core" / "tireforce" / "vh_skfq.c", ROOT / "c_core" / "common" / "vh_fix.c"]
+FIXED_SOURCES = [ROOT / "c_core" / "tireforce" / "vh_skfq.c", ROOT / "c_core" / "tireforce" / "vh_tfa.c",
+                 ROOT / "c_core" / "common" / "vh_fix.c"]
 I32_MIN, I32_MAX = -(2**31), 2**31 - 1
 
 
@@ -378,27 +384,64 @@ SOFT_FLOAT = re.compile(r"^(__aeabi_(?:[fd]\w*|\w*2[fd]\w*)|__\w+[sdt]f\d?|__\w+
                         r"(?:sin|cos|tan|sqrt|exp|log|pow|floor|ceil|fabs|frexp|ldexp|fmod|round)f?)$")
 
 
-def host_general_regs_only(src: Path, tmp: Path) -> subprocess.CompletedProcess:
-    return subprocess.run(["gcc", "-std=c99", "-O2", "-mgeneral-regs-only", f"-I{INCLUDE}", "-c", str(src),
+def tyre_force_path(tmp: Path) -> tuple[list[Path], list[Path], Path]:
+    """The tyre-force ECU path from raw frame to raw frame, as translation units: the app (RX,
+    step, TX), the fixed-point filters (SKFMEC and SKFMEC-A), the fixed-point helpers, RX checks and E2E; their include
+    folders; and the chassis bus's generated codec (vh_ch.c), which is checked per function (it
+    also holds cantools' double ``_encode``/``_decode`` helpers, which no firmware calls on this bus)."""
+    gen = tmp / "gen"
+    dbcgen.generate_all(gen)
+    srcs = [ROOT / "c_core" / "tireforce" / "vh_tireforce_app.c", *FIXED_SOURCES,
+            ROOT / "c_core" / "common" / "vh_rx.c", ROOT / "c_core" / "common" / "vh_e2e.c"]
+    return srcs, [gen, INCLUDE, ROOT / "c_core" / "tireforce"], gen / "vh_ch.c"
+
+
+def arm_relocations(obj: Path) -> dict[str, set[str]]:
+    """Per function (built with -ffunction-sections): the symbols its code refers to."""
+    out = subprocess.run(["arm-none-eabi-objdump", "-r", str(obj)], check=True, capture_output=True, text=True).stdout
+    refs: dict[str, set[str]] = {}
+    cur = None
+    for line in out.splitlines():
+        m = re.match(r"RELOCATION RECORDS FOR \[\.text\.(\w+)\]:", line)
+        if m:
+            cur = refs.setdefault(m.group(1), set())
+        elif cur is not None and re.match(r"^[0-9a-f]{8} ", line):
+            cur.add(line.split()[-1].split("+")[0])
+    return refs
+
+
+def host_general_regs_only(src: Path, tmp: Path, inc: list[Path] = (INCLUDE,)) -> subprocess.CompletedProcess:
+    return subprocess.run(["gcc", "-std=c99", "-O2", "-mgeneral-regs-only", *(f"-I{d}" for d in inc), "-c", str(src),
                            "-o", str(tmp / (src.stem + ".o"))], capture_output=True, text=True)
 
 
-def arm_soft_float_symbols(src: Path, tmp: Path) -> list[str]:
+def arm_object(src: Path, tmp: Path, inc: list[Path] = (INCLUDE,)) -> Path:
     obj = tmp / (src.stem + ".arm.o")
     subprocess.run(["arm-none-eabi-gcc", "-std=c99", "-ffreestanding", "-O2", "-mcpu=cortex-m3", "-mthumb",
-                    "-mfloat-abi=soft", f"-I{INCLUDE}", "-c", str(src), "-o", str(obj)],
+                    "-mfloat-abi=soft", *(f"-I{d}" for d in inc), "-c", str(src), "-o", str(obj)],
                    check=True, capture_output=True, text=True)
-    out = subprocess.run(["arm-none-eabi-nm", "-u", str(obj)], check=True, capture_output=True, text=True).stdout
-    return [sym for sym in (line.split()[-1] for line in out.splitlines() if line.strip()) if SOFT_FLOAT.match(sym)]
+    return obj
+
+
+def undefined(obj: Path, nm: str) -> list[str]:
+    out = subprocess.run([nm, "-u", str(obj)], check=True, capture_output=True, text=True).stdout
+    return [line.split()[-1] for line in out.splitlines() if line.strip()]
+
+
+def arm_soft_float_symbols(src: Path, tmp: Path, inc: list[Path] = (INCLUDE,)) -> list[str]:
+    return [sym for sym in undefined(arm_object(src, tmp, inc), "arm-none-eabi-nm") if SOFT_FLOAT.match(sym)]
 
 
 @pytest.mark.skipif(shutil.which("gcc") is None or os.uname().machine != "x86_64", reason="needs x86-64 gcc")
 def test_fixed_point_units_compile_without_fp_registers(tmp_path):
-    """GCC refuses any floating-point use under -mgeneral-regs-only: the fixed-point units build,
-    a one-double file does not (so the check can fail)."""
-    for src in FIXED_SOURCES:
-        res = host_general_regs_only(src, tmp_path)
-        assert res.returncode == 0, res.stderr
+    """GCC refuses any floating-point use under -mgeneral-regs-only: every unit of the tyre-force
+    path from raw CHS_Sensors to raw VEHEST_TireForceEst builds, a one-double file does not (so the
+    check can fail). The generated codec holds double helpers, so it is checked per function on the
+    Cortex-M build below."""
+    srcs, inc, _ = tyre_force_path(tmp_path)
+    for src in srcs:
+        res = host_general_regs_only(src, tmp_path, inc)
+        assert res.returncode == 0, src.name + res.stderr
     neg = tmp_path / "uses_double.c"
     neg.write_text(NEGATIVE)
     res = host_general_regs_only(neg, tmp_path)
@@ -409,10 +452,29 @@ def test_fixed_point_units_compile_without_fp_registers(tmp_path):
                     reason="needs gcc-arm-none-eabi (Debian package gcc-arm-none-eabi; CI installs it and "
                            "fails here without it)")
 def test_fixed_point_units_need_no_soft_float_on_cortex_m(tmp_path):
-    """Built for a Cortex-M3 (no FPU, soft-float ABI), the fixed-point units reference no
-    __aeabi_f*/__aeabi_d* or libgcc/libm float routine; the one-double file references some."""
-    for src in FIXED_SOURCES:
-        assert arm_soft_float_symbols(src, tmp_path) == [], src.name
+    """Built for a Cortex-M3 (no FPU, soft-float ABI), the tyre-force path's units (as above)
+    reference no __aeabi_f*/__aeabi_d* or libgcc/libm float routine; the one-double file does.
+    Of the generated codec, the app calls only pack/unpack (its undefined vh_ch_ symbols), and those
+    functions and everything they call refer to no soft-float routine, where the codec's double
+    helpers beside them do (so this part can fail too)."""
+    srcs, inc, codec = tyre_force_path(tmp_path)
+    for src in srcs:
+        assert arm_soft_float_symbols(src, tmp_path, inc) == [], src.name
+    calls = {s for s in undefined(tmp_path / "vh_tireforce_app.arm.o", "arm-none-eabi-nm") if s.startswith("vh_ch_")}
+    assert calls == {"vh_ch_chs_sensors_unpack", "vh_ch_vehest_tire_force_est_pack", "vh_ch_vehest_chassis_status_pack",
+                     "vh_ch_vehest_tire_force_adaptive_pack"}
+    obj = tmp_path / "vh_ch.arm.o"
+    subprocess.run(["arm-none-eabi-gcc", "-std=c99", "-ffreestanding", "-O2", "-mcpu=cortex-m3", "-mthumb",
+                    "-mfloat-abi=soft", "-ffunction-sections", *(f"-I{d}" for d in inc), "-c", str(codec), "-o", str(obj)],
+                   check=True, capture_output=True, text=True)
+    refs = arm_relocations(obj)
+    seen, todo = set(), set(calls)
+    while todo:
+        fn = todo.pop()
+        seen.add(fn)
+        todo |= {r for r in refs.get(fn, ()) if r in refs} - seen
+    assert [r for fn in seen for r in refs.get(fn, ()) if SOFT_FLOAT.match(r)] == []
+    assert any(SOFT_FLOAT.match(r) for r in refs["vh_ch_vehest_tire_force_est_fyf_encode"])
     neg = tmp_path / "uses_double.c"
     neg.write_text(NEGATIVE)
     assert arm_soft_float_symbols(neg, tmp_path) != []
@@ -421,7 +483,8 @@ def test_fixed_point_units_need_no_soft_float_on_cortex_m(tmp_path):
 def build_bench(tmp: Path, name: str, flags: list[str]) -> Path:
     exe = tmp / name
     sources = [ROOT / "c_core" / "bench" / "vh_bench_skf.c"] + [ROOT / "c_core" / f for f in (
-        "tireforce/vh_skf.c", "tireforce/vh_skfq.c", "tireforce/vh_skfq_host.c", "common/vh_fix.c")]
+        "tireforce/vh_skf.c", "tireforce/vh_skfq.c", "tireforce/vh_skfq_host.c", "tireforce/vh_tfa.c",
+        "tireforce/vh_tfa_host.c", "common/vh_fix.c")]
     build = subprocess.run(["cc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", *flags, f"-I{INCLUDE}",
              f"-I{INCLUDE.parent / 'tireforce'}",
                             *map(str, sources), "-lm", "-o", str(exe)], capture_output=True, text=True)
@@ -447,5 +510,6 @@ def test_estimators_under_sanitizers_and_bit_exact_across_builds(tmp_path):
                                                       "-fno-sanitize-recover=all"]))
     fast = run_bench(build_bench(tmp_path, "skf_o3", ["-O3"]))
     assert {"skfmec_double_step", "ekf_double_step", "skfmec_fixed_step"} <= set(san)
-    assert san["skfmec_fixed_saturations"][0] == "0"
+    assert san["skfmec_fixed_saturations"][0] == "0" and san["skfmec_a_fixed_saturations"][0] == "0"
+    assert "skfmec_a_fixed_step" in san
     assert san["skfmec_fixed_checksum"] == fast["skfmec_fixed_checksum"]

@@ -230,7 +230,7 @@ def table(res: dict, lockstep: dict[str, float] | None = None) -> str:
         lines.append(f"{'ECU tick (rx+unpack+checks+2 KF+pack), C loop':<44}{c['ecu_tick'][0] / 1000:>9.2f} µs/tick"
                      f"   p99 {c['ecu_tick'][1] / 1000:.2f} µs (target <= 5 µs)")
     if "ecu_tick_chassis" in c:
-        lines.append(f"{'ECU tick + CHS frame + fixed SKFMEC, C loop':<44}{c['ecu_tick_chassis'][0] / 1000:>9.2f} µs/tick"
+        lines.append(f"{'ECU tick + CHS frame + SKFMEC, SKFMEC-A':<44}{c['ecu_tick_chassis'][0] / 1000:>9.2f} µs/tick"
                      f"   p99 {c['ecu_tick_chassis'][1] / 1000:.2f} µs (target <= 10 µs)")
     x = res.get("ecu_xcp") or {}
     if "ecu_tick_no_xcp" in x:
@@ -246,6 +246,7 @@ def table(res: dict, lockstep: dict[str, float] | None = None) -> str:
     tf = res.get("tireforce") or {}
     tc, ref = tf.get("c_loop") or {}, tf.get("numpy_ref_ns")
     for key, name in (("skfmec_fixed_step", "SKFMEC fixed-point step, C loop"),
+                      ("skfmec_a_fixed_step", "SKFMEC-A fixed-point step, C loop"),
                       ("skfmec_double_step", "SKFMEC double step, C loop"), ("ekf_double_step", "EKF double step, C loop")):
         if key in tc:
             vs = f"   p99 {tc[key][1]:.0f} ns, {ref / tc[key][0]:.0f}x numpy ref" if ref else ""
@@ -300,7 +301,8 @@ def bench_c_loop(cc: str | None = None, samples: int = 40000) -> dict[str, tuple
     sys.path.insert(0, str(root / "c_core"))
     import vehest_build
 
-    sources = [src] + [vehest_build.firmware_path(f) for f in ("vh_skf.c", "vh_skfq.c", "vh_skfq_host.c", "vh_fix.c")]
+    sources = [src] + [vehest_build.firmware_path(f) for f in ("vh_skf.c", "vh_skfq.c", "vh_skfq_host.c",
+                                                                     "vh_tfa.c", "vh_tfa_host.c", "vh_fix.c")]
     with tempfile.TemporaryDirectory() as tmp:
         exe = Path(tmp) / "vh_bench_skf"
         subprocess.run([cc, *vehest_build.STRICT_FLAGS, *vehest_build.OPT_FLAGS, *(f"-I{d}" for d in vehest_build.FIRMWARE_DIRS),

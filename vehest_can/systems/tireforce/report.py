@@ -23,6 +23,7 @@ import numpy as np
 from ...errors import ConfigError, ScenarioError
 from ...sim.report import write_metrics
 from . import api as tf
+from .adaptive import ADAPTIVE, AdaptiveConfig, AdaptiveRun, AdaptiveSkfmec
 
 WHEELS = tf.WHEELS
 AXLES = ("front", "rear")
@@ -215,10 +216,18 @@ def decode_signals(rows: list[dict]) -> DecodedInputs:
 
 # ---- running ---------------------------------------------------------------------------------
 
-def run_estimators(decoded: DecodedInputs, variants=tf.VARIANTS) -> dict[str, tf.TireForceRun]:
-    """Each estimator variant (fresh instance, default configuration) over the decoded drive."""
+ALL_VARIANTS = (*tf.VARIANTS, ADAPTIVE)
+
+
+def _run(v: str, u: tf.Inputs, mask) -> tf.TireForceRun:
+    return AdaptiveSkfmec().run(u, mask) if v == ADAPTIVE else tf.estimator(v).run(u, mask)
+
+
+def run_estimators(decoded: DecodedInputs, variants=ALL_VARIANTS) -> dict[str, tf.TireForceRun]:
+    """Each estimator variant (fresh instance, default configuration) over the decoded drive:
+    the paper's three and SKFMEC-A (adaptive.py)."""
     u = decoded.for_filter()
-    return {v: tf.estimator(v).run(u, decoded.mask) for v in variants}
+    return {v: _run(v, u, decoded.mask) for v in variants}
 
 
 def scenario(name: str, *, mass_delta_kg: float | None = None):
@@ -236,7 +245,7 @@ def scenario(name: str, *, mass_delta_kg: float | None = None):
     return tireforce_scenario_from_dict(doc, path)
 
 
-def simulate(sc, variants=tf.VARIANTS, progress=None):
+def simulate(sc, variants=ALL_VARIANTS, progress=None):
     """Plant + sensor node offline, decode, estimators: (truth, DecodedInputs, runs)."""
     from ...native import ffi, lib
 
@@ -250,7 +259,7 @@ def simulate(sc, variants=tf.VARIANTS, progress=None):
     u = dec.for_filter()
     runs = {}
     for i, v in enumerate(variants):
-        runs[v] = tf.estimator(v).run(u, dec.mask)
+        runs[v] = _run(v, u, dec.mask)
         if progress:
             progress(3 + i, steps)
     return truth, dec, runs
@@ -333,6 +342,11 @@ def evaluate(truth, runs: dict[str, tf.TireForceRun], settle_s: float = SETTLE_S
             "saturations": int(run.saturations), "resets": int(run.resets),
             "health": _per(("INIT", "OK", "DEGRADED", "FAULT"), health),
         }
+        if isinstance(run, AdaptiveRun) and run.mass is not None and run.mass_std is not None:
+            mass, std = run.mass, run.mass_std
+            ok = np.flatnonzero(std <= AdaptiveConfig().mass_sigma_ok * tf.SkfConfig.default().m)
+            out["variants"][name]["mass"] = {"final_kg": float(mass[-1]), "final_std_kg": float(std[-1]),
+                                             "converged_s": float(t[ok[0]] - t[0]) if ok.size else None}
     if tf.SKFMEC in runs and tf.FIXED in runs:
         d = np.asarray(runs[tf.FIXED].fy)[s] - np.asarray(runs[tf.SKFMEC].fy)[s]
         out["fixed_vs_double"] = {"rms_pct": _pct_errors(d, 0.0, peak, WHEELS),
@@ -446,6 +460,13 @@ def table(metrics: dict, name: str | None = None) -> str:
             lines.append(f"{'  axle scale (SKFMEC)':<22}" + " " * 36
                          + "".join(f"{vm['axle_scale_pct'][a]:>+8.1f}%" for a in AXLES))
             lines.append(f"{'  axle only (SKFMEC)':<22}" + "".join(f"{vm['axle_only_pct'][w]:>9.2f}" for w in WHEELS))
+    for v, vm in metrics["variants"].items():
+        if "mass" in vm:
+            mm = vm["mass"]
+            true = tf.SkfConfig.default().m + metrics.get("mass_delta_kg", 0.0)
+            conv = f"converged at {mm['converged_s']:.2f} s" if mm["converged_s"] is not None else "not converged (DEGRADED)"
+            lines.append(f"{'  mass (' + v + ')':<22} {mm['final_kg']:.0f} kg, truth {true:.0f} kg "
+                         f"({100 * (mm['final_kg'] / true - 1):+.1f} %), std {mm['final_std_kg']:.0f} kg, {conv}")
     o = metrics["oracle"]
     lines.append(f"{'oracle: split only':<22}" + "".join(f"{o['split_pct'][w]:>9.2f}" for w in WHEELS))
     lines.append(f"{'oracle: eq.36, static':<22}" + "".join(f"{o['eq36_static_pct'][w]:>9.2f}" for w in WHEELS))
@@ -463,7 +484,8 @@ def table(metrics: dict, name: str | None = None) -> str:
 
 _STYLE: dict[str, dict[str, Any]] = {tf.SKFMEC: dict(color="tab:blue", lw=1.0, label="SKFMEC (double)"),
           tf.FIXED: dict(color="tab:cyan", lw=1.0, ls="--", label="SKFMEC (fixed point, ECU)"),
-          tf.EKF: dict(color="tab:orange", lw=1.0, label="plain EKF")}
+          tf.EKF: dict(color="tab:orange", lw=1.0, label="plain EKF"),
+          ADAPTIVE: dict(color="tab:green", lw=1.0, label="SKFMEC-A (adaptive mass, load-sensitive split)")}
 
 
 def _ylim_after(ax, t, curves, settle_s):
@@ -480,11 +502,13 @@ def _ylim_after(ax, t, curves, settle_s):
 
 
 def plots(kind: str, truth, runs: dict[str, tf.TireForceRun] | None, out_dir: Path, *, title: str = "",
-          config: tf.SkfConfig | None = None, settle_s: float = SETTLE_S) -> list[Path]:
+          config: tf.SkfConfig | None = None, settle_s: float = SETTLE_S,
+          true_mass_kg: float | None = None) -> list[Path]:
     """PNG figures into ``out_dir``. ``kind`` "relations": Fig. 3 (zeta1, zeta2 from the truth over
     time with the model's constants) and Fig. 4 (F_yi/F_yf against F_zi/F_zf, identity line);
     "forces": Fig. 5 and 6 (inner FL and outer FR front lateral force: truth and each run) and the
-    per-tire error of every run (y scale from t >= settle_s; the settling window shaded)."""
+    per-tire error of every run (y scale from t >= settle_s; the settling window shaded), and
+    SKFMEC-A's mass estimate over time (``mass.png``, with ``true_mass_kg`` when given)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -554,7 +578,7 @@ def plots(kind: str, truth, runs: dict[str, tf.TireForceRun] | None, out_dir: Pa
     for i, (fig_no, what) in enumerate(((5, "inner"), (6, "outer"))):
         fig, ax = plt.subplots(figsize=(10, 4.5))
         ax.plot(t, fy[:, i], "k-", lw=1.6, label="truth (14-DOF plant)")
-        for v in (tf.FIXED, tf.SKFMEC, tf.EKF):
+        for v in (tf.FIXED, tf.SKFMEC, tf.EKF, ADAPTIVE):
             if v in runs:
                 ax.plot(t, runs[v].fy[:, i], **_STYLE[v])
         _ylim_after(ax, t, [fy[:, i]] + [runs[v].fy[:, i] for v in runs], settle_s)
@@ -568,7 +592,7 @@ def plots(kind: str, truth, runs: dict[str, tf.TireForceRun] | None, out_dir: Pa
     peak = np.abs(fy).max(axis=0)
     for i, ax in enumerate(axes):
         errs = [100 * (runs[v].fy[:, i] - fy[:, i]) / peak[i] for v in runs]
-        for v in (tf.FIXED, tf.SKFMEC, tf.EKF):
+        for v in (tf.FIXED, tf.SKFMEC, tf.EKF, ADAPTIVE):
             if v in runs:
                 ax.plot(t, 100 * (runs[v].fy[:, i] - fy[:, i]) / peak[i], **_STYLE[v])
         ax.axhline(0, color="k", lw=0.6)
@@ -580,10 +604,29 @@ def plots(kind: str, truth, runs: dict[str, tf.TireForceRun] | None, out_dir: Pa
     axes[0].legend(fontsize=8)
     axes[-1].set_xlabel("time [s]")
     save(fig, "error_per_tire.png")
+    run = runs.get(ADAPTIVE)
+    if isinstance(run, AdaptiveRun) and run.mass is not None and run.mass_std is not None:
+        fig, ax = plt.subplots(figsize=(10, 4))
+        ax.plot(t, run.mass, color="tab:green", lw=1.2, label="m̂ (SKFMEC-A, RLS on the longitudinal balance)")
+        ax.fill_between(t, run.mass - 2 * run.mass_std, run.mass + 2 * run.mass_std, color="tab:green", alpha=0.15,
+                        label="± 2 std")
+        if true_mass_kg is not None:
+            ax.axhline(true_mass_kg, color="k", lw=1.2, label=f"truth {true_mass_kg:.0f} kg")
+        ax.axhline(tf.SkfConfig.default().m, color="0.5", ls=":", lw=1, label="model mass (the paper's car)")
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel("mass [kg]")
+        ax.set_title(f"{prefix}estimated mass")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+        save(fig, "mass.png")
     return paths
 
 
 # ---- command line ----------------------------------------------------------------------------
+
+def _true_mass(sc) -> float:
+    return tf.SkfConfig.default().m + sc.mass_delta_kg
+
 
 def report(sc, out_dir: Path | None = None, progress=None, max_ay_g: float | None = None) -> dict:
     """One scenario: simulate, evaluate, relations, plots (when out_dir). Returns the metrics."""
@@ -594,7 +637,8 @@ def report(sc, out_dir: Path | None = None, progress=None, max_ay_g: float | Non
          "relations": relations(truth)}
     if out_dir is not None:
         d = Path(out_dir) / sc.name
-        files = plots("relations", truth, None, d, title=sc.name) + plots("forces", truth, runs, d, title=sc.name)
+        files = plots("relations", truth, None, d, title=sc.name) + plots("forces", truth, runs, d, title=sc.name,
+                                                                                 true_mass_kg=_true_mass(sc))
         m["plots"] = [str(p) for p in files]
     return m
 

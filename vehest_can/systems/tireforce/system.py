@@ -10,6 +10,7 @@ from ...sim.report import decode
 from .. import Setup
 from . import api as tf
 from . import report
+from .adaptive import AdaptiveFixed
 from .campaign import CAMPAIGN
 from .scenario import KINDS, ChassisCar, load_tireforce_scenario, tireforce_scenario_dir
 
@@ -50,11 +51,22 @@ class TireForce:
         same = bool(np.array_equal(bus_fy, np.floor(runs[tf.FIXED].fy[on] / 0.5 + 0.5) * 0.5))
         print(f"  ECU's fixed-point Fy on the bus == array API on the decoded samples: "
               f"{'identical' if same else 'DIFFERENT'} ({int(on.sum())} frames)")
+        # SKFMEC-A in the ECU (VEHEST_TireForceAdaptive, every 10 ms) against its fixed-point array API
+        ada = decode(session, "VEHEST_TireForceAdaptive")
+        on_a = ada["SkfmecA_Health"] > 0
+        ref_a = AdaptiveFixed().run(dec.for_filter(), dec.mask)
+        bus_a = np.column_stack([ada[f"FyA{i}"] for i in range(1, 5)] + [ada["EstMass"]])[on_a]
+        mass_a = np.asarray(ref_a.mass)
+        want_a = np.column_stack([np.floor(ref_a.fy / 0.5 + 0.5) * 0.5, np.floor(mass_a / 0.5 + 0.5) * 0.5])[on_a]
+        same_a = bool(np.array_equal(bus_a, want_a))
+        print(f"  ECU's SKFMEC-A Fy and mass on the bus == array API on the decoded samples: "
+              f"{'identical' if same_a else 'DIFFERENT'} ({int(on_a.sum())} frames)")
         metrics = {"scenario": sc.name, "description": sc.description, "mass_delta_kg": sc.mass_delta_kg,
-                   "mode": session.mode, "ecu_equals_array_api": same,
+                   "mode": session.mode, "ecu_equals_array_api": same, "ecu_adaptive_equals_array_api": same_a,
                    **report.evaluate(session.truth, runs), "relations": report.relations(session.truth)}
         files = report.plots("relations", session.truth, None, out_dir, title=sc.name)
-        files += report.plots("forces", session.truth, runs, out_dir, title=sc.name)
+        files += report.plots("forces", session.truth, runs, out_dir, title=sc.name,
+                              true_mass_kg=tf.SkfConfig.default().m + sc.mass_delta_kg)
         metrics["plots"] = [str(p) for p in files]
         return metrics
 

@@ -1,0 +1,72 @@
+/* vh_tfa.h - SKFMEC-A in fixed point: what it adds to the fixed-point SKFMEC (seed 000, beyond the
+ * paper; docs/skfmec.md "SKFMEC-A"). Integer only.
+ *
+ * After each vh_skfq_step, on the same inputs: (1) the mass ratio k = m^/m by a scalar RLS on the
+ * longitudinal balance y = m a_x (y = cos d (Fx1 + Fx2) + Fx3 + Fx4 - sin d 2 Fyf k - drag, the
+ * wheel forces Fxi of the SKFMEC's eq. 30), both sides low-passed, updated every `decim` steps
+ * when gated in, with forgetting, a covariance floor and ceiling; (2) loads and axle forces times k;
+ * (3) the split of each axle's force by the tyre's force table at one slip angle (the exact
+ * inverse of the piecewise-linear pair sum). The same algorithm as
+ * vehest_can/systems/tireforce/adaptive.py (double); the constants come from there (host side).
+ *
+ * Formats: forces FN (vh_skfq.h), a_x FA, k Q2.29, P Q1.30 (in units of k^2), the normalised
+ * regressor and output phi = m a_x / sigma, y / sigma in Q10.21, the table's load weights Q15.
+ */
+#ifndef VH_TFA_H
+#define VH_TFA_H
+
+#include <stdint.h>
+
+#include "vh_fix.h"
+#include "vh_skfq.h"
+
+#define VH_TFA_NA 33 /* slip-angle knots 0, 0.25, ..., 8 deg */
+#define VH_TFA_NZ 29 /* load knots 0, 500, ..., 14 000 N */
+#define VH_TFA_FK 29 /* Q2.29 the mass ratio k */
+#define VH_TFA_FP 30 /* Q1.30 its variance P */
+#define VH_TFA_FN 21 /* Q10.21 normalised regressor and output */
+#define VH_TFA_FZW 15 /* Q15 load-knot weight */
+
+typedef struct {
+    int32_t table[VH_TFA_NZ * VH_TFA_NA]; /* lateral force of the tyre at (load i, slip angle j), FN */
+    vh_fix_k_t k_inv_fz_step;   /* 1 / 500 N: Fz (FN) -> load knot index in Q15 */
+    int32_t alpha_lp;           /* Ts / (tau_lp + Ts), Q30 */
+    vh_fix_k_t k_phi;           /* m / sigma: a_x (FA) -> phi (FN of this header) */
+    vh_fix_k_t k_y;             /* 1 / sigma: y (N, FN) -> y / sigma */
+    vh_fix_k_t k_drag;          /* rho CdA / (2 s_vx^2): vx*^2 (Q21) -> N */
+    int32_t ax_gate, ay_gate;   /* FA */
+    int32_t vx_gate;            /* vx* (FX) */
+    uint32_t valid_min;         /* valid steps before an update */
+    uint32_t decim;             /* steps per RLS update */
+    int32_t inv_forget;         /* 1 / lambda, Q30 */
+    int32_t p0, p_floor, p_ok;  /* Q30: prior (= ceiling), floor, converged below */
+    int32_t k_lo, k_hi;         /* Q29: the ratio's clamp */
+    int32_t m_num, m_den;       /* the model mass m = m_num / m_den [kg], exactly: m^ = k m to raw, integer only */
+} vh_tfa_params_t;
+
+typedef struct {
+    vh_tfa_params_t prm;
+    int32_t y_lp;               /* N, FN */
+    int32_t ax_lp;              /* FA */
+    int32_t k;                  /* Q29 */
+    int32_t p;                  /* Q30 */
+    uint32_t valid_run, steps, updates;
+    int32_t fy[4], fz[4];       /* FN */
+    uint32_t sat;               /* saturations since init */
+    uint8_t health;             /* vh_health_t */
+} vh_tfa_t;
+
+/* VH_OK, or VH_EINVAL if a constant is out of its documented range. */
+int vh_tfa_check(const vh_tfa_params_t *prm);
+/* VH_OK, or VH_EINVAL if a constant is out of its documented range (nothing changed). */
+int vh_tfa_init(vh_tfa_t *a, const vh_tfa_params_t *prm);
+/* Back to the prior: k = 1, P = p0, filters and counters cleared (the constants kept). */
+void vh_tfa_reset(vh_tfa_t *a);
+/* One step after vh_skfq_step(f, in, mask) on the same inputs and mask. */
+void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask);
+/* The array API: n steps of both filters from their current state, inputs as vh_skfq_run. Per step:
+ * fy, fz (4 each, FN), k, p, health. */
+void vh_tfa_run(vh_tfa_t *a, vh_skfq_t *f, size_t n, const int32_t *u, const uint8_t *mask, int32_t *fy_out,
+                int32_t *fz_out, int32_t *k_out, int32_t *p_out, uint8_t *health_out);
+
+#endif /* VH_TFA_H */

@@ -1,0 +1,30 @@
+/* vh_tfa_host.h - host side (off-line) of the fixed-point SKFMEC-A: its double configuration (the
+ * fields of vehest_can.systems.tireforce.adaptive.AdaptiveConfig) and its integer constants from it.
+ * Not flashed. */
+#ifndef VH_TFA_HOST_H
+#define VH_TFA_HOST_H
+
+#include "vh_skf.h"
+#include "vh_tfa.h"
+
+typedef struct {
+    double cda, rho;             /* drag area [m^2], air density [kg/m^3] */
+    double tau_lp;               /* low-pass of the balance [s] */
+    int decim;                   /* steps per RLS update */
+    double ax_gate, ay_gate, vx_gate; /* |a_x| >=, |a_y| <= [m/s^2], vx >= [m/s] */
+    double forget;               /* lambda per update */
+    double sigma_y;              /* std of the balance's residual [N] */
+    double mass_sigma0, mass_sigma_floor, mass_sigma_ok; /* fractions of the model mass */
+    double mass_lo, mass_hi;     /* clamp, fractions of the model mass */
+    double tyre_a[9];            /* lateral Magic Formula a0..a8 */
+    double tyre_fz_scale;        /* size factor */
+    double mu;                   /* friction the split assumes */
+} vh_tfa_config_t;
+
+void vh_tfa_config_default(vh_tfa_config_t *c);
+/* The tyre's pure-slip lateral force [N] at alpha [deg] >= 0 and load fz [N] (adaptive.lateral_force). */
+double vh_tfa_lateral_force(const vh_tfa_config_t *c, double alpha_deg, double fz);
+/* VH_OK, or VH_EINVAL if the configuration is invalid or a constant does not fit its format. */
+int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t *c, vh_tfa_params_t *p);
+
+#endif /* VH_TFA_HOST_H */

@@ -1,0 +1,149 @@
+"""SKFMEC-A (systems/tireforce/adaptive.py): the paper's SKFMEC with an online mass estimate and a
+load-sensitive split, in double. Its parts against independent references (the RLS against the
+batch least-squares solution, the split against the cornering-stiffness ratio), and the whole
+against the 14-DOF plant on the paper's scenarios and on stress scenarios that no setting was
+chosen on (firmware_sim/scenarios/chassis/stress/). The figures are in docs/skfmec.md."""
+import math
+
+import numpy as np
+import pytest
+
+from vehest_can.native import ffi, lib
+from vehest_can.systems.tireforce import adaptive as A
+from vehest_can.systems.tireforce import api as tf
+from vehest_can.systems.tireforce import report as tr
+from vehest_can.systems.tireforce.scenario import load_tireforce_scenario, tireforce_scenario_dir
+
+STRESS = tireforce_scenario_dir() / A.STRESS_DIR
+
+
+def test_rls_equals_the_batch_least_squares_solution():
+    """Without forgetting and bounds, the recursion is the Bayesian batch solution
+    m = (m0/P0 + Σ φ y / σ²) / (1/P0 + Σ φ² / σ²) and P = 1 / (1/P0 + Σ φ² / σ²)."""
+    rng = np.random.default_rng(3)
+    phi = rng.uniform(-3, 3, 400)
+    y = 2014.0 * phi + rng.normal(0, 60, 400)
+    m0, p0, r = 1814.0, 360.0**2, 60.0**2
+    m, p = m0, p0
+    for f, yy in zip(phi, y):
+        m, p = A.rls_step(m, p, f, yy, r, 1.0, 0.0, math.inf)
+    info = 1 / p0 + (phi**2).sum() / r
+    assert m == pytest.approx((m0 / p0 + (phi * y).sum() / r) / info, rel=1e-12)
+    assert p == pytest.approx(1 / info, rel=1e-9)
+    assert abs(m - 2014.0) < 10
+
+
+def test_rls_forgets_and_keeps_its_floor():
+    m, p = 1814.0, 1.0
+    for _ in range(5000):
+        m, p = A.rls_step(m, p, 1.0, 2000.0, 1.0, 0.99, 4.0, 100.0)
+    assert p == 4.0 and m == pytest.approx(2000.0)  # the floor keeps it adapting
+
+
+def test_split_keeps_the_axle_force_and_shares_small_forces_by_cornering_stiffness():
+    cfg = A.AdaptiveConfig()
+    fz = np.array([[3000.0, 7000.0, 2500.0, 5000.0], [6000.0, 4000.0, 4000.0, 4000.0]])
+    axle = np.array([[1.0, -1.0], [4000.0, 2500.0]])
+    fy = A.load_sensitive_split(axle, fz, cfg)
+    assert np.allclose(fy[:, :2].sum(1), 2 * axle[:, 0]) and np.allclose(fy[:, 2:].sum(1), 2 * axle[:, 1])
+    a3, a4, a5 = cfg.tyre_a[3:6]
+    bcd = lambda z: a3 * math.sin(a4 * math.atan(a5 * z * 1e-3 / cfg.tyre_fz_scale))  # noqa: E731
+    # the table's first segment (0.25 deg) is the cornering stiffness to within the curve's bend
+    assert fy[0, 0] / fy[0, 1] == pytest.approx(bcd(3000) / bcd(7000), rel=5e-3)
+    assert fy[0, 2] / fy[0, 3] == pytest.approx(bcd(2500) / bcd(5000), rel=5e-3)
+    assert fy[1, 2] == pytest.approx(fy[1, 3])
+    # near the pair's peak the share approaches that of the friction limits D(Fz) = a1 Fz^2 + a2 Fz
+    big = A.load_sensitive_split(np.array([[6500.0, 0.0]]), fz[:1], cfg)
+    d = lambda z: cfg.tyre_a[1] * (z * 1e-3 / 1.75) ** 2 + cfg.tyre_a[2] * z * 1e-3 / 1.75  # noqa: E731
+    assert abs(big[0, 0] / big[0, 1] - d(3000) / d(7000)) < 0.5 * abs(fy[0, 0] / fy[0, 1] - d(3000) / d(7000))
+
+
+def pct(sc):
+    truth, dec, runs = tr.simulate(sc, variants=(tf.SKFMEC, A.ADAPTIVE))
+    m = tr.evaluate(truth, runs)
+    true = tf.SkfConfig.default().m + sc.mass_delta_kg
+    return m["variants"][A.ADAPTIVE], m["variants"][tf.SKFMEC], true, runs[A.ADAPTIVE]
+
+
+def test_paper_scenario_within_seven_percent_and_the_mass_within_five():
+    """+200 kg, mu 1.1 -> 0.2: per tyre <= 7 % of peak (SKFMEC 12.0 / 3.3 / 12.7 / 4.0), axles <= 5 %;
+    DEGRADED until the mass estimate has converged (after the brakes come on at 1 s)."""
+    a, base, true, run = pct(load_tireforce_scenario("chassis_paper_mu_drop"))
+    print("\nSKFMEC-A", a["rms_pct"], "SKFMEC", base["rms_pct"], "mass", a["mass"])
+    assert all(a["rms_pct"][w] <= 7.0 for w in tf.WHEELS)
+    assert a["rms_pct"]["front"] <= 5.0 and a["rms_pct"]["rear"] <= 5.0
+    assert abs(a["mass"]["final_kg"] / true - 1) <= 0.05
+    assert 1.0 < a["mass"]["converged_s"] < 3.0
+    t1 = int(1.0 / 5e-4)
+    assert np.all(run.health[400:t1] == A.H_DEGRADED) and np.all(run.health[-1000:] == A.H_OK)
+    for w in ("FR", "RR", "front", "rear"):  # no regression where the SKFMEC is good
+        assert a["rms_pct"][w] <= base["rms_pct"][w] + 0.5
+
+
+def test_relation_run_within_eight_percent():
+    """70 km/h, steer 0 -> 4 deg (to 0.73 g), nominal mass, no longitudinal excitation: the mass stays
+    at the model's (DEGRADED: not converged), the split alone brings RL from 12.5 % to under 8 %."""
+    a, base, true, run = pct(load_tireforce_scenario("chassis_relation_70kph"))
+    assert all(a["rms_pct"][w] <= 8.0 for w in tf.WHEELS)
+    assert a["mass"]["converged_s"] is None and a["mass"]["final_kg"] == true
+    for w in ("FR", "RR", "front", "rear"):
+        assert a["rms_pct"][w] <= base["rms_pct"][w] + 0.5
+
+
+@pytest.mark.parametrize("name", ["stress_highway_step_payload", "stress_payload_p400kg", "stress_payload_m100kg"])
+def test_stress_within_ten_percent_and_the_mass_within_five(name):
+    a, base, true, _ = pct(load_tireforce_scenario(STRESS / f"{name}.toml"))
+    assert all(a["rms_pct"][w] <= 10.0 for w in tf.WHEELS), a["rms_pct"]
+    assert abs(a["mass"]["final_kg"] / true - 1) <= 0.05
+
+
+@pytest.mark.xfail(strict=True, reason="known shortfall: no per-side friction estimate yet; on split-mu braking "
+                   "the rear tyres miss by 12.2 / 12.7 % (SKFMEC 14.1 / 15.3 %)")
+def test_split_mu_braking_within_ten_percent():
+    a, _, _, _ = pct(load_tireforce_scenario(STRESS / "stress_split_mu_braking.toml"))
+    assert all(a["rms_pct"][w] <= 10.0 for w in tf.WHEELS), a["rms_pct"]
+
+
+# ---- fixed point (c_core/tireforce/vh_tfa.c) -------------------------------------------------
+
+@pytest.mark.parametrize("name", ["chassis_paper_mu_drop", "chassis_relation_70kph",
+                                  "stress/stress_highway_step_payload", "stress/stress_split_mu_braking"])
+def test_fixed_point_matches_double(name):
+    """Fixed vs double <= 0.5 % of peak per tyre (the issue's line), no saturation, the same health
+    and the same mass to 0.1 kg; the same integers from a fresh instance (bit-exact)."""
+    sc = load_tireforce_scenario(tireforce_scenario_dir() / f"{name}.toml")
+    truth, dec, _ = tr.simulate(sc, variants=())
+    u = dec.for_filter()
+    dbl = A.AdaptiveSkfmec().run(u, dec.mask)
+    fix = A.AdaptiveFixed().run(u, dec.mask)
+    sel = truth["t"] >= truth["t"][0] + 0.2
+    peak = np.abs(truth["fy"]).max(0)
+    diff = 100 * np.sqrt(((fix.fy - dbl.fy)[sel] ** 2).mean(0)) / peak
+    print(f"\n{name}: fixed - double, % of peak:", diff.round(4))
+    assert np.all(diff <= 0.5) and fix.saturations == 0
+    assert np.array_equal(fix.health, dbl.health)
+    assert np.abs(fix.mass - dbl.mass).max() < 0.1
+    again = A.AdaptiveFixed().run(u, dec.mask)
+    assert np.array_equal(again.fy, fix.fy) and np.array_equal(again.mass, fix.mass)
+
+
+def test_fixed_point_refuses_bad_constants():
+    p = A.fixed_params(tf.SkfConfig.default(), A.AdaptiveConfig())
+    a = ffi.new("vh_tfa_t *")
+    assert lib.vh_tfa_init(a, p) == lib.VH_OK
+    for field, bad in (("decim", 0), ("p_floor", 0), ("k_hi", p.k_lo), ("inv_forget", 2**29)):
+        q = ffi.new("vh_tfa_params_t *", p[0])
+        setattr(q, field, bad)
+        assert lib.vh_tfa_init(a, q) == lib.VH_EINVAL, field
+
+
+def test_nan_inputs_are_masked_not_used():
+    """A non-finite sample is a masked step in both versions (DEGRADED, mass held), never a number."""
+    sc = load_tireforce_scenario("chassis_paper_mu_drop")
+    _, dec, _ = tr.simulate(sc, variants=())
+    u = dec.for_filter()
+    u.ax[8000:8100] = np.nan
+    for run in (A.AdaptiveSkfmec().run(u, dec.mask), A.AdaptiveFixed().run(u, dec.mask)):
+        assert np.all(np.isfinite(run.fy)) and np.all(np.isfinite(run.mass))
+        assert np.all(run.health[8000:8100] == A.H_DEGRADED)
+        assert np.all(run.mass[8000:8100] == run.mass[7999])

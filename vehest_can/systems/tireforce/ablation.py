@@ -1,0 +1,70 @@
+"""SKFMEC-A against the SKFMEC on every shipped and stress scenario, with each of its additions
+switched off in turn (the ablation table of docs/skfmec.md):
+``python -m vehest_can.systems.tireforce.ablation [SCENARIO ...]``."""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ...errors import ScenarioError
+from . import api as tf
+from .adaptive import STRESS_DIR, AdaptiveSkfmec
+from .report import decode_inputs, evaluate
+from .scenario import list_tireforce_scenarios, load_tireforce_scenario, tireforce_scenario_dir
+
+ABLATIONS = {"SKFMEC (paper)": None, "SKFMEC-A": {}, "  - no mass estimate": {"mass": False},
+             "  - no load-sensitive split": {"split": False}}
+
+
+def ablation(sc) -> dict:
+    """One scenario: per-tyre and axle RMS error (% of peak |Fy|) of the SKFMEC and of SKFMEC-A with
+    each addition switched off in turn, and the mass estimate at the end against the truth."""
+    from ...native import ffi, lib
+
+    truth, payloads = sc.run_with_frames(ffi, lib)
+    dec = decode_inputs(payloads)
+    u = dec.for_filter()
+    runs: dict[str, tf.TireForceRun] = {}
+    for label, opts in ABLATIONS.items():
+        runs[label] = (tf.estimator(tf.SKFMEC).run(u, dec.mask) if opts is None
+                       else AdaptiveSkfmec().with_options(**opts).run(u, dec.mask))
+    m = evaluate(truth, runs)
+    true = tf.SkfConfig.default().m + sc.mass_delta_kg
+    mass = m["variants"]["SKFMEC-A"]["mass"]
+    return {"scenario": sc.name, "true_mass_kg": true, "mass_error_pct": 100 * (mass["final_kg"] / true - 1),
+            **m}
+
+
+def ablation_table(m: dict) -> str:
+    cols = ("FL", "FR", "RL", "RR", "front", "rear")
+    mass = m["variants"]["SKFMEC-A"]["mass"]
+    conv = f"converged at {mass['converged_s']:.2f} s" if mass["converged_s"] is not None else "not converged"
+    lines = [f"== {m['scenario']}: RMS error after 0.2 s, % of peak |Fy|; mass {mass['final_kg']:.0f} kg, truth "
+             f"{m['true_mass_kg']:.0f} kg ({m['mass_error_pct']:+.1f} %), {conv}",
+             f"{'':<28}" + "".join(f"{c:>8}" for c in cols)]
+    for v, vm in m["variants"].items():
+        lines.append(f"{v:<28}" + "".join(f"{vm['rms_pct'][c]:>8.2f}" for c in cols))
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+
+    ap = argparse.ArgumentParser(prog="python -m vehest_can.systems.tireforce.ablation",
+                                 description="SKFMEC-A against the SKFMEC, with its ablations")
+    ap.add_argument("scenarios", nargs="*", help="scenario files or shipped names (default: the shipped ones "
+                                                 "and the stress scenarios)")
+    args = ap.parse_args(argv)
+    names = args.scenarios or [*list_tireforce_scenarios(),
+                               *sorted(str(p) for p in (tireforce_scenario_dir() / STRESS_DIR).glob("*.toml"))]
+    try:
+        for name in names:
+            print(ablation_table(ablation(load_tireforce_scenario(name))))
+            print()
+    except ScenarioError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
