@@ -794,7 +794,7 @@ def test_ch_bus_load_within_budget(capsys):
     load = bus_load(ROOT / "dbc" / "vehest_ch.dbc")
     assert (load.bitrate, load.data_bitrate) == (500_000, 4_000_000)
     assert load.worst_pct <= 60.0
-    assert load.worst_pct == pytest.approx(57.04, abs=0.01)  # 45.87 % + the roll frames at 5 ms (docs/roll.md) + VEHEST_TireForceAdaptive (10 ms)
+    assert load.worst_pct == pytest.approx(57.04, abs=0.01)  # 45.87 % + roll at 5 ms + SKFMEC-A at 10 ms
     assert cli_main(["busload", str(ROOT / "dbc" / "vehest_ch.dbc")]) == 0
     meta = (ROOT / "build" / "generated" / "vh_ch_meta.h").read_text()
     assert "VH_CH_CHS_SENSORS_CYCLE_TIME_US (500u)" in meta
