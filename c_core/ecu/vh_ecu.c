@@ -150,11 +150,11 @@ static const struct {
     {tf_step, NULL, 0u, 0u, 0u, 1u},
     {TX(tf_est, VH_CH_VEHEST_TIRE_FORCE_EST)},
     {TX(tf_status, VH_CH_VEHEST_CHASSIS_STATUS)},
-    /* roll: RX ages every tick; UKF + SMC every ROLL_Sensors cycle (5 ms: its 30-45 us stay out of
-     * 9 ticks in 10), the command right after */
+    /* roll: RX ages every tick; UKF + SMC on each ROLL_Sensors frame (every 5 ms: its 30-45 us stay
+     * out of 9 ticks in 10), the command in the same tick (checked every tick, sent after a step) */
     {roll_tick, NULL, 0u, 0u, 0u, 1u},
-    {roll_step, NULL, 0u, 0u, 0u, TICKS(VH_CH_ROLL_SENSORS_CYCLE_TIME_US)},
-    {TX(roll_cmd, VH_CH_VEHEST_ROLL_CMD)},
+    {roll_step, NULL, 0u, 0u, 0u, 1u},
+    {NULL, roll_cmd, VH_CH_VEHEST_ROLL_CMD_FRAME_ID, VH_CH_VEHEST_ROLL_CMD_LENGTH, VH_CH_VEHEST_ROLL_CMD_IS_FD, 1u},
     {TX(roll_est, VH_CH_VEHEST_ROLL_EST)},
 };
 
