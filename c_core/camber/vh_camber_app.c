@@ -35,6 +35,9 @@ int vh_cmb_app_set_calibration(vh_ecu_cis_t *c, unsigned wheel, const vh_camber_
 void vh_cmb_app_rx(vh_ecu_cis_t *c, vh_ecu_counters_t *cnt, const vh_frame_t *f)
 {
     struct vh_pt_cis_accel_t m;
+    if ((f->flags & VH_FRAME_EXT) != 0u) { /* an extended-ID twin is not ours: ignored, not counted */
+        return;
+    }
     if (!vh_rx_accept(cnt, &c->rx, f, VH_PT_CIS_ACCEL_LENGTH, VH_PT_CIS_ACCEL_E2E_DATA_ID)) {
         return;
     }

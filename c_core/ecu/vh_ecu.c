@@ -17,7 +17,7 @@ int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_
                        const vh_tfa_params_t *tprm)
 {
     int i;
-    vh_dkf_t probe;
+    vh_dkf_t probe; /* the init functions' own checks, on scratch instances */
     vh_camber_t cprobe;
     vh_skfq_t qprobe;
     if (vh_drv_app_check(cfg->gear_ratio, cfg->we_min) != VH_OK || !(cfg->camber_still_ww >= 0.0) ||
@@ -66,12 +66,7 @@ static void rx_chs(vh_ecu_t *ecu, const vh_frame_t *f)
     vh_roll_app_rx(&ecu->roll, &ecu->cfg.roll, f); /* steer and wheel speeds: the roll UKF's inputs */
 }
 static void rx_roll(vh_ecu_t *ecu, const vh_frame_t *f) { vh_roll_app_rx(&ecu->roll, &ecu->cfg.roll, f); }
-static void rx_cis(vh_ecu_t *ecu, const vh_frame_t *f)
-{
-    if ((f->flags & VH_FRAME_EXT) == 0u) { /* an extended-ID twin is not ours: ignored, not counted */
-        vh_cmb_app_rx(&ecu->cis, &ecu->cnt, f);
-    }
-}
+static void rx_cis(vh_ecu_t *ecu, const vh_frame_t *f) { vh_cmb_app_rx(&ecu->cis, &ecu->cnt, f); }
 static void rx_none(vh_ecu_t *ecu, const vh_frame_t *f) { (void)ecu; (void)f; }
 
 static const struct {
@@ -141,7 +136,6 @@ static int roll_cmd(vh_ecu_t *ecu, uint8_t *d) { return vh_roll_app_fill_cmd(&ec
 static int roll_est(vh_ecu_t *ecu, uint8_t *d) { return vh_roll_app_fill_est(&ecu->roll, d); }
 /* XCP: calibration reaches the systems at the tick boundary, before any of them steps; DAQ
  * samples after all of them, on the event channels 0 (tick), 1 (1 ms), 2 (10 ms) */
-static void xcp_cal(vh_ecu_t *ecu) { vh_ecu_xcp_tick(ecu); }
 static void xcp_ev_tick(vh_ecu_t *ecu) { vh_ecu_xcp_event(ecu, 0u); }
 static void xcp_ev_1ms(vh_ecu_t *ecu) { vh_ecu_xcp_event(ecu, 1u); }
 static void xcp_ev_10ms(vh_ecu_t *ecu) { vh_ecu_xcp_event(ecu, 2u); }
@@ -156,7 +150,7 @@ static const struct {
     uint8_t len, is_fd;
     uint32_t period_ticks;
 } RUNNABLES[] = {
-    {xcp_cal, NULL, 0u, 0u, 0u, 1u},
+    {vh_ecu_xcp_tick, NULL, 0u, 0u, 0u, 1u},
     {drv_step, NULL, 0u, 0u, 0u, 1u},
     {TX(drv_est, VH_PT_VEHEST_DRIVELINE_EST)},
     {TX(drv_status, VH_PT_VEHEST_STATUS)},
@@ -166,11 +160,11 @@ static const struct {
     {TX(tf_est, VH_CH_VEHEST_TIRE_FORCE_EST)},
     {TX(tf_status, VH_CH_VEHEST_CHASSIS_STATUS)},
     {TX(tf_adaptive, VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE)},
-    /* roll: RX ages every tick; UKF + SMC every ROLL_Sensors cycle (5 ms: its 30-45 us stay out of
-     * 9 ticks in 10), the command right after */
+    /* roll: RX ages every tick; UKF + SMC on each ROLL_Sensors frame (every 5 ms: its 30-45 us stay
+     * out of 9 ticks in 10), the command in the same tick (checked every tick, sent after a step) */
     {roll_tick, NULL, 0u, 0u, 0u, 1u},
-    {roll_step, NULL, 0u, 0u, 0u, TICKS(VH_CH_ROLL_SENSORS_CYCLE_TIME_US)},
-    {TX(roll_cmd, VH_CH_VEHEST_ROLL_CMD)},
+    {roll_step, NULL, 0u, 0u, 0u, 1u},
+    {NULL, roll_cmd, VH_CH_VEHEST_ROLL_CMD_FRAME_ID, VH_CH_VEHEST_ROLL_CMD_LENGTH, VH_CH_VEHEST_ROLL_CMD_IS_FD, 1u},
     {TX(roll_est, VH_CH_VEHEST_ROLL_EST)},
     {xcp_ev_tick, NULL, 0u, 0u, 0u, 1u},
     {xcp_ev_1ms, NULL, 0u, 0u, 0u, TICKS(1000u)},

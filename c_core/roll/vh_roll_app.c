@@ -89,6 +89,8 @@ static void rx_sensors(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, const 
     }
     (void)vh_ch_roll_sensors_unpack(&m, f->data, f->len);
     a->heard = 1u;
+    a->sens_arrived = 1u;
+    a->sens_wait = 0u;
     TAKE(roll_lat_accel, ROLL_LAT_ACCEL, VH_ROLL_Z_AY);
     TAKE(wheel_vert_accel_fl, WHEEL_VERT_ACCEL_FL, VH_ROLL_Z_AZU + 0);
     TAKE(wheel_vert_accel_fr, WHEEL_VERT_ACCEL_FR, VH_ROLL_Z_AZU + 1);
@@ -111,6 +113,7 @@ static void rx_yaw(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, const vh_f
         return;
     }
     (void)vh_ch_roll_yaw_rate_unpack(&y, f->data, f->len);
+    a->yaw_arrived = 1u;
     take(a, cfg, VH_ROLL_Z_R, y.qf_roll_yaw_rate && y.roll_yaw_rate != VH_CH_ROLL_YAW_RATE_ROLL_YAW_RATE_SNA_CHOICE,
          vh_ch_roll_yaw_rate_roll_yaw_rate_decode(y.roll_yaw_rate));
 }
@@ -226,9 +229,29 @@ void vh_roll_app_step(vh_roll_app_t *a)
     const int act_ok = !a->rx[VH_ROLL_RX_ACT].timed_out;
     const int arc_ok = act_ok && a->arc_state != 2u && a->arc_state != 3u; /* not HOLD, not FAILSAFE */
     const int u_ok = !a->rx[VH_ROLL_RX_CHS].timed_out && a->u_ok;
+    a->stepped_now = 0u;
     if (!a->heard) {
         return;
     }
+    if (a->since_step < UINT16_MAX) {
+        ++a->since_step;
+    }
+    /* event-triggered on the sensors' frame, so the ECU's own tick phase adds no lost samples; a
+     * frame later than half a cycle past due: step without it, then keep the nominal cycle */
+    if (!a->sens_arrived) {
+        if (a->since_step < STEP_TICKS + STEP_TICKS / 2u) {
+            return;
+        }
+        a->since_step = STEP_TICKS / 2u;
+    } else if (!a->yaw_arrived && a->sens_wait == 0u) {
+        a->sens_wait = 1u; /* the gyro's frame of the same sample may come one tick later: wait for it */
+        return;
+    } else {
+        a->since_step = 0u;
+    }
+    a->sens_arrived = 0u;
+    a->yaw_arrived = 0u;
+    a->stepped_now = 1u;
     mask = a->z_new & a->z_ok;
     if (a->rx[VH_ROLL_RX_SENS].timed_out) {
         mask &= (1u << VH_ROLL_Z_R);
@@ -259,7 +282,7 @@ void vh_roll_app_step(vh_roll_app_t *a)
 int vh_roll_app_fill_cmd(vh_roll_app_t *a, uint8_t *data)
 {
     struct vh_ch_vehest_roll_cmd_t m;
-    if (!a->stepped) {
+    if (!a->stepped_now) {
         return 0;
     }
     (void)vh_ch_vehest_roll_cmd_init(&m);

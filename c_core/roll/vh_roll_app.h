@@ -7,10 +7,10 @@
  * check (the same raw value stuck_samples frames in a row: a live sensor's noise spans several LSB)
  * give the UKF's valid mask; a measurement whose frame did not arrive since the last step, timed
  * out or failed a check is removed from that update, never replaced by a stale value.
- * Step (every ROLL_Sensors cycle, 5 ms): one float32 UKF step, one sliding-mode controller step on
- * its estimates; the controller sees the estimate as not OK also when its inputs are missing or the
+ * Step (on each ROLL_Sensors frame, 5 ms; without one, on that cycle): one float32 UKF step, one
+ * sliding-mode controller step on its estimates; the controller sees the estimate as not OK also when its inputs are missing or the
  * actuators report HOLD / FAILSAFE or go silent, so it fades to passive (docs/roll.md).
- * TX: VEHEST_RollCmd after every step, VEHEST_RollEst (estimates and health) every 10 ms, once the
+ * TX: VEHEST_RollCmd in the tick of every step, VEHEST_RollEst (estimates and health) every 10 ms, once the
  * roll sensors have been heard. Every scale is the DBC's (generated encoders and decoders).
  */
 #ifndef VH_ROLL_APP_H
@@ -59,6 +59,11 @@ typedef struct {
     uint8_t mode_active;        /* ROLL_ModeCmd's request */
     uint8_t heard;              /* a good ROLL_Sensors frame since reset */
     uint8_t stepped;            /* the UKF has stepped since reset */
+    uint8_t stepped_now;        /* it stepped in this tick: the command goes out */
+    uint8_t sens_arrived;       /* a good ROLL_Sensors frame since the last step */
+    uint8_t yaw_arrived;        /* a good ROLL_YawRate frame since the last step */
+    uint8_t sens_wait;          /* ticks the step has waited for the yaw-rate frame of the same sample */
+    uint16_t since_step;        /* ticks since the last step */
     uint32_t missing;           /* measurements removed from the last update */
     uint32_t flags_acc;         /* UKF flags since the last VEHEST_RollEst */
     uint32_t rx_fault;          /* VH_ROLL_RXF_* of the last step */
@@ -76,7 +81,8 @@ void vh_roll_app_reset(vh_roll_app_t *a, const vh_roll_app_config_t *cfg);
 void vh_roll_app_rx(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, const vh_frame_t *f);
 /* Every tick: ages and timeouts of the RX messages. */
 void vh_roll_app_tick(vh_roll_app_t *a, unsigned burst_limit);
-/* Every ROLL_Sensors cycle: the UKF and the controller. */
+/* Every tick: one UKF and controller step when a ROLL_Sensors frame has arrived (one step per
+ * sample, whatever the arrival jitter), or, without one, on the nominal cycle (prediction only). */
 void vh_roll_app_step(vh_roll_app_t *a);
 /* The payloads of VEHEST_RollCmd and VEHEST_RollEst; 0 (send nothing) before the roll sensors are heard. */
 int vh_roll_app_fill_cmd(vh_roll_app_t *a, uint8_t *data);

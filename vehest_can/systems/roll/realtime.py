@@ -62,7 +62,14 @@ def run(seconds: float = 60.0, config: dict | None = None) -> dict:
     ok = j < len(cmd_ticks)
     lat_us = (cmd_ticks[j[ok]] + 1 - sens_ticks[ok]) * TICK_S * 1e6
     arc = session.truth["arc_state"]
+    from .report import estimates
+
+    est = estimates(session)
+    late = est["tick"] >= int(1.0 / TICK_S)   # after the controller's start-up ramp
     return {
+        "ukf_not_ok_pct": 100 * float(np.mean(est["RollUkf_Health"][late] != 1)) if late.any() else float("nan"),
+        "smc_tripped_pct": 100 * float(np.mean((est["RollSmc_Health"][late].astype(int) & 64) != 0))
+        if late.any() else float("nan"),
         "seconds": len(session.truth) * TICK_S, "commands_received": int(is_cmd.sum()),
         "commands_expected": int(round(len(session.truth) * TICK_S / 0.005)),
         "commands_lost_in_counters": _gaps(counters), "actuator_timeouts": int(car.node.cnt_timeout),
