@@ -51,14 +51,15 @@ def test_no_heap_and_no_aes_of_our_own():
 
 @pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
 def test_bench_runs_and_counts_its_verdicts(tmp_path):
-    """c_core/secoc/bench_secoc.c: figures are measured, not asserted; here it only has to run and
+    """c_core/bench/bench_secoc.c: figures are measured, not asserted; here it only has to run and
     see every genuine frame accepted and every forged/replayed one rejected (it checks that itself)."""
     exe = tmp_path / "bench_secoc"
-    build = subprocess.run(["cc", *secoc_build.STRICT_FLAGS, "-O2", f"-I{SECOC}",
-                            *[str(s) for s in secoc_build.SOURCES], str(SECOC / "bench_secoc.c"),
+    bench = ROOT / "c_core" / "bench"
+    build = subprocess.run(["cc", *secoc_build.STRICT_FLAGS, "-O2", f"-I{SECOC}", f"-I{bench}",
+                            *[str(s) for s in secoc_build.SOURCES], str(bench / "bench_secoc.c"),
                             secoc_build.libcrypto(), "-o", str(exe)], capture_output=True, text=True)
     assert build.returncode == 0, build.stderr
     run = subprocess.run([str(exe), "20"], capture_output=True, text=True, timeout=60)
     assert run.returncode == 0, run.stdout
     names = [line.split()[0] for line in run.stdout.splitlines()]
-    assert names == ["aes_block", "cmac_38", "protect_28", "verify_28", "verify_forged"]
+    assert names == ["clock", "aes_block", "cmac_38", "protect_28", "verify_28", "verify_forged"]

@@ -1,7 +1,7 @@
 /* bench_secoc.c - cost of SecOC per frame, in a C loop (host build, -O2). Not firmware.
  *
- * One line per benchmark, "name n median_ns p99_ns", each sample a batch of 64 operations (the
- * clock's own cost is then negligible), per operation:
+ * One line per benchmark, "name n median_ns p99_ns" (vh_bench_common.h; first the clock's own
+ * cost), each sample a batch of 64 operations less that cost, per operation:
  *   aes_block       one AES-128 block encryption (the backend: OpenSSL), the floor of everything below
  *   cmac_38         CMAC of 38 bytes (data ID 2 + authentic 28 + FV 8: 3 blocks)
  *   protect_28      securing a 28-byte authentic part (the tail written, the FV consumed)
@@ -11,32 +11,21 @@
  * Usage: bench_secoc [samples]
  */
 #define _POSIX_C_SOURCE 199309L
-#include <stdio.h>
-#include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
+#include "vh_bench_common.h"
 #include "vh_secoc.h"
 
 #define BATCH 64
 
-static double now_ns(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec * 1e9 + (double)ts.tv_nsec;
-}
+static double clock_ns; /* one clock reading's cost (vh_bench_clock) */
 
-static int cmp(const void *a, const void *b)
-{
-    const double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
+/* Per operation: each sample timed a batch of BATCH, less the clock's cost. */
 static void report(const char *name, double *s, int n)
 {
-    qsort(s, (size_t)n, sizeof *s, cmp);
-    printf("%s %d %.1f %.1f\n", name, n, s[n / 2] / BATCH, s[(n * 99) / 100] / BATCH);
+    for (int i = 0; i < n; ++i)
+        s[i] = (s[i] - clock_ns) / BATCH;
+    vh_bench_report(name, s, n, 0.0);
 }
 
 int main(int argc, char **argv)
@@ -47,6 +36,7 @@ int main(int argc, char **argv)
     double *s = malloc(sizeof(double) * (size_t)n); /* the bench's own buffer, not the firmware's */
     if (!s)
         return 1;
+    clock_ns = vh_bench_clock(s, n);
     static const uint8_t key[16] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16};
     vh_cmac_key_t k;
     vh_cmac_init(&k, key);
@@ -54,22 +44,22 @@ int main(int argc, char **argv)
     volatile uint8_t sink = 0;
 
     for (int i = 0; i < n; ++i) {
-        double t0 = now_ns();
+        double t0 = vh_bench_now_ns();
         for (int j = 0; j < BATCH; ++j) {
             vh_aes128_encrypt(&k.aes, block, block);
         }
-        s[i] = now_ns() - t0;
+        s[i] = vh_bench_now_ns() - t0;
     }
     sink ^= block[0];
     report("aes_block", s, n);
 
     for (int i = 0; i < n; ++i) {
-        double t0 = now_ns();
+        double t0 = vh_bench_now_ns();
         for (int j = 0; j < BATCH; ++j) {
             msg[0] = (uint8_t)j;
             vh_cmac(&k, msg, sizeof msg, tag);
         }
-        s[i] = now_ns() - t0;
+        s[i] = vh_bench_now_ns() - t0;
         sink ^= tag[0];
     }
     report("cmac_38", s, n);
@@ -79,12 +69,12 @@ int main(int argc, char **argv)
     vh_secoc_tx_init(&tx, 1, UINT64_MAX);
     vh_secoc_rx_init(&rx, 0, 1);
     for (int i = 0; i < n; ++i) {
-        double t0 = now_ns();
+        double t0 = vh_bench_now_ns();
         for (int j = 0; j < BATCH; ++j) {
             memset(frames[j], j, 28);
             vh_secoc_protect(&tx, &k, 0x110, frames[j], 28);
         }
-        s[i] = now_ns() - t0;
+        s[i] = vh_bench_now_ns() - t0;
     }
     report("protect_28", s, n);
 
@@ -94,20 +84,20 @@ int main(int argc, char **argv)
             memset(frames[j], j, 28);
             vh_secoc_protect(&tx, &k, 0x110, frames[j], 28);
         }
-        double t0 = now_ns();
+        double t0 = vh_bench_now_ns();
         for (int j = 0; j < BATCH; ++j)
             sink ^= (uint8_t)vh_secoc_verify(&rx, &k, 0x110, frames[j], 28, NULL);
-        s[i] = now_ns() - t0;
+        s[i] = vh_bench_now_ns() - t0;
     }
     report("verify_28", s, n);
 
     for (int i = 0; i < n; ++i) {
         for (int j = 0; j < BATCH; ++j)
             frames[j][29] ^= 0x5a; /* forged, then (flipped back) a replay of an accepted frame */
-        double t0 = now_ns();
+        double t0 = vh_bench_now_ns();
         for (int j = 0; j < BATCH; ++j)
             sink ^= (uint8_t)vh_secoc_verify(&rx, &k, 0x110, frames[j], 28, NULL);
-        s[i] = now_ns() - t0;
+        s[i] = vh_bench_now_ns() - t0;
     }
     report("verify_forged", s, n);
     if (rx.accepted != (uint32_t)n * BATCH || rx.bad_mac + rx.replayed != (uint32_t)n * BATCH) {
