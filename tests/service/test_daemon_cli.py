@@ -9,7 +9,7 @@ import time
 import can
 import pytest
 
-from vehest_can.bus.frames import frame_id
+from vehest_can.bus.frames import frame_id, unused_frame_id
 from vehest_can.cli import main
 from vehest_can.service.daemon import RX_FIFO, DaemonStats, EcuDaemon
 from vehest_can.sim.session import run_inprocess
@@ -96,7 +96,7 @@ def test_realtime_receive_fifo_is_bounded_and_its_overruns_counted():
         time.sleep(0.2)  # inside the stall
         n = 3 * RX_FIFO
         for _ in range(n):
-            sender.send(can.Message(arbitration_id=0x123, is_extended_id=False, data=bytes(8)))
+            sender.send(can.Message(arbitration_id=unused_frame_id(), is_extended_id=False, data=bytes(8)))
         thread.join(10)
     finally:
         sender.shutdown()

@@ -22,7 +22,7 @@ import pytest
 
 from vehest_can.bus import bus as busmod
 from vehest_can.bus.busload import bus_load
-from vehest_can.bus.frames import TICK_S, database
+from vehest_can.bus.frames import TICK_S, database, unused_frame_id
 from vehest_can.cli import main
 from vehest_can.errors import ConfigError
 from vehest_can.paths import dbc_path
@@ -268,6 +268,7 @@ def two_buses(**pt):
 def test_one_adapter_per_bus_and_a_car_of_each_registered_system(tmp_path):
     cfg = load_hil_config(write(tmp_path, two_buses()))
     assert cfg.ecu_buses == ("pt", "ch") and cfg.bus_of("VEHEST").name == "pt"
+    assert "ROLL" not in cfg.simulated  # left out beside a tyre-force car: no car here plays it (old files load)
     assert [(c.system, c.scenario.name, c.nodes, c.bus) for c in cfg.cars] == [
         ("driveline", "launch_2nd", ("DLS", "SIM", "CIS"), "pt"), ("tireforce", "chassis_relation_70kph", ("CHS",), "ch")]
     routes = cfg.ecu_routes()  # what the ECU sends goes to the bus whose DBC has it
@@ -275,8 +276,8 @@ def test_one_adapter_per_bus_and_a_car_of_each_registered_system(tmp_path):
     assert routes[CH_ID["VEHEST_ChassisStatus"]] == "ch" and set(routes.values()) == {"pt", "ch"}
     # each simulated car needs its scenario; a scenario whose car is real has nothing to drive
     for changes, key, problem in [
-        (dict(scenario="launch_2nd"), "scenario", "missing: the car (CHS) is simulated here and needs a scenario "
-                                                  "to drive (tireforce"),
+        (dict(scenario="launch_2nd"), "scenario", "missing: the car (CHS, ROLL) is simulated here and needs a scenario "
+                                                  "to drive (roll or tireforce"),
         (dict(scenario=["launch_2nd", "chassis_relation_70kph"], mode="lockstep"), "scenario",
          "lockstep steps one car"),
         (dict(nodes={"simulated": ["DLS", "SIM", "VEHEST"], "real": ["CHS"]}), "scenario[1]",
@@ -449,7 +450,7 @@ def test_daemon_process_opens_every_bus_of_a_hil_config(tmp_path):
             bus = busmod.open_bus(cfg.bus_kwargs(name))
             try:
                 for _ in range(50):
-                    bus.send(can.Message(arbitration_id=0x123, is_extended_id=False, data=bytes(8)))
+                    bus.send(can.Message(arbitration_id=unused_frame_id(), is_extended_id=False, data=bytes(8)))
                     time.sleep(0.002)
             finally:
                 bus.shutdown()

@@ -21,6 +21,7 @@ import can
 import pytest
 
 from vehest_can.bus import bus as busmod
+from vehest_can.bus.frames import unused_frame_id
 from vehest_can.cli import build_parser
 from vehest_can.service import sdnotify
 from vehest_can.service.sdnotify import Notifier, Watchdog, socket_address, watchdog_interval
@@ -79,7 +80,7 @@ def test_realtime_daemon_notifies_ready_watchdog_status_stopping_in_order(notify
         bus = busmod.open_bus({"interface": "udp_multicast", "channel": channel, "fd": True})
         try:
             while not stop.wait(0.01):
-                bus.send(can.Message(arbitration_id=0x123, is_extended_id=False, data=bytes(8)))
+                bus.send(can.Message(arbitration_id=unused_frame_id(), is_extended_id=False, data=bytes(8)))
         finally:
             bus.shutdown()
 

@@ -15,7 +15,7 @@ import pytest
 from daemonproc import start_daemon, stop_daemon
 
 from vehest_can.bus.bus import open_bus, private_multicast
-from vehest_can.bus.frames import database
+from vehest_can.bus.frames import database, unused_frame_id
 from vehest_can.bus.log import read_log
 from vehest_can.service.daemon import EcuDaemon
 from vehest_can.service.replay import replay
@@ -145,7 +145,7 @@ def test_udp_multicast_sessions_on_other_groups_do_not_hear_each_other():
     b = open_bus({"interface": "udp_multicast", "channel": "239.74.11.2", "port": port, "fd": True})
     c = open_bus({"interface": "udp_multicast", "channel": "239.74.11.2", "port": port, "fd": True})
     try:
-        b.send(can.Message(arbitration_id=0x123, is_extended_id=False, data=b"\x01"))
+        b.send(can.Message(arbitration_id=unused_frame_id(), is_extended_id=False, data=b"\x01"))
         assert c.recv(1.0) is not None  # same group: delivered
         assert a.recv(0.3) is None      # other group, same port: not delivered
     finally:

@@ -27,6 +27,14 @@ def database(bus: str = "pt") -> cantools.database.can.Database:
 BUSES = ("pt", "ch")
 
 
+@cache
+def unused_frame_id(start: int = 0x123) -> int:
+    """The first standard ID from `start` that no bundled DBC uses, nor the ECU's XCP identifiers
+    (0x7E0/0x7E1): the "unknown frame" of hostile tests and the soak's sender, never a real one."""
+    used = {m.frame_id for b in BUSES for m in database(b).messages} | {0x7E0, 0x7E1}
+    return next(i for i in range(start, 0x800) if i not in used)
+
+
 def sent_by(nodes: AbstractSet[str], bus: str | None = None) -> frozenset[int]:
     """Standard IDs the given DBC nodes transmit (on one bus, or on every bus). A node ignores its
     own IDs on receive: some buses (python-can's udp_multicast) echo a sender's frames back to it."""

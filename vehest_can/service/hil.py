@@ -264,6 +264,7 @@ def hil_config_from_dict(doc: dict, path: str | Path = "<hil config>") -> HilCon
             known = "; ".join(f"buses.{b}: {', '.join(sorted(n)) or 'none'}" for b, n in in_dbc.items())
             c.fail(f"nodes.{role}", f"node {node} is in no bus's DBC ({known})")
     # A car's node left out follows its car's declared nodes (CIS with DLS and SIM): one role, or declare it.
+    inferred: set[str] = set()  # left out, following their car: absent if no car here plays them
     for node in sorted(anywhere - set(declared)):
         partners = {n: declared[n] for g in _car_groups() if node in g for n in g if n in declared}
         if len(set(partners.values())) > 1:
@@ -273,6 +274,7 @@ def hil_config_from_dict(doc: dict, path: str | Path = "<hil config>") -> HilCon
                             f"together or not at all")
         if partners:
             declared[node] = next(iter(partners.values()))
+            inferred.add(node)
     for b in buses:
         for node in b.nodes:
             if node not in declared:
@@ -333,6 +335,13 @@ def hil_config_from_dict(doc: dict, path: str | Path = "<hil config>") -> HilCon
                                       f"{' and '.join(buses_of)}")
         cars.append(HilCar(system.name, sc, tuple(here), buses_of[0]))
     unplayed = [n for n in car_nodes if not any(n in car.nodes for car in cars)]
+    # a node left out that no car here plays is not on this bench (ROLL beside a tyre-force car: the
+    # chassis node is shared by two systems' cars); a declared one needs its car's scenario
+    if all(n in inferred for n in unplayed):
+        simulated = tuple(n for n in simulated if n not in unplayed)
+        for n in unplayed:
+            node_bus.pop(n, None)
+        unplayed = []
     if unplayed:
         who = sorted({s.name for s in registered() if set(getattr(s, "nodes", ())) & set(unplayed)})
         c.fail("scenario", f"missing: the car ({', '.join(unplayed)}) is simulated here and needs a scenario to "

@@ -13,6 +13,7 @@ from .scenario import KINDS, RollCar, load_roll_scenario, roll_scenario_dir
 class Roll:
     name = "roll"
     kinds = KINDS
+    nodes = ("CHS", "ROLL")  # the 14-DOF plant with its chassis node and its roll node (sensors, actuators)
     realtime = True
     faults = FAULTS
     campaign = None
