@@ -11,10 +11,12 @@ from vehest_can.errors import ConfigError
 from vehest_can.native import config_class, ffi, lib
 from vehest_can.systems.camber.api import CalibrationLimits, MeasureConfig
 from vehest_can.systems.driveline.api import DkfConfig
+from vehest_can.systems.tireforce.api import SkfConfig
 
 DERIVED = [(DkfConfig, lambda c: lib.vh_dkf_config_default(c, lib.VH_DKF_SPEEDS_TORQUE)),
            (CalibrationLimits, lib.vh_camber_cal_limits_default),
-           (MeasureConfig, lib.vh_camber_config_default)]
+           (MeasureConfig, lib.vh_camber_config_default),
+           (SkfConfig, lambda c: lib.vh_skf_config_default(c, lib.VH_SKF_SKFMEC))]
 
 
 @pytest.mark.parametrize("cls, fill", DERIVED, ids=[c.__name__ for c, _ in DERIVED])

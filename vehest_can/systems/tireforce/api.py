@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import ConfigError
-from ...native import check, ffi, lib
+from ...native import check, config_class, ffi, lib
 
 SKFMEC = "skfmec"
 EKF = "ekf"
@@ -25,45 +25,14 @@ WHEELS = ("FL", "FR", "RL", "RR")
 _VEC = {"s": 7, "q": 7, "p0": 7, "r": 4, "gp": 7, "gy": 2}
 
 
-@dataclass
-class SkfConfig:
-    """Estimator configuration (``vh_skf_config_t``); defaults come from the C core."""
+_C_CONFIG: Any = config_class(
+    "vh_skf_config_t", "SkfConfig", defaults=lambda c: lib.vh_skf_config_default(c, _VARIANT_C[SKFMEC]),
+    flags=("scaled", "mec"))
 
-    m: float
-    ms: float
-    iz: float
-    ix: float
-    lf: float
-    lr: float
-    h: float
-    e: float
-    hf: float
-    hr: float
-    kphif: float
-    kphir: float
-    cphif: float
-    cphir: float
-    rw: float
-    iw: float
-    tf: float
-    tr: float
-    g: float
-    zeta1: float
-    zeta2: float
-    lt_gain: float
-    ts: float
-    tau_wdot: float
-    s: tuple
-    q: tuple
-    p0: tuple
-    r: tuple
-    gp: tuple
-    gy: tuple
-    p_cap: float
-    p_max: float
-    x_max: float
-    scaled: bool = True
-    mec: bool = True
+
+class SkfConfig(_C_CONFIG):
+    """Estimator configuration, field for field ``vh_skf_config_t`` (derived from the C struct:
+    :func:`vehest_can.native.config_class`); defaults are the C core's (``vh_skf_config_default``)."""
 
     @classmethod
     def default(cls, variant: str = SKFMEC, **overrides) -> SkfConfig:
@@ -78,29 +47,6 @@ class SkfConfig:
                 raise ConfigError(f"unknown estimator setting {key!r}")
             setattr(cfg, key, tuple(float(v) for v in value) if key in _VEC else value)
         return cfg
-
-    @classmethod
-    def from_c(cls, c) -> SkfConfig:
-        kw: dict[str, Any] = {}
-        for f in fields(cls):
-            v = getattr(c, f.name)
-            kw[f.name] = tuple(v) if f.name in _VEC else (bool(v) if f.name in ("scaled", "mec") else float(v))
-        return cls(**kw)
-
-    def to_c(self, c=None):
-        c = c if c is not None else ffi.new("vh_skf_config_t *")
-        for f in fields(self):
-            v = getattr(self, f.name)
-            if f.name in _VEC:
-                v = tuple(v)
-                if len(v) != _VEC[f.name]:
-                    raise ConfigError(f"{f.name}: expected {_VEC[f.name]} values, got {len(v)}")
-                setattr(c, f.name, [float(x) for x in v])
-            elif f.name in ("scaled", "mec"):
-                setattr(c, f.name, int(bool(v)))
-            else:
-                setattr(c, f.name, float(v))
-        return c
 
 
 @dataclass
