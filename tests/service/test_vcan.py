@@ -400,7 +400,16 @@ def test_canplayer_sensor_log_into_realtime_daemon(faults_run):
     # one frame, long before the 40 steps that make the filter valid
     assert rows[0, 0] <= 0 and rows[0, 1] == 0
     valid = during[during[:, 1] == 1]
-    assert len(valid) > 200, f"{len(valid)} valid estimates of {len(during)}"  # converged: 40 steps
+    # The filter converges (40 steps) and publishes valid estimates. How many depends on how well
+    # the guest was fed (UML's 100 Hz timer, a loaded host), so the count is not the check; that
+    # every lost one is accounted for is: a starved guest hands the daemon its queued frames in
+    # bursts or not at all, and the ECU counts those (rx_burst, timeout, alive-counter jumps).
+    assert len(valid) >= 20, f"{len(valid)} valid estimates of {len(during)}"
+    late_start = valid[0, 0] > 100  # 40 steps, plus slack for the first estimates' spacing
+    dropped_out = bool((during[during[:, 0] > valid[0, 0], 1] == 0).any())
+    if late_start or dropped_out:
+        explained = c["rx_burst"] + c["timeout"] + c["counter_skip"] + c["counter_repeat"]
+        assert explained > 0, (late_start, dropped_out, c)
 
     # Valid estimates lie on the plant's trajectory. A starved guest's daemon runs behind the
     # bus (its socket queues frames), so the estimate is not about the newest sample on the
