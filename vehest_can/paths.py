@@ -2,6 +2,7 @@
 source checkout. One rule for the DBC files and the scenarios."""
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 _PKG = Path(__file__).resolve().parent
@@ -20,6 +21,25 @@ def shipped_file(name_or_path: str | Path, directory: Path, suffix: str = ".toml
     if p.suffix == suffix or p.exists() or len(p.parts) > 1:
         return p
     return directory / f"{p.name}{suffix}"
+
+
+@dataclass(frozen=True)
+class ShippedSet:
+    """A folder of shipped TOML files (a system's scenarios, the campaigns)."""
+
+    package_dir: str
+    checkout_dir: str
+
+    def dir(self) -> Path:
+        return shipped_dir(self.package_dir, self.checkout_dir, "*.toml")
+
+    def names(self) -> list[str]:
+        """The files' stems, sorted."""
+        return sorted(p.stem for p in self.dir().glob("*.toml"))
+
+    def path(self, name_or_path: str | Path) -> Path:
+        """An existing path as given, else a shipped file's name."""
+        return shipped_file(name_or_path, self.dir())
 
 
 def examples_dir() -> Path:

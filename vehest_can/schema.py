@@ -10,7 +10,7 @@ import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from .errors import ScenarioError, VehestError
 
@@ -69,21 +69,32 @@ class Checker:
             self.fail(key, f"{value!r} is out of range: must be {spec.describe()}")
         return int(value) if spec.integer else float(value)
 
-    def profile(self, value, key: str, spec: Num) -> tuple[tuple[float, float], ...]:
+    def profile(self, value, key: str, spec: Num | tuple[str, ...],
+                columns: tuple[str, ...] = ("value",)) -> tuple[tuple[Any, ...], ...]:
+        """``[[time_s, v, ...], ...]`` with times strictly increasing: each v a number of ``spec``,
+        or one of the words in ``spec``; ``columns`` names the values in messages."""
+        shape = f"[time_s, {', '.join(columns)}]"
         if not isinstance(value, list) or not value:
-            self.fail(key, "must be a non-empty list of [time_s, value] points")
-        points: list[tuple[float, float]] = []
+            self.fail(key, f"must be a non-empty list of {shape} points")
+        points: list[tuple[Any, ...]] = []
         for i, pt in enumerate(value):
             k = f"{key}[{i}]"
-            if not isinstance(pt, list) or len(pt) != 2:
-                self.fail(k, f"must be a [time_s, value] pair, not {pt!r}")
+            if not isinstance(pt, list) or len(pt) != 1 + len(columns):
+                self.fail(k, f"must be a {shape} point ({1 + len(columns)} values), not {pt!r}")
             t = self.number(pt[0], f"{k}[0]", Num(0.0, 1e6))
-            v = self.number(pt[1], f"{k}[1]", spec)
             if points and not t > points[-1][0]:
                 self.fail(k, f"time {t:g} s does not come after the previous point's "
                              f"{points[-1][0]:g} s: times must increase strictly")
-            points.append((t, v))
+            points.append((t, *(self._point_value(v, f"{k}[{j + 1}]", spec) for j, v in enumerate(pt[1:]))))
         return tuple(points)
+
+    def _point_value(self, value, key: str, spec: Num | tuple[str, ...]):
+        if isinstance(spec, Num):
+            return self.number(value, key, spec)
+        word = self.string(value, key)
+        if word not in spec:
+            self.fail(key, f"must be {' or '.join(repr(w) for w in spec)}, not {word!r}")
+        return word
 
 
 def join(prefix: str, key: str) -> str:

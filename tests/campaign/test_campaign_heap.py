@@ -12,11 +12,10 @@ import pytest
 PROBE = r"""
 import json, resource, sys
 from vehest_can.campaign import runner
-from vehest_can.campaign.spec import load_campaign
-from vehest_can.paths import shipped_dir, shipped_file
+from vehest_can.campaign.spec import CAMPAIGNS, load_campaign
 if sys.argv[1] == "off":
     runner.keep_heap = lambda *a, **k: False  # the worker as it was
-c = load_campaign(shipped_file("tireforce_payload", shipped_dir("campaigns", "firmware_sim/campaigns", "*.toml")))
+c = load_campaign(CAMPAIGNS.path("tireforce_payload"))
 runner.run_batch(c, [0])  # imports and first allocations
 f0 = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
 rows = runner.run_batch(c, [1, 2, 3])

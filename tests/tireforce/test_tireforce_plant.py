@@ -886,7 +886,7 @@ def test_split_mu_sensors_tyre_and_vehicle_keys(tmp_path):
     (GOOD + "[road]\nmu_left = [[0.0, 1.0]]\n", "road.mu_right", "needs both"),
     (GOOD + "[road]\nmu = [[0.0, 3.0]]\n", "road.mu[0][1]", "out of range"),
     (GOOD.replace("[0.5, 1.0]", "[0.0, 1.0]"), "driver.steer_deg[1]", "increase strictly"),
-    (GOOD + "brake_nm = [[0.0, 1.0, 2.0, 3.0]]\n", "driver.brake_nm[0]", "5 numbers"),
+    (GOOD + "brake_nm = [[0.0, 1.0, 2.0, 3.0]]\n", "driver.brake_nm[0]", "5 values"),
     (GOOD + "brake_nm = [[0.0, 1.0, 2.0, 3.0, -4.0]]\n", "driver.brake_nm[0][4]", "out of range"),
     (GOOD + "drive_nm = [[0.0, 1.0, 2.0, true, 4.0]]\n", "driver.drive_nm[0][3]", "not a boolean"),
     (GOOD + "[vehicle]\nmass_delta_kg = 5000.0\n", "vehicle.mass_delta_kg", "out of range"),

@@ -16,14 +16,13 @@ import time
 from pathlib import Path
 
 from .runner import LOCAL_DASK, Store, execute
-from .spec import load_campaign
+from .spec import CAMPAIGNS, load_campaign
 
 
 def measure(spec: str, runs: int | None = None, workers: int | None = None, repeats: int = 3,
             batch_size: int | None = None) -> dict:
-    from ..paths import shipped_dir, shipped_file
 
-    c = load_campaign(shipped_file(spec, shipped_dir("campaigns", "firmware_sim/campaigns", "*.toml")))
+    c = load_campaign(CAMPAIGNS.path(spec))
     if runs is not None:
         c = dataclasses.replace(c, runs=runs)
     n = workers or os.cpu_count() or 1

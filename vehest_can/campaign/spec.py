@@ -37,7 +37,11 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError, ScenarioError
+from ..paths import ShippedSet
 from ..schema import Checker, read_toml
+
+#: the shipped campaigns: inside the installed package, or firmware_sim/campaigns/ of a checkout
+CAMPAIGNS = ShippedSet("campaigns", "firmware_sim/campaigns")
 
 FAULT = "fault"  # a vary key that is not a scenario key: fault specs, ";"-separated
 DISTS = {"uniform": ("low", "high"), "normal": ("mean", "sd"), "list": ("values",), "grid": ("values",)}

@@ -62,7 +62,7 @@ class Bar:
 
 
 def run(args) -> int:
-    from ..campaign import Store, execute, load_campaign, plots, summarize, table_text, write_run_scenario
+    from ..campaign import Store, execute, load_campaign, plots, spec, summarize, table_text, write_run_scenario
 
     if args.workers is not None and args.workers < 1:
         raise ConfigError("--workers must be at least 1")
@@ -73,9 +73,8 @@ def run(args) -> int:
             import distributed  # noqa: F401
         except ImportError:
             raise ConfigError("--scheduler needs Dask: pip install 'vehest-can[dask]'") from None
-    from ..paths import shipped_dir, shipped_file
 
-    campaign = load_campaign(shipped_file(args.spec, shipped_dir("campaigns", "firmware_sim/campaigns", "*.toml")))
+    campaign = load_campaign(spec.CAMPAIGNS.path(args.spec))
     out = Path(args.out or Path("out") / "campaign" / campaign.name)
     workers = args.workers or os.cpu_count() or 1
     store = Store(out, campaign)

@@ -15,37 +15,28 @@ from typing import Any
 import numpy as np
 
 from ..errors import ScenarioError
-from ..paths import shipped_dir, shipped_file
+from ..paths import ShippedSet
 from ..schema import Checker, Num, read_toml
 
 #: Plant and sensor-node step [s]: one ECU tick (VH_TICK_US).
 DT = 0.0005
 
-def scenario_dir() -> Path:
-    """The shipped scenarios: inside the installed package, or firmware_sim/scenarios/ of a checkout."""
-    return shipped_dir("scenarios", "firmware_sim/scenarios", "*.toml")
-
-
-def list_scenarios() -> list[str]:
-    """Names of the shipped scenarios (file stems)."""
-    return sorted(p.stem for p in scenario_dir().glob("*.toml"))
-
-
-def scenario_path(name_or_path: str | Path) -> Path:
-    """A path to a scenario file: an existing path as given, else a shipped scenario's name."""
-    return shipped_file(name_or_path, scenario_dir())
+#: the shipped driveline scenarios: inside the installed package, or firmware_sim/scenarios/ of a checkout
+SCENARIOS = ShippedSet("scenarios", "firmware_sim/scenarios")
+scenario_dir, list_scenarios, scenario_path = SCENARIOS.dir, SCENARIOS.names, SCENARIOS.path
 
 
 # ---- schema --------------------------------------------------------------------------------
 
-_TOP: dict[str, Any] = {
+#: the top-level keys every system's scenario has
+SCENARIO_TOP: dict[str, Any] = {
     "name": "string",
     "description": "string",
     "duration_s": Num(0.0, 3600.0, lo_open=True),
     "seed": Num(0, 2**64 - 1, integer=True),
     "initial_speed_kmh": Num(0.0, 250.0),
 }
-_TOP_REQUIRED = ("name", "duration_s")
+_TOP = SCENARIO_TOP
 _TABLES = ("driver", "road", "vehicle", "sensors", "camber")
 
 _DRIVER = {"gear": Num(0, 5, integer=True)}  # plus "throttle", a profile
@@ -229,6 +220,23 @@ def _native():
     return ffi, lib
 
 
+def scenario_top(c: Checker, doc: dict, top: dict[str, Any], tables: tuple[str, ...]) -> dict[str, Any]:
+    """The keys of a scenario document checked against ``top`` and ``tables``, and the fields every
+    system's scenario has (name, description, duration_s, seed, initial_speed_kmh), read."""
+    c.table(doc, "", set(top) | set(tables))
+    for key in ("name", "duration_s"):
+        if key not in doc:
+            c.fail(key, "missing (required)")
+    name = c.string(doc["name"], "name")
+    if not name.strip():
+        c.fail("name", "must not be empty")
+    return {"name": name, "description": c.string(doc.get("description", ""), "description"),
+            "duration_s": c.number(doc["duration_s"], "duration_s", SCENARIO_TOP["duration_s"]),
+            "seed": c.number(doc.get("seed", 1), "seed", SCENARIO_TOP["seed"]),
+            "initial_speed_kmh": c.number(doc.get("initial_speed_kmh", 0.0), "initial_speed_kmh",
+                                          SCENARIO_TOP["initial_speed_kmh"])}
+
+
 def load_scenario(path: str | Path) -> Scenario:
     """Load and validate one scenario file (a path, or the name of a shipped scenario)."""
     path = scenario_path(path)
@@ -239,17 +247,7 @@ def scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> Scenario:
     """Validate an already parsed TOML document (``path`` only names it in errors)."""
     ffi, lib = _native()
     c = Checker(Path(path))
-    c.table(doc, "", set(_TOP) | set(_TABLES))
-    for key in _TOP_REQUIRED:
-        if key not in doc:
-            c.fail(key, "missing (required)")
-    name = c.string(doc["name"], "name")
-    if not name.strip():
-        c.fail("name", "must not be empty")
-    description = c.string(doc.get("description", ""), "description")
-    duration = c.number(doc["duration_s"], "duration_s", _TOP["duration_s"])
-    seed = c.number(doc.get("seed", 1), "seed", _TOP["seed"])
-    v0 = c.number(doc.get("initial_speed_kmh", 0.0), "initial_speed_kmh", _TOP["initial_speed_kmh"])
+    top = scenario_top(c, doc, _TOP, _TABLES)
 
     if "driver" not in doc:
         c.fail("driver", "missing (required table with throttle and gear)")
@@ -285,8 +283,7 @@ def scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> Scenario:
 
     camber = _camber(c, doc["camber"]) if "camber" in doc else None
 
-    sc = Scenario(name=name, description=description, duration_s=duration, seed=seed,
-                  initial_speed_kmh=v0, gear=gear, throttle=throttle,
+    sc = Scenario(**top, gear=gear, throttle=throttle,
                   road_std_nm=road_v["roughness_std_nm"], road_bandwidth_hz=road_v["roughness_bandwidth_hz"],
                   vehicle=tuple(sorted(vehicle)), sensors=sensors, camber=camber, path=Path(path))
     probe = ffi.new("vh_dlp_t *")

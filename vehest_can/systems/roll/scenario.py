@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import ScenarioError
-from ...paths import shipped_dir, shipped_file
+from ...paths import ShippedSet
 from ...schema import Checker, Num, read_toml, type_name
 from ...sim.scenario import DT, _native
 from ..tireforce.scenario import TireForceScenario, tireforce_scenario_from_dict, truth_dtype
@@ -61,16 +61,8 @@ CHANNELS = ("lat_accel", "wheel_accel_fl", "wheel_accel_fr", "wheel_accel_rl", "
             "susp_defl_fl", "susp_defl_fr", "susp_defl_rl", "susp_defl_rr", "yaw_rate")
 
 
-def roll_scenario_dir() -> Path:
-    return shipped_dir("scenarios/roll", "firmware_sim/scenarios/roll", "*.toml")
-
-
-def roll_scenario_path(name_or_path: str | Path) -> Path:
-    return shipped_file(name_or_path, roll_scenario_dir())
-
-
-def list_roll_scenarios() -> list[str]:
-    return sorted(p.stem for p in roll_scenario_dir().glob("*.toml"))
+SCENARIOS = ShippedSet("scenarios/roll", "firmware_sim/scenarios/roll")
+roll_scenario_dir, list_roll_scenarios, roll_scenario_path = SCENARIOS.dir, SCENARIOS.names, SCENARIOS.path
 
 
 @dataclass(frozen=True)
@@ -255,21 +247,7 @@ def roll_scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> RollS
     plant = tireforce_scenario_from_dict(plant_doc, path)
 
     control = c.table(doc.get("control", {}), "control", {"mode"})
-    mode_doc = control.get("mode", [[0.0, "passive"]])
-    if not isinstance(mode_doc, list) or not mode_doc:
-        c.fail("control.mode", 'must be a non-empty list of [time_s, "passive" | "active"] points')
-    mode: list[tuple[float, str]] = []
-    for i, pt in enumerate(mode_doc):
-        key = f"control.mode[{i}]"
-        if not isinstance(pt, list) or len(pt) != 2:
-            c.fail(key, f'must be a [time_s, "passive" | "active"] point, not {pt!r}')
-        t = c.number(pt[0], f"{key}[0]", Num(0.0, 1e6))
-        m = c.string(pt[1], f"{key}[1]")
-        if m not in MODES:
-            c.fail(f"{key}[1]", f'must be "passive" or "active", not {m!r}')
-        if mode and not t > mode[-1][0]:
-            c.fail(key, f"time {t:g} s does not come after the previous point's {mode[-1][0]:g} s")
-        mode.append((t, m))
+    mode = c.profile(control.get("mode", [[0.0, "passive"]]), "control.mode", MODES, columns=("mode",))
 
     act_doc = c.table(doc.get("actuators", {}), "actuators", set(_ACTUATORS))
     actuators = tuple(sorted((k, c.number(v, f"actuators.{k}", _ACTUATORS[k][2])) for k, v in act_doc.items()))

@@ -28,9 +28,9 @@ from typing import Any
 import numpy as np
 
 from ...errors import ScenarioError
-from ...paths import shipped_dir, shipped_file
+from ...paths import ShippedSet
 from ...schema import Checker, Num, read_toml, type_name
-from ...sim.scenario import DT, _native
+from ...sim.scenario import DT, SCENARIO_TOP, _native, scenario_top
 
 #: The scenario kind, then its old name (files that say kind = "chassis" keep loading).
 KINDS = ("tireforce", "chassis")
@@ -38,31 +38,13 @@ KINDS = ("tireforce", "chassis")
 #: Wheels in the order of every per-wheel quantity: the paper's 1..4 in a left turn.
 WHEELS = ("FL", "FR", "RL", "RR")
 
-def tireforce_scenario_dir() -> Path:
-    """The shipped tyre-force scenarios: inside the installed package, or firmware_sim/scenarios/chassis/."""
-    return shipped_dir("scenarios/chassis", "firmware_sim/scenarios/chassis", "*.toml")
-
-
-def list_tireforce_scenarios() -> list[str]:
-    return sorted(p.stem for p in tireforce_scenario_dir().glob("*.toml"))
-
-
-def tireforce_scenario_path(name_or_path: str | Path) -> Path:
-    """An existing path as given, else a shipped tyre-force scenario's name."""
-    return shipped_file(name_or_path, tireforce_scenario_dir())
+SCENARIOS = ShippedSet("scenarios/chassis", "firmware_sim/scenarios/chassis")
+tireforce_scenario_dir, list_tireforce_scenarios, tireforce_scenario_path = SCENARIOS.dir, SCENARIOS.names, SCENARIOS.path
 
 
 # ---- schema --------------------------------------------------------------------------------
 
-_TOP: dict[str, Any] = {
-    "kind": "string",
-    "name": "string",
-    "description": "string",
-    "duration_s": Num(0.0, 3600.0, lo_open=True),
-    "seed": Num(0, 2**64 - 1, integer=True),
-    "initial_speed_kmh": Num(0.0, 250.0),
-}
-_TOP_REQUIRED = ("kind", "name", "duration_s")
+_TOP: dict[str, Any] = {"kind": "string", **SCENARIO_TOP}
 _TABLES = ("driver", "road", "vehicle", "tyre", "sensors")
 
 _STEER_DEG = Num(-30.0, 30.0)     # road-wheel angle; the plant clamps at 0.6 rad (34 deg)
@@ -320,20 +302,7 @@ def truth_to_numpy(ffi, truth_array, n: int) -> np.ndarray:
 
 def _vector_profile(c: Checker, value, key: str, spec: Num) -> tuple[tuple[float, ...], ...]:
     """[[t, FL, FR, RL, RR], ...] with t strictly increasing."""
-    if not isinstance(value, list) or not value:
-        c.fail(key, "must be a non-empty list of [time_s, FL, FR, RL, RR] points")
-    points: list[tuple[float, ...]] = []
-    for i, pt in enumerate(value):
-        k = f"{key}[{i}]"
-        if not isinstance(pt, list) or len(pt) != 5:
-            c.fail(k, f"must be a [time_s, FL, FR, RL, RR] point (5 numbers), not {pt!r}")
-        t = c.number(pt[0], f"{k}[0]", Num(0.0, 1e6))
-        vals = tuple(c.number(v, f"{k}[{j + 1}]", spec) for j, v in enumerate(pt[1:]))
-        if points and not t > points[-1][0]:
-            c.fail(k, f"time {t:g} s does not come after the previous point's {points[-1][0]:g} s: "
-                      "times must increase strictly")
-        points.append((t, *vals))
-    return tuple(points)
+    return c.profile(value, key, spec, columns=WHEELS)
 
 
 def load_tireforce_scenario(path: str | Path) -> TireForceScenario:
@@ -353,17 +322,7 @@ def tireforce_scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> 
             c.fail("kind", 'missing: a tireforce scenario starts with kind = "tireforce" (or its old name, '
                            'kind = "chassis"; driveline scenarios are read by vehest_can.sim.scenario.load_scenario)')
         c.fail("kind", f'must be "tireforce" (or its old name "chassis"), not {doc["kind"]!r}')
-    c.table(doc, "", set(_TOP) | set(_TABLES))
-    for key in _TOP_REQUIRED:
-        if key not in doc:
-            c.fail(key, "missing (required)")
-    name = c.string(doc["name"], "name")
-    if not name.strip():
-        c.fail("name", "must not be empty")
-    description = c.string(doc.get("description", ""), "description")
-    duration = c.number(doc["duration_s"], "duration_s", _TOP["duration_s"])
-    seed = c.number(doc.get("seed", 1), "seed", _TOP["seed"])
-    v0 = c.number(doc.get("initial_speed_kmh", 0.0), "initial_speed_kmh", _TOP["initial_speed_kmh"])
+    top = scenario_top(c, doc, _TOP, _TABLES)
 
     if "driver" not in doc:
         c.fail("driver", "missing (required table with steer_deg)")
@@ -418,8 +377,7 @@ def tireforce_scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> 
         else:
             sensors.append((k, c.number(v, f"sensors.{k}", _SENSORS[k][2])))
 
-    sc = TireForceScenario(name=name, description=description, duration_s=duration, seed=seed,
-                         initial_speed_kmh=v0, steer_deg=steer, drive_nm=drive, brake_nm=brake,
+    sc = TireForceScenario(**top, steer_deg=steer, drive_nm=drive, brake_nm=brake,
                          mu_left=mu_l, mu_right=mu_r, mass_delta_kg=mass_delta, vehicle=tuple(sorted(vehicle)),
                          tyre=tuple(sorted(tyre)), sensors=tuple(sorted(sensors)),
                          accel_gravity=accel_gravity, path=Path(path))
