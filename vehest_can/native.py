@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import dataclasses
+import enum
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -45,6 +46,15 @@ def struct_array(ctype: str, cdata, n: int):
 
 _INTEGER = ("int", "unsigned", "int8_t", "uint8_t", "int16_t", "uint16_t", "int32_t", "uint32_t", "int64_t",
             "uint64_t", "size_t")
+
+
+def c_enum(ctype: str, name: str, prefix: str, doc: str = "") -> Any:
+    """An IntEnum of a C enum type: its members are the C enumerators without ``prefix``, in value
+    order, so the Python side cannot drift from the header."""
+    members = sorted(ffi.typeof(ctype).relements.items(), key=lambda kv: kv[1])
+    cls = enum.IntEnum(name, [(k.removeprefix(prefix), v) for k, v in members])  # type: ignore[misc]
+    cls.__doc__ = doc or f"{ctype}, from the C."
+    return cls
 
 
 def config_class(ctype: str, name: str, *, defaults: Callable[[Any], object] | None = None,

@@ -241,26 +241,25 @@ def bus_load(dbc, bitrate: int | None = None, data_bitrate: int | None = None, *
         db, source, bus = dbc, "<database>", name or "bus"
 
     notes: list[str] = []
-    if bitrate is not None:
-        nominal = _rate(bitrate, "bit rate", "given")
-        if nominal is None:
-            raise ConfigError(f"bit rate must be positive, not {bitrate}")
-    else:
-        value, key = _dbc_attribute(db, ("Baudrate", "BaudRate"))
-        nominal = _rate(value, "bit rate", f"{key} in {source}")
-        if nominal is None:
-            raise ConfigError(f"{source} gives no bit rate (no Baudrate attribute, or 0): "
-                              "give it with --bitrate")
-        notes.append(f"bit rate from the DBC attribute {key}")
-    if data_bitrate is not None:
-        data = _rate(data_bitrate, "data bit rate", "given")
-        if data is None:
-            raise ConfigError(f"data bit rate must be positive, not {data_bitrate}")
-    else:
-        value, key = _dbc_attribute(db, ("BaudrateCANFD", "BaudRateCANFD"))
-        data = _rate(value, "data bit rate", f"{key} in {source}")
-        if data is not None:
-            notes.append(f"data bit rate from the DBC attribute {key}")
+
+    def rate(given, what: str, keys: tuple[str, str], required: bool) -> int | None:
+        """A bit rate given, else from the DBC's network attribute (noted)."""
+        if given is not None:
+            value = _rate(given, what, "given")
+            if value is None:
+                raise ConfigError(f"{what} must be positive, not {given}")
+            return value
+        attr, key = _dbc_attribute(db, keys)
+        value = _rate(attr, what, f"{key} in {source}")
+        if value is None and required:
+            raise ConfigError(f"{source} gives no {what} (no {keys[0]} attribute, or 0): give it with --bitrate")
+        if value is not None:
+            notes.append(f"{what} from the DBC attribute {key}")
+        return value
+
+    nominal = rate(bitrate, "bit rate", ("Baudrate", "BaudRate"), required=True)
+    assert nominal is not None  # required
+    data = rate(data_bitrate, "data bit rate", ("BaudrateCANFD", "BaudRateCANFD"), required=False)
     if data is not None and data < nominal:
         raise ConfigError(f"data bit rate {data} is lower than the nominal bit rate {nominal} ({source})")
 

@@ -12,7 +12,6 @@ Angles are in radians, accelerations in g; raw samples are ``(N, 3)`` integer ar
 """
 from __future__ import annotations
 
-import enum
 import json
 import math
 import os
@@ -26,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import ConfigError
-from ...native import check, config_class, ffi, lib
+from ...native import c_enum, check, config_class, ffi, lib
 
 FORMAT = "vehest-can/camber-calibration"
 VERSION = 1
@@ -41,28 +40,10 @@ class CaptureError(ConfigError):
     """A calibration capture is unusable; the message says which capture and why."""
 
 
-class Reason(enum.IntEnum):
-    """Why the inspection did or did not publish (vh_camber_reason_t)."""
-
-    OK = lib.VH_CAMBER_OK
-    MOVING = lib.VH_CAMBER_MOVING
-    NOT_STATIONARY_FLAG = lib.VH_CAMBER_NOT_STATIONARY_FLAG
-    MAGNITUDE = lib.VH_CAMBER_MAGNITUDE
-    TOO_FEW_SAMPLES = lib.VH_CAMBER_TOO_FEW_SAMPLES
-    NOT_CALIBRATED = lib.VH_CAMBER_NOT_CALIBRATED
-    SATURATED = lib.VH_CAMBER_SATURATED
-
-
-class CalStatus(enum.IntEnum):
-    """Outcome of the firmware's calibration (vh_camber_cal_status_t)."""
-
-    OK = lib.VH_CAMBER_CAL_OK
-    TOO_FEW_SAMPLES = lib.VH_CAMBER_CAL_TOO_FEW_SAMPLES
-    SATURATED = lib.VH_CAMBER_CAL_SATURATED
-    MOVING = lib.VH_CAMBER_CAL_MOVING
-    MAGNITUDE = lib.VH_CAMBER_CAL_MAGNITUDE
-    NOT_ORTHOGONAL = lib.VH_CAMBER_CAL_NOT_ORTHOGONAL
-    INVALID = lib.VH_CAMBER_CAL_INVALID
+Reason: Any = c_enum("vh_camber_reason_t", "Reason", "VH_CAMBER_",
+                     "Why the inspection did or did not publish (vh_camber_reason_t).")
+CalStatus: Any = c_enum("vh_camber_cal_status_t", "CalStatus", "VH_CAMBER_CAL_",
+                        "Outcome of the firmware's calibration (vh_camber_cal_status_t).")
 
 
 _C_LIMITS: Any = config_class("vh_camber_cal_limits_t", "CalibrationLimits",
