@@ -6,7 +6,9 @@
  * wheel forces Fxi of the SKFMEC's eq. 30), both sides low-passed, updated every `decim` steps
  * when gated in, with forgetting, a covariance floor and ceiling; (2) loads and axle forces times k;
  * (3) the split of each axle's force by the tyre's force table at one slip angle (the exact
- * inverse of the piecewise-linear pair sum). The same algorithm as
+ * inverse of the piecewise-linear pair sum), each tyre's curve at its side's friction mu F(alpha / mu)
+ * and times the friction ellipse's sqrt(1 - (Fx / mu Dx)^2); (4) each side's mu from the axle's
+ * excess differential slip through the combined-slip model's secant table. The same algorithm as
  * vehest_can/systems/tireforce/adaptive.py (double); the constants come from there (host side).
  *
  * Formats: forces FN (vh_skfq.h), a_x FA, k Q2.29, P Q1.30 (in units of k^2), the normalised

@@ -17,7 +17,13 @@ the SKFMEC unchanged and adds, per step (docs/skfmec.md, "SKFMEC-A"):
 4. **load-sensitive split** instead of Fyi/Fyf = Fzi/Fzf (eq. 33-34): at one slip angle per axle,
    the tyres' Magic Formula forces (Bakker, Nyborg & Pacejka 1987, from a table over slip angle
    and load) that add up to the axle's: small forces share as the cornering stiffnesses
-   Cα(Fz) = a3 sin(a4 atan(a5 Fz)), which grow less than the load, large ones as the friction limits.
+   Cα(Fz) = a3 sin(a4 atan(a5 Fz)), which grow less than the load, large ones as the friction limits;
+5. **per-side friction**: each side's μ from the axle's excess differential slip (the wheels' slip
+   difference beyond the one their linear stiffnesses give; the absolute slip is not observable),
+   inverted through the combined-slip model's similarity in μ; each tyre's curve at its side's μ,
+   μ F(α/μ) (``estimate_friction``, ``slip_observation``);
+6. **combined-slip capacity**: each tyre's curve times the friction ellipse's √(1 − (Fx/μDx)²)
+   with its eq.-30 Fx (``ellipse``).
 
 Health: INIT while the SKFMEC is, DEGRADED until the mass estimate has converged (its standard
 deviation below ``mass_sigma_ok`` of the model mass) or whenever the SKFMEC is DEGRADED; FAULT with it.
