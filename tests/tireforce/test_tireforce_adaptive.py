@@ -86,6 +86,7 @@ def test_relation_run_within_eight_percent():
     a, base, true, run = pct(load_tireforce_scenario("chassis_relation_70kph"))
     assert all(a["rms_pct"][w] <= 8.0 for w in tf.WHEELS)
     assert a["mass"]["converged_s"] is None and a["mass"]["final_kg"] == true
+    assert np.all(run.mu == 1.0)  # no wheel force, no slip: the friction is unobservable, the nominal
     for w in ("FR", "RR", "front", "rear"):
         assert a["rms_pct"][w] <= base["rms_pct"][w] + 0.5
 
