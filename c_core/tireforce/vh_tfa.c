@@ -14,6 +14,13 @@
 #define FP VH_TFA_FP
 #define FQ VH_TFA_FN /* the normalised regressor and output */
 #define FZW VH_TFA_FZW
+#define NS VH_TFA_NS
+#define FS VH_TFA_FS
+#define FC VH_TFA_FC
+#define FG VH_TFA_FG
+#define FO VH_SKFQ_FO
+#define FW VH_SKFQ_FW
+#define FV 21 /* speeds [m/s] of the differential slip */
 #define FX VH_SKFQ_FX
 #define FA VH_SKFQ_FA
 #define FD VH_SKFQ_FD
@@ -42,11 +49,21 @@ int vh_tfa_check(const vh_tfa_params_t *prm)
         prm->k_inv_fz_step.m <= 0 || prm->k_phi.m <= 0 || prm->k_y.m <= 0 || prm->k_drag.m < 0 ||
         prm->alpha_lp <= 0 || prm->alpha_lp > ONE30 || prm->decim == 0u || prm->ax_gate < 0 || prm->ay_gate < 0 ||
         prm->inv_forget < ONE30 || prm->p_floor <= 0 || prm->p0 < prm->p_floor || prm->p_ok <= 0 ||
-        prm->k_lo <= 0 || prm->k_hi <= prm->k_lo || prm->m_num <= 0 || prm->m_den <= 0) {
+        prm->k_lo <= 0 || prm->k_hi <= prm->k_lo || prm->m_num <= 0 || prm->m_den <= 0 || !k_ok(prm->k_rw) ||
+        !k_ok(prm->k_inv_svx) || !k_ok(prm->k_half[0]) || !k_ok(prm->k_half[1]) || prm->k_rw.m <= 0 ||
+        prm->k_inv_svx.m <= 0 || prm->alpha_slip <= 0 || prm->alpha_slip > ONE30 || prm->g_obs <= 0 ||
+        prm->g_obs > ONE30 || prm->g_forget <= 0 || prm->g_forget > ONE30 || prm->mu_floor <= 0 ||
+        prm->mu_nom < prm->mu_floor || prm->q_gate <= 0 || prm->q_gate >= ONE30 || prm->s_step <= 0 ||
+        prm->ellipse_floor2 <= 0 || prm->ellipse_floor2 > ONE30) {
         return VH_EINVAL;
     }
     for (i = 0; i < NZ * NA; ++i) {
         if (prm->table[i] < 0) {
+            return VH_EINVAL;
+        }
+    }
+    for (i = 0; i < NZ; ++i) {
+        if (prm->compliance[i] <= 0 || prm->dx[i] <= 0 || prm->inv_kappa_m[i] <= 0 || prm->inv_alpha_m[i] <= 0) {
             return VH_EINVAL;
         }
     }
@@ -81,6 +98,11 @@ void vh_tfa_reset(vh_tfa_t *a)
         a->fy[i] = 0;
         a->fz[i] = 0;
     }
+    for (i = 0; i < 2; ++i) {
+        a->slip_e[i] = 0;
+        a->mu[i] = a->prm.mu_nom;
+        a->alpha[i] = 0;
+    }
     a->sat = 0u;
     a->health = VH_HEALTH_INIT;
 }
@@ -104,8 +126,27 @@ static void rls(vh_tfa_t *a, uint32_t *sat)
     ++a->updates;
 }
 
-/* The tyre's force at load knot weight (iz, wz) and every slip-angle knot, FN. */
-static void forces_at(const vh_tfa_params_t *k, int32_t fz, int32_t out[NA], uint32_t *sat)
+/* floor(sqrt(v)) of v >= 0 (bit by bit) */
+static int32_t isqrt64(int64_t v)
+{
+    uint64_t x = v > 0 ? (uint64_t)v : 0u, r = 0u, b = UINT64_C(1) << 62;
+    while (b > x) {
+        b >>= 2;
+    }
+    while (b != 0u) {
+        if (x >= r + b) {
+            x -= r + b;
+            r = (r >> 1) + b;
+        } else {
+            r >>= 1;
+        }
+        b >>= 2;
+    }
+    return r > (uint64_t)INT32_MAX ? INT32_MAX : (int32_t)r;
+}
+
+/* A per-load-knot table's row (n columns) at load fz (FN), linear in the load, clamped to the knots. */
+static void row_at(const vh_tfa_params_t *k, const int32_t *tab, int n, int32_t fz, int32_t *out, uint32_t *sat)
 {
     const int32_t top = (NZ - 1) << FZW;
     int32_t idx = KM(k->k_inv_fz_step, fz, FN, FZW);
@@ -117,23 +158,79 @@ static void forces_at(const vh_tfa_params_t *k, int32_t fz, int32_t out[NA], uin
         iz = NZ - 2;
     }
     wz = idx - (int32_t)(iz << FZW);
-    for (j = 0; j < NA; ++j) {
-        const int64_t v = (int64_t)k->table[iz * NA + j] * ((INT32_C(1) << FZW) - wz) +
-                          (int64_t)k->table[(iz + 1) * NA + j] * wz;
+    for (j = 0; j < n; ++j) {
+        const int64_t v = (int64_t)tab[iz * n + j] * ((INT32_C(1) << FZW) - wz) + (int64_t)tab[(iz + 1) * n + j] * wz;
         out[j] = vh_fix_rshift_rnd(v, FZW, sat);
     }
 }
 
+static int32_t at_load(const vh_tfa_params_t *k, const int32_t *tab, int32_t fz, uint32_t *sat)
+{
+    int32_t v;
+    row_at(k, tab, 1, fz, &v, sat);
+    return v;
+}
+
+/* The friction ellipse's lateral factor sqrt(1 - (Fx / (mu Dx))^2), floored, Q30 (adaptive.ellipse). */
+static int32_t ellipse(const vh_tfa_params_t *k, int32_t fx, int32_t fz, int32_t mu, uint32_t *sat)
+{
+    const int32_t lim = MUL(mu, FS, at_load(k, k->dx, fz, sat), FN, FN);
+    int32_t v = k->ellipse_floor2;
+    if (abs32(fx) < lim) {
+        const int32_t r = vh_fix_div(fx, lim, 30, sat);
+        const int32_t w = SUB(ONE30, MUL(r, 30, r, 30, 30));
+        v = w > v ? w : v;
+    }
+    return isqrt64((int64_t)v << 30);
+}
+
 /* An axle's 2 F_axle (FN) to its two tyres: the first slip-angle knot where the pair's sum reaches
  * it, linear between that knot and the one before; beyond the pair's peak, the share at the peak. */
-static void split(const vh_tfa_params_t *k, const int32_t *fz, int32_t two_axle, int32_t *out, uint32_t *sat)
+/* The tyre's curve at its load, friction mu (FS) and ellipse factor cap (Q30) at every slip-angle
+ * knot (adaptive.load_sensitive_split): cap mu F(alpha_j / mu), alpha_j / mu linear between the knots. */
+static void curve(const vh_tfa_params_t *k, int32_t fz, int32_t mu, int32_t cap, int32_t out[NA], uint32_t *sat)
+{
+    int32_t g[NA];
+    int j;
+    row_at(k, k->table, NA, fz, g, sat);
+    if (!k->friction || mu == (INT32_C(1) << FS)) {
+        for (j = 0; j < NA; ++j) {
+            out[j] = g[j];
+        }
+    } else {
+        const int32_t inv = vh_fix_div(INT32_C(1) << FS, mu, FG, sat); /* 1 / mu, FG */
+        for (j = 0; j < NA; ++j) {
+            int64_t xa = (int64_t)inv * j;
+            int ia;
+            int32_t wa;
+            if (xa > ((int64_t)(NA - 1) << FG)) {
+                xa = (int64_t)(NA - 1) << FG;
+            }
+            ia = (int)(xa >> FG);
+            if (ia > NA - 2) {
+                ia = NA - 2;
+            }
+            wa = (int32_t)(xa - ((int64_t)ia << FG));
+            out[j] = MUL(vh_fix_rshift_rnd((int64_t)g[ia] * ((INT32_C(1) << FG) - wa) + (int64_t)g[ia + 1] * wa, FG, sat),
+                         FN, mu, FS, FN);
+        }
+    }
+    if (cap != ONE30) {
+        for (j = 0; j < NA; ++j) {
+            out[j] = MUL(out[j], FN, cap, 30, FN);
+        }
+    }
+}
+
+static void split(const vh_tfa_params_t *k, const int32_t *fz, const int32_t *mu, const int32_t *cap, int32_t two_axle,
+                  int32_t *out, int32_t *alpha, uint32_t *sat)
 {
     int32_t f0[NA], f1[NA], tot[NA];
     const int32_t want = abs32(two_axle);
     int32_t share;
     int j, top = 0;
-    forces_at(k, fz[0], f0, sat);
-    forces_at(k, fz[1], f1, sat);
+    curve(k, fz[0], mu[0], cap[0], f0, sat);
+    curve(k, fz[1], mu[1], cap[1], f1, sat);
     for (j = 0; j < NA; ++j) {
         tot[j] = ADD(f0[j], f1[j]);
         if (tot[j] > tot[top]) {
@@ -144,16 +241,96 @@ static void split(const vh_tfa_params_t *k, const int32_t *fz, int32_t two_axle,
     }
     if (j == NA) {
         share = vh_fix_div(f0[top], tot[top], 30, sat);
+        *alpha = (int32_t)top << FG;
     } else if (want == 0) {
         share = vh_fix_div(f0[1], tot[1], 30, sat);
+        *alpha = 0;
     } else {
         const int32_t dt = tot[j] - tot[j - 1];
         const int32_t t = dt > 0 ? vh_fix_div(want - tot[j - 1], dt, 30, sat) : 0;  /* Q30 */
         const int32_t fin = ADD(f0[j - 1], MUL(t, 30, SUB(f0[j], f0[j - 1]), FN, FN));
         share = vh_fix_div(fin, want, 30, sat);
+        *alpha = ((int32_t)(j - 1) << FG) + vh_fix_rshift_rnd(t > ONE30 ? ONE30 : (t < 0 ? 0 : t), 30 - FG, sat);
     }
     out[0] = MUL(two_axle, FN, share, 30, FN);
     out[1] = SUB(two_axle, out[0]);
+}
+
+/* The friction under the tyre that slips ex (FS, > 0) more than its linear slip (adaptive.slip_observation):
+ * Q(s) = kappa_lin / (kappa_lin + ex) gives the normalised combined slip s, mu = hypot(kappa / kappa_m,
+ * alpha / alpha_m) / s. Returns 0 if the tyre is linear (mu not observable), else mu (FS). */
+static int32_t slip_observation(const vh_tfa_params_t *k, int32_t ex, int32_t fx, int32_t fz, int32_t alpha, uint32_t *sat)
+{
+    int32_t row[NS];
+    const int32_t klin = MUL(abs32(fx), FN, at_load(k, k->compliance, fz, sat), FC, FS);
+    const int32_t kap = ADD(klin, ex);
+    const int32_t qv = vh_fix_div(klin, kap, 30, sat);
+    int32_t sk, xk, xa, mu;
+    int j;
+    if (kap <= 0 || qv >= k->q_gate) {
+        return 0;
+    }
+    row_at(k, k->secant, NS, fz, row, sat);
+    for (j = 0; j < NS && row[j] > qv; ++j) {
+    }
+    if (j < NS && j > 0) {
+        sk = ((int32_t)(j - 1) << FG) + vh_fix_div(SUB(row[j - 1], qv), SUB(row[j - 1], row[j]), FG, sat);
+    } else {
+        sk = (int32_t)(NS - 1) << FG;
+    }
+    xk = MUL(kap, FS, at_load(k, k->inv_kappa_m, fz, sat), FG, FG);
+    xa = MUL(alpha, FG, at_load(k, k->inv_alpha_m, fz, sat), 30, FG);
+    mu = vh_fix_div(isqrt64((int64_t)xk * xk + (int64_t)xa * xa), MUL(sk, FG, k->s_step, 30, FG), FS, sat);
+    return mu > k->mu_nom ? k->mu_nom : (mu < k->mu_floor ? k->mu_floor : mu);
+}
+
+/* Per axle, the excess differential slip e += a ((kR - kL) - (FxR / CR - FxL / CL) - e) at the yaw-corrected
+ * wheel speeds vx -+ r t (adaptive.estimate_friction). */
+static void slip_lowpass(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uint32_t *sat)
+{
+    const vh_tfa_params_t *k = &a->prm;
+    const int32_t vx = KM(k->k_inv_svx, f->x[VH_SKF_VX], FX, FV);
+    int ax;
+    for (ax = 0; ax < 2; ++ax) {
+        const int i = 2 * ax, j = i + 1;
+        const int32_t rt = KM(k->k_half[ax], in->r, FW, FV);
+        const int32_t dk = SUB(vh_fix_div(KM(k->k_rw, in->omega[j], FO, FV), ADD(vx, rt), FS, sat),
+                               vh_fix_div(KM(k->k_rw, in->omega[i], FO, FV), SUB(vx, rt), FS, sat));
+        const int32_t dl = SUB(MUL(f->fx[j], FN, at_load(k, k->compliance, a->fz[j], sat), FC, FS),
+                               MUL(f->fx[i], FN, at_load(k, k->compliance, a->fz[i], sat), FC, FS));
+        a->slip_e[ax] = ADD(a->slip_e[ax], MUL(k->alpha_slip, 30, SUB(SUB(dk, dl), a->slip_e[ax]), FS, FS));
+    }
+}
+
+/* At an update: each axle's observation of its low-mu side's friction; a side without one returns to mu_nom. */
+static void friction_update(vh_tfa_t *a, const vh_skfq_t *f, uint32_t *sat)
+{
+    const vh_tfa_params_t *k = &a->prm;
+    int seen[2] = {0, 0}, ax, side;
+    if (a->valid_run > k->valid_min && f->x[VH_SKF_VX] >= k->vx_gate && a->steps > 1u) {
+        for (ax = 0; ax < 2; ++ax) {
+            const int i = 2 * ax, j = i + 1;
+            const int32_t fi = f->fx[i], fj = f->fx[j];
+            int32_t ex, obs;
+            int w;
+            if (!(((fi > 0 && fj > 0) || (fi < 0 && fj < 0)) && abs32(fi) >= k->fx_gate && abs32(fj) >= k->fx_gate)) {
+                continue;
+            }
+            ex = fj > 0 ? a->slip_e[ax] : SUB(0, a->slip_e[ax]); /* > 0: the right wheel slips more */
+            side = ex > 0 ? 1 : 0;
+            w = ex > 0 ? j : i;
+            obs = slip_observation(k, abs32(ex), f->fx[w], a->fz[w], a->alpha[ax], sat);
+            if (obs > 0) {
+                a->mu[side] = ADD(a->mu[side], MUL(k->g_obs, 30, SUB(obs, a->mu[side]), FS, FS));
+                seen[side] = 1;
+            }
+        }
+    }
+    for (side = 0; side < 2; ++side) {
+        if (!seen[side]) {
+            a->mu[side] = ADD(a->mu[side], MUL(k->g_forget, 30, SUB(k->mu_nom, a->mu[side]), FS, FS));
+        }
+    }
 }
 
 void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask)
@@ -184,8 +361,25 @@ void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uns
     for (i = 0; i < 4; ++i) {
         a->fz[i] = MUL(f->fz[i], FN, a->k, FK, FN);
     }
-    split(k, &a->fz[0], MUL(ADD(f->fy[0], f->fy[1]), FN, a->k, FK, FN), &a->fy[0], sat);
-    split(k, &a->fz[2], MUL(ADD(f->fy[2], f->fy[3]), FN, a->k, FK, FN), &a->fy[2], sat);
+    if (k->friction) {
+        if ((mask & VH_SKF_ALL_VALID) == VH_SKF_ALL_VALID && f->x[VH_SKF_VX] >= k->vx_gate) {
+            slip_lowpass(a, f, in, sat);
+        }
+        if (a->steps % k->decim == 0u) {
+            friction_update(a, f, sat);
+        }
+    }
+    {
+        int32_t mu4[4], cap[4];
+        for (i = 0; i < 4; ++i) {
+            mu4[i] = k->friction ? a->mu[i & 1] : k->mu_nom;
+            cap[i] = k->combined ? ellipse(k, f->fx[i], a->fz[i], mu4[i], sat) : ONE30;
+        }
+        split(k, &a->fz[0], &mu4[0], &cap[0], MUL(ADD(f->fy[0], f->fy[1]), FN, a->k, FK, FN), &a->fy[0], &a->alpha[0],
+              sat);
+        split(k, &a->fz[2], &mu4[2], &cap[2], MUL(ADD(f->fy[2], f->fy[3]), FN, a->k, FK, FN), &a->fy[2], &a->alpha[1],
+              sat);
+    }
     a->health = f->health;
     if (a->health == VH_HEALTH_OK && a->p > k->p_ok) {
         a->health = VH_HEALTH_DEGRADED; /* the mass estimate has not converged */

@@ -6,7 +6,9 @@
  * wheel forces Fxi of the SKFMEC's eq. 30), both sides low-passed, updated every `decim` steps
  * when gated in, with forgetting, a covariance floor and ceiling; (2) loads and axle forces times k;
  * (3) the split of each axle's force by the tyre's force table at one slip angle (the exact
- * inverse of the piecewise-linear pair sum). The same algorithm as
+ * inverse of the piecewise-linear pair sum), each tyre's curve at its side's friction mu F(alpha / mu)
+ * and times the friction ellipse's sqrt(1 - (Fx / mu Dx)^2); (4) each side's mu from the axle's
+ * excess differential slip through the combined-slip model's secant table. The same algorithm as
  * vehest_can/systems/tireforce/adaptive.py (double); the constants come from there (host side).
  *
  * Formats: forces FN (vh_skfq.h), a_x FA, k Q2.29, P Q1.30 (in units of k^2), the normalised
@@ -26,6 +28,10 @@
 #define VH_TFA_FP 30 /* Q1.30 its variance P */
 #define VH_TFA_FN 21 /* Q10.21 normalised regressor and output */
 #define VH_TFA_FZW 15 /* Q15 load-knot weight */
+#define VH_TFA_NS 41 /* normalised combined-slip knots 0, 0.05, ..., 2 (the secant table) */
+#define VH_TFA_FS 29 /* Q2.29 slips, the excess differential slip, the friction mu */
+#define VH_TFA_FC 40 /* longitudinal slip compliance 1/C_kappa [1/N] */
+#define VH_TFA_FG 24 /* Q7.24 knot positions (slip angle, normalised slip) and normalised slips */
 
 typedef struct {
     int32_t table[VH_TFA_NZ * VH_TFA_NA]; /* lateral force of the tyre at (load i, slip angle j), FN */
@@ -42,6 +48,23 @@ typedef struct {
     int32_t p0, p_floor, p_ok;  /* Q30: prior (= ceiling), floor, converged below */
     int32_t k_lo, k_hi;         /* Q29: the ratio's clamp */
     int32_t m_num, m_den;       /* the model mass m = m_num / m_den [kg], exactly: m^ = k m to raw, integer only */
+    /* per-side friction and the friction ellipse (0: off) */
+    int32_t friction, combined;
+    int32_t compliance[VH_TFA_NZ];  /* 1 / C_kappa per load knot, FC */
+    int32_t dx[VH_TFA_NZ];          /* longitudinal friction limit at mu = 1, FN */
+    int32_t inv_kappa_m[VH_TFA_NZ]; /* 1 / kappa_m (pure-slip peak), FG */
+    int32_t inv_alpha_m[VH_TFA_NZ]; /* (0.25 deg in rad) / alpha_m: per slip-angle knot, Q30 */
+    int32_t secant[VH_TFA_NZ * VH_TFA_NS]; /* Q(s) per (load, s knot), Q30 */
+    vh_fix_k_t k_rw;            /* rw: omega (FO) -> wheel speed [m/s] Q21 */
+    vh_fix_k_t k_inv_svx;       /* 1 / s_vx: vx* (FX) -> vx [m/s] Q21 */
+    vh_fix_k_t k_half[2];       /* tf, tr: r (FW) -> r t [m/s] Q21 */
+    int32_t alpha_slip;         /* Ts / (tau_slip + Ts), Q30 */
+    int32_t fx_gate;            /* FN */
+    int32_t q_gate;             /* Q30 */
+    int32_t g_obs, g_forget;    /* decim Ts / tau_mu, decim Ts / tau_mu_forget, Q30 */
+    int32_t mu_nom, mu_floor;   /* FS */
+    int32_t s_step;             /* 0.05, Q30 */
+    int32_t ellipse_floor2;     /* its square, Q30 */
 } vh_tfa_params_t;
 
 typedef struct {
@@ -52,6 +75,9 @@ typedef struct {
     int32_t p;                  /* Q30 */
     uint32_t valid_run, steps, updates;
     int32_t fy[4], fz[4];       /* FN */
+    int32_t slip_e[2];          /* the excess differential slip per axle (low-passed), FS */
+    int32_t mu[2];              /* friction of the left and right side, FS */
+    int32_t alpha[2];           /* each axle's slip angle in the last split, knots FG */
     uint32_t sat;               /* saturations since init */
     uint8_t health;             /* vh_health_t */
 } vh_tfa_t;

@@ -8,6 +8,7 @@ void vh_tfa_config_default(vh_tfa_config_t *c)
 {
     /* Bakker, Nyborg & Pacejka 1987 passenger-car tyre (Wong's table), as the plant's */
     static const double a[9] = {1.30, -22.1, 1011.0, 1078.0, 1.82, 0.208, 0.0, -0.354, 0.707};
+    static const double b[9] = {1.65, -21.3, 1144.0, 49.6, 226.0, 0.069, -0.006, 0.056, 0.486};
     memset(c, 0, sizeof *c);
     c->cda = 0.73;
     c->rho = 1.2;
@@ -26,6 +27,64 @@ void vh_tfa_config_default(vh_tfa_config_t *c)
     memcpy(c->tyre_a, a, sizeof a);
     c->tyre_fz_scale = 1.75;
     c->mu = 1.0;
+    memcpy(c->tyre_b, b, sizeof b);
+    c->tau_slip = 0.5;
+    c->fx_gate = 200.0;
+    c->q_gate = 0.85;
+    c->tau_mu = 0.5;
+    c->tau_mu_forget = 3.0;
+    c->mu_floor = 0.1;
+    c->ellipse_floor = 0.2;
+    c->friction = 1;
+    c->combined = 1;
+}
+
+/* Bakker-Nyborg-Pacejka 1987 at mu = 1 (adaptive._mf): x in the formula's unit, f in kN / size */
+static double mf(const double *k, double x, double f, double bcd)
+{
+    const double d = (k[1] * f * f + k[2] * f) / (k[2] * 1e-3);
+    const double e = k[6] * f * f + k[7] * f + k[8], bx = bcd / (k[0] * d) * x;
+    return d * sin(k[0] * atan(bx - e * (bx - atan(bx))));
+}
+
+static double bcd_x(const vh_tfa_config_t *c, double f)
+{
+    const double *b = c->tyre_b;
+    return (b[3] * f * f + b[4] * f) * exp(-b[5] * f);
+}
+
+double vh_tfa_longitudinal_force(const vh_tfa_config_t *c, double kappa_pct, double fz)
+{
+    const double f = (fz > 1.0 ? fz : 1.0) * 1e-3 / c->tyre_fz_scale;
+    return c->tyre_fz_scale * mf(c->tyre_b, kappa_pct, f, bcd_x(c, f));
+}
+
+/* the slip of a pure-slip curve's maximum on (0, hi]: a scan of 400, then golden section (adaptive._peak) */
+static double peak(const vh_tfa_config_t *c, int lon, double fz, double hi)
+{
+    double lo, up, best = -1.0;
+    int j, jb = 0;
+    for (j = 0; j < 400; ++j) {
+        const double x = hi / 400 + j * (hi - hi / 400) / 399.0;
+        const double v = lon ? vh_tfa_longitudinal_force(c, x, fz) : vh_tfa_lateral_force(c, x, fz);
+        if (v > best) {
+            best = v;
+            jb = j;
+        }
+    }
+    lo = hi / 400 + (jb > 0 ? jb - 1 : 0) * (hi - hi / 400) / 399.0;
+    up = hi / 400 + (jb < 399 ? jb + 1 : 399) * (hi - hi / 400) / 399.0;
+    for (j = 0; j < 60; ++j) {
+        const double a = up - 0.618034 * (up - lo), b = lo + 0.618034 * (up - lo);
+        const double fa = lon ? vh_tfa_longitudinal_force(c, a, fz) : vh_tfa_lateral_force(c, a, fz);
+        const double fb = lon ? vh_tfa_longitudinal_force(c, b, fz) : vh_tfa_lateral_force(c, b, fz);
+        if (fa < fb) {
+            lo = a;
+        } else {
+            up = b;
+        }
+    }
+    return 0.5 * (lo + up);
 }
 
 double vh_tfa_lateral_force(const vh_tfa_config_t *c, double alpha_deg, double fz)
@@ -75,7 +134,10 @@ int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t 
     const double s_vx = skf->s[VH_SKF_VX];
     if (!(c->tau_lp > 0.0 && c->decim >= 1 && c->forget > 0.0 && c->forget <= 1.0 && c->sigma_y > 0.0 &&
           c->mass_sigma0 >= c->mass_sigma_floor && c->mass_sigma_floor > 0.0 && c->mass_sigma_ok > 0.0 &&
-          c->mass_lo > 0.0 && c->mass_hi > c->mass_lo && c->mass_hi < 4.0 && c->mu > 0.0 && c->tyre_fz_scale > 0.0 &&
+          c->mass_lo > 0.0 && c->mass_hi > c->mass_lo && c->mass_hi < 4.0 && c->mu > 0.0 && c->mu < 4.0 &&
+          c->tyre_fz_scale > 0.0 && c->tau_slip > 0.0 && c->tau_mu > 0.0 && c->tau_mu_forget > 0.0 &&
+          c->mu_floor > 0.0 && c->mu_floor <= c->mu && c->q_gate > 0.0 && c->q_gate < 1.0 && c->fx_gate >= 0.0 &&
+          c->ellipse_floor > 0.0 && c->ellipse_floor <= 1.0 &&
           skf->m > 0.0 && skf->ts > 0.0 && s_vx > 0.0)) {
         return VH_EINVAL;
     }
@@ -115,6 +177,35 @@ int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t 
         }
         ok = ok && z.m_num > 0;
     }
+    z.friction = c->friction != 0;
+    z.combined = c->combined != 0;
+    for (i = 0; i < VH_TFA_NZ; ++i) { /* adaptive.friction_tables; row 0 (no load) repeats row 1 */
+        const double fz = 500.0 * (i > 0 ? i : 1), f = fz * 1e-3 / c->tyre_fz_scale;
+        const double c_pct = c->tyre_fz_scale * bcd_x(c, f); /* N per % */
+        const double km = peak(c, 1, fz, 40.0), am = peak(c, 0, fz, 30.0);
+        z.compliance[i] = q(1.0 / (100.0 * c_pct), VH_TFA_FC, &ok);
+        z.dx[i] = q(vh_tfa_longitudinal_force(c, km, fz), VH_SKFQ_FN, &ok);
+        z.inv_kappa_m[i] = q(100.0 / km, VH_TFA_FG, &ok);
+        z.inv_alpha_m[i] = q((0.25 * 3.14159265358979323846 / 180.0) / (am * 3.14159265358979323846 / 180.0), 30, &ok);
+        z.secant[i * VH_TFA_NS] = q(1.0, 30, &ok);
+        for (j = 1; j < VH_TFA_NS; ++j) {
+            const double sj = 0.05 * j;
+            z.secant[i * VH_TFA_NS + j] = q(vh_tfa_longitudinal_force(c, sj * km, fz) / (c_pct * sj * km), 30, &ok);
+        }
+    }
+    z.k_rw = kconst(skf->rw, &ok);
+    z.k_inv_svx = kconst(1.0 / s_vx, &ok);
+    z.k_half[0] = kconst(skf->tf, &ok);
+    z.k_half[1] = kconst(skf->tr, &ok);
+    z.alpha_slip = q(skf->ts / (c->tau_slip + skf->ts), 30, &ok);
+    z.fx_gate = q(c->fx_gate, VH_SKFQ_FN, &ok);
+    z.q_gate = q(c->q_gate, 30, &ok);
+    z.g_obs = q(c->decim * skf->ts / c->tau_mu, 30, &ok);
+    z.g_forget = q(c->decim * skf->ts / c->tau_mu_forget, 30, &ok);
+    z.mu_nom = q(c->mu, VH_TFA_FS, &ok);
+    z.mu_floor = q(c->mu_floor, VH_TFA_FS, &ok);
+    z.s_step = q(0.05, 30, &ok);
+    z.ellipse_floor2 = q(c->ellipse_floor * c->ellipse_floor, 30, &ok);
     if (!ok) {
         return VH_EINVAL;
     }

@@ -18,13 +18,23 @@ typedef struct {
     double mass_lo, mass_hi;     /* clamp, fractions of the model mass */
     double tyre_a[9];            /* lateral Magic Formula a0..a8 */
     double tyre_fz_scale;        /* size factor */
-    double mu;                   /* friction the split assumes */
+    double mu;                   /* friction the split assumes (the nominal one) */
+    double tyre_b[9];            /* longitudinal Magic Formula b0..b8 */
+    double tau_slip;             /* low-pass of the excess differential slip [s] */
+    double fx_gate;              /* |Fx| of both wheels of an axle at least [N] */
+    double q_gate;               /* secant / linear slip stiffness below this: nonlinear */
+    double tau_mu, tau_mu_forget; /* the side's estimate to its observations, back to mu [s] */
+    double mu_floor;
+    double ellipse_floor;
+    int friction, combined;      /* 1: on */
 } vh_tfa_config_t;
 
 void vh_tfa_config_default(vh_tfa_config_t *c);
 /* The tyre's pure-slip lateral force [N] at alpha [deg] >= 0 and load fz [N] (adaptive.lateral_force). */
 double vh_tfa_lateral_force(const vh_tfa_config_t *c, double alpha_deg, double fz);
 /* VH_OK, or VH_EINVAL if the configuration is invalid or a constant does not fit its format. */
+/* The pure-slip longitudinal force [N] at kappa [%] >= 0 (adaptive.longitudinal_force). */
+double vh_tfa_longitudinal_force(const vh_tfa_config_t *c, double kappa_pct, double fz);
 int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t *c, vh_tfa_params_t *p);
 
 #endif /* VH_TFA_HOST_H */

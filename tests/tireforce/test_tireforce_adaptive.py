@@ -86,6 +86,7 @@ def test_relation_run_within_eight_percent():
     a, base, true, run = pct(load_tireforce_scenario("chassis_relation_70kph"))
     assert all(a["rms_pct"][w] <= 8.0 for w in tf.WHEELS)
     assert a["mass"]["converged_s"] is None and a["mass"]["final_kg"] == true
+    assert np.all(run.mu == 1.0)  # no wheel force, no slip: the friction is unobservable, the nominal
     for w in ("FR", "RR", "front", "rear"):
         assert a["rms_pct"][w] <= base["rms_pct"][w] + 0.5
 
@@ -97,17 +98,80 @@ def test_stress_within_ten_percent_and_the_mass_within_five(name):
     assert abs(a["mass"]["final_kg"] / true - 1) <= 0.05
 
 
-@pytest.mark.xfail(strict=True, reason="known shortfall: no per-side friction estimate yet; on split-mu braking "
-                   "the rear tyres miss by 12.2 / 12.7 % (SKFMEC 14.1 / 15.3 %)")
 def test_split_mu_braking_within_ten_percent():
-    a, _, _, _ = pct(load_tireforce_scenario(STRESS / "stress_split_mu_braking.toml"))
+    """Left 1.0, right 0.3: the per-side friction estimate finds the right side's friction from its
+    excess differential slip (the left stays at the nominal), and the split that uses it and the
+    friction ellipse brings every tyre under 10 % (without them: 7.3 / 9.3 / 12.2 / 12.7 %)."""
+    a, base, _, run = pct(load_tireforce_scenario(STRESS / "stress_split_mu_braking.toml"))
+    print("\nSKFMEC-A", a["rms_pct"], "SKFMEC", base["rms_pct"])
     assert all(a["rms_pct"][w] <= 10.0 for w in tf.WHEELS), a["rms_pct"]
+    braking = slice(int(2.5 / 5e-4), int(5.0 / 5e-4))
+    assert np.all(run.mu[braking, 0] >= 0.95) and np.all(run.mu[braking, 2] >= 0.95)   # left: 1.0
+    assert np.all(np.abs(run.mu[braking, 1] - 0.3) <= 0.1) and np.array_equal(run.mu[:, 1], run.mu[:, 3])
+    assert np.all(run.mu[:int(1.0 / 5e-4)] == 1.0)  # no braking yet: not observable, the nominal
+
+
+@pytest.mark.xfail(strict=True, reason="known shortfall: on power-on cornering (400 Nm per FRONT wheel, +200 kg) "
+                   "RL misses by 10.8 % (SKFMEC 22.7 %): the rear axle estimate is 6.2 % off, mostly before the drive "
+                   "at 4 s while the payload is unobservable (RL 12.9 % to 4.36 s, 8.9 % after); the split of the "
+                   "true axle forces is 1.0 % on RL, so no split can close it")
+def test_power_on_cornering_within_ten_percent():
+    a, _, _, _ = pct(load_tireforce_scenario(STRESS / "stress_power_on_cornering.toml"))
+    assert all(a["rms_pct"][w] <= 10.0 for w in tf.WHEELS), a["rms_pct"]
+
+
+def test_friction_similarity_is_the_magic_formula_at_that_friction():
+    """The split's curve at friction mu, mu F(alpha / mu) from the mu = 1 table, against the formula
+    evaluated at that mu directly (D times mu, B over mu: Bakker et al.'s formula is exactly
+    similar), through the split itself: one tyre unloaded, so the other carries the axle."""
+    cfg = A.AdaptiveConfig()
+    for mu in (0.3, 0.6):
+        fz = np.array([[4000.0, 0.0, 4000.0, 0.0]])
+        alpha = np.zeros((1, 2))
+        want = A.lateral_force(np.array([2.0]), np.array([4000.0]), A.AdaptiveConfig(mu=mu))[0] / 2
+        fy = A.load_sensitive_split(np.array([[want, want]]), fz, cfg, mu=np.full((1, 4), mu), alpha=alpha)
+        assert fy[0, 0] == pytest.approx(2 * want) and fy[0, 1] == 0.0
+        # the slip angle the split finds is the one where the formula at mu gives that force
+        assert alpha[0, 0] == pytest.approx(2.0, abs=0.02)
+
+
+def test_ellipse_and_nominal_friction_leave_the_split_as_before():
+    cfg = A.AdaptiveConfig()
+    fz = np.array([[3000.0, 7000.0, 2500.0, 5000.0]])
+    axle = np.array([[2500.0, 1500.0]])
+    old = A.load_sensitive_split(axle, fz, cfg)
+    assert np.array_equal(A.load_sensitive_split(axle, fz, cfg, mu=np.ones((1, 4)), cap=np.ones((1, 4))), old)
+    tabs = A.friction_tables(cfg)
+    cap = A.ellipse(np.array([[0.0, -2000.0, 0.0, 0.0]]), fz, np.ones((1, 4)), tabs, cfg)
+    assert cap[0, 0] == 1.0 and cap[0, 1] < 1.0
+    braked = A.load_sensitive_split(axle, fz, cfg, cap=cap)
+    assert braked[0, 1] < old[0, 1] and braked[0, :2].sum() == pytest.approx(2 * axle[0, 0])
+
+
+def test_slip_observation_inverts_the_combined_slip_model():
+    """The friction from the excess slip against the plant's own combined-slip tyre (vh_mftire.c,
+    Bakker, Pacejka & Lidner 1989): at mu 0.3 and 0.5, a braked wheel's (kappa, alpha) gives a force
+    Fx; the slip beyond Fx's linear slip must give back mu."""
+    cfg = A.AdaptiveConfig()
+    tabs = A.friction_tables(cfg)
+    tyre = _plant_tyre()
+    for mu in (0.3, 0.5):
+        for kappa, alpha_deg in ((-0.01, 1.4), (-0.02, 0.8)):
+            fx, _ = tyre(kappa, math.radians(alpha_deg), 6000.0, mu)
+            k_lin = abs(fx) * float(A._at_load(tabs["compliance"], np.array(6000.0)))
+            obs = A.slip_observation(abs(kappa) - k_lin, fx, 6000.0, alpha_deg, tabs, cfg)
+            assert obs == pytest.approx(mu, rel=0.12), (mu, kappa, alpha_deg, obs)
+    # in the linear range (nominal friction) nothing is observed
+    fx, _ = tyre(-0.002, 0.0, 6000.0, 1.0)
+    k_lin = abs(fx) * float(A._at_load(tabs["compliance"], np.array(6000.0)))
+    assert A.slip_observation(max(0.0, 0.002 - k_lin), fx, 6000.0, 0.0, tabs, cfg) is None
 
 
 # ---- fixed point (c_core/tireforce/vh_tfa.c) -------------------------------------------------
 
 @pytest.mark.parametrize("name", ["chassis_paper_mu_drop", "chassis_relation_70kph",
-                                  "stress/stress_highway_step_payload", "stress/stress_split_mu_braking"])
+                                  "stress/stress_highway_step_payload", "stress/stress_split_mu_braking",
+                                  "stress/stress_power_on_cornering"])
 def test_fixed_point_matches_double(name):
     """Fixed vs double <= 0.5 % of peak per tyre (the issue's line), no saturation, the same health
     and the same mass to 0.1 kg; the same integers from a fresh instance (bit-exact)."""
@@ -147,3 +211,16 @@ def test_nan_inputs_are_masked_not_used():
         assert np.all(np.isfinite(run.fy)) and np.all(np.isfinite(run.mass))
         assert np.all(run.health[8000:8100] == A.H_DEGRADED)
         assert np.all(run.mass[8000:8100] == run.mass[7999])
+
+
+def _plant_tyre():
+    """The plant's combined-slip tyre (vh_mftire.c) with the car's size factor: (kappa, alpha, Fz, mu) -> (Fx, Fy)."""
+    c = ffi.new("vh_mft_coef_t *")
+    lib.vh_mft_coef_default(c)
+    c.fz_scale = A.AdaptiveConfig().tyre_fz_scale
+    fx, fy = ffi.new("double *"), ffi.new("double *")
+
+    def tyre(kappa, alpha, fz, mu):
+        lib.vh_mft_eval(c, fz, mu, kappa, math.tan(alpha), fx, fy)
+        return fx[0], fy[0]
+    return tyre

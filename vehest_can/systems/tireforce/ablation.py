@@ -13,7 +13,9 @@ from .report import decode_inputs, evaluate
 from .scenario import list_tireforce_scenarios, load_tireforce_scenario, tireforce_scenario_dir
 
 ABLATIONS = {"SKFMEC (paper)": None, "SKFMEC-A": {}, "  - no mass estimate": {"mass": False},
-             "  - no load-sensitive split": {"split": False}}
+             "  - no load-sensitive split": {"split": False}, "  - no per-side friction": {"friction": False},
+             "  - no combined-slip capacity": {"combined": False},
+             "  - neither (the split of before)": {"friction": False, "combined": False}}
 
 
 def ablation(sc) -> dict:

@@ -17,7 +17,13 @@ the SKFMEC unchanged and adds, per step (docs/skfmec.md, "SKFMEC-A"):
 4. **load-sensitive split** instead of Fyi/Fyf = Fzi/Fzf (eq. 33-34): at one slip angle per axle,
    the tyres' Magic Formula forces (Bakker, Nyborg & Pacejka 1987, from a table over slip angle
    and load) that add up to the axle's: small forces share as the cornering stiffnesses
-   Cα(Fz) = a3 sin(a4 atan(a5 Fz)), which grow less than the load, large ones as the friction limits.
+   Cα(Fz) = a3 sin(a4 atan(a5 Fz)), which grow less than the load, large ones as the friction limits;
+5. **per-side friction**: each side's μ from the axle's excess differential slip (the wheels' slip
+   difference beyond the one their linear stiffnesses give; the absolute slip is not observable),
+   inverted through the combined-slip model's similarity in μ; each tyre's curve at its side's μ,
+   μ F(α/μ) (``estimate_friction``, ``slip_observation``);
+6. **combined-slip capacity**: each tyre's curve times the friction ellipse's √(1 − (Fx/μDx)²)
+   with its eq.-30 Fx (``ellipse``).
 
 Health: INIT while the SKFMEC is, DEGRADED until the mass estimate has converged (its standard
 deviation below ``mass_sigma_ok`` of the model mass) or whenever the SKFMEC is DEGRADED; FAULT with it.
@@ -58,8 +64,21 @@ class AdaptiveConfig:
     tyre_a: tuple = (1.30, -22.1, 1011.0, 1078.0, 1.82, 0.208, 0.0, -0.354, 0.707)
     tyre_fz_scale: float = 1.75
     mu: float = 1.0
+    # per-side friction (docs/skfmec.md, "per-side friction"): the longitudinal coefficients b0..b8
+    # of the same data sheet, the differential slip's low-pass, the gates, the estimate's time
+    # constants (towards an observation; back to ``mu`` when there is none) and its floor
+    tyre_b: tuple = (1.65, -21.3, 1144.0, 49.6, 226.0, 0.069, -0.006, 0.056, 0.486)
+    tau_slip: float = 0.5        # low-pass of the excess differential slip [s]
+    fx_gate: float = 200.0       # |Fx| of both wheels of the axle at least this [N]
+    q_gate: float = 0.85         # secant/linear slip stiffness below this: the tyre is nonlinear
+    tau_mu: float = 0.5          # the side's estimate follows its observations [s]
+    tau_mu_forget: float = 3.0   # and returns to ``mu`` without them [s]
+    mu_floor: float = 0.1
+    ellipse_floor: float = 0.2   # the friction ellipse's factor never below this
     mass: bool = True            # ablation switches
     split: bool = True
+    friction: bool = True        # per-side friction estimate
+    combined: bool = True        # lateral capacity reduced by the wheel's Fx (friction ellipse)
 
 
 @dataclass
@@ -69,6 +88,7 @@ class AdaptiveRun(tf.TireForceRun):
     mass: np.ndarray | None = None      # (n,) m̂ [kg]
     mass_std: np.ndarray | None = None  # (n,) its standard deviation [kg]
     raw: dict | None = None             # fixed point: the integers (fy, fz FN; k Q2.29; p Q1.30)
+    mu: np.ndarray | None = None        # (n, 4) the friction each tyre's split assumed (None: ``mu``)
 
 
 def lateral_force(alpha_deg: np.ndarray, fz: np.ndarray, cfg: AdaptiveConfig) -> np.ndarray:
@@ -86,6 +106,72 @@ def lateral_force(alpha_deg: np.ndarray, fz: np.ndarray, cfg: AdaptiveConfig) ->
 
 N_ALPHA, ALPHA_STEP_DEG = 33, 0.25  # the split's table: slip angle knots 0, 0.25, ..., 8 deg
 N_FZ, FZ_STEP_N = 29, 500.0         # and load knots 0, 500, ..., 14 000 N
+N_S, S_STEP = 41, 0.05              # normalised combined slip knots 0, 0.05, ..., 2 (the secant table)
+
+
+def _mf(coef: tuple, x: np.ndarray, f: np.ndarray, bcd: np.ndarray) -> np.ndarray:
+    """Bakker-Nyborg-Pacejka 1987 at μ = 1 (D scaled by 1/μ0, μ0 = coef[2]/1000): x the slip in the
+    formula's unit (deg or %), f the load in kN (already divided by the size factor)."""
+    d = (coef[1] * f * f + coef[2] * f) / (coef[2] * 1e-3)
+    e = coef[6] * f * f + coef[7] * f + coef[8]
+    bx = bcd / (coef[0] * d) * x
+    return d * np.sin(coef[0] * np.arctan(bx - e * (bx - np.arctan(bx))))
+
+
+def longitudinal_force(kappa_pct: np.ndarray, fz: np.ndarray, cfg: AdaptiveConfig) -> np.ndarray:
+    """The tyre's pure-slip longitudinal Magic Formula at μ = 1 (BCD = (b3 Fz² + b4 Fz) e^(−b5 Fz)
+    per %), with the size factor; κ in %, ≥ 0."""
+    b, sc = cfg.tyre_b, cfg.tyre_fz_scale
+    f = np.maximum(fz, 1.0) * 1e-3 / sc
+    return sc * _mf(b, kappa_pct, f, (b[3] * f * f + b[4] * f) * np.exp(-b[5] * f))
+
+
+def _peak(fun, hi: float) -> float:
+    """The slip of a pure-slip curve's maximum on (0, hi] (golden section after a scan: off-line)."""
+    x = np.linspace(hi / 400, hi, 400)
+    j = int(np.argmax(fun(x)))
+    lo, up = x[max(j - 1, 0)], x[min(j + 1, len(x) - 1)]
+    for _ in range(60):
+        a, b = up - 0.618034 * (up - lo), lo + 0.618034 * (up - lo)
+        if fun(np.array([a]))[0] < fun(np.array([b]))[0]:
+            lo = a
+        else:
+            up = b
+    return 0.5 * (lo + up)
+
+
+def friction_tables(cfg: AdaptiveConfig) -> dict:
+    """Per load knot (made off-line, the ECU's tables): the longitudinal slip compliance 1/Cκ
+    [1/N], the friction limit Dx [N], 1/κ_m and 1/α_m (the pure-slip peak slips, κ as a fraction,
+    α in rad), and the secant ratio of the longitudinal curve at the normalised slip s_j = j S_STEP,
+    Q(s) = Fx0(s κ_m) / (Cκ s κ_m) (1 at s = 0). Row 0 (no load) repeats row 1."""
+    out = {k: np.empty(N_FZ) for k in ("compliance", "dx", "inv_kappa_m", "inv_alpha_m")}
+    out["secant"] = np.empty((N_FZ, N_S))
+    b, sc = cfg.tyre_b, cfg.tyre_fz_scale
+    for i in range(N_FZ):
+        fz = max(i, 1) * FZ_STEP_N
+        f = fz * 1e-3 / sc
+        c_pct = sc * (b[3] * f * f + b[4] * f) * np.exp(-b[5] * f)   # N per %
+        km = _peak(lambda x, z=fz: longitudinal_force(x, np.full_like(x, z), cfg), 40.0)  # %
+        am = _peak(lambda x, z=fz: lateral_force(x, np.full_like(x, z), cfg), 30.0)        # deg
+        out["compliance"][i] = 1.0 / (100.0 * c_pct)
+        out["dx"][i] = longitudinal_force(np.array([km]), np.array([fz]), cfg)[0]
+        out["inv_kappa_m"][i] = 100.0 / km
+        out["inv_alpha_m"][i] = 1.0 / math.radians(am)
+        sj = np.arange(1, N_S) * S_STEP
+        out["secant"][i, 0] = 1.0
+        out["secant"][i, 1:] = longitudinal_force(sj * km, np.full_like(sj, fz), cfg) / (c_pct * sj * km)
+    return out
+
+
+def _at_load(tab: np.ndarray, fz: np.ndarray) -> np.ndarray:
+    """A per-load-knot table (N_FZ, ...) linear in the load (clamped to the knots)."""
+    x = np.clip(fz / FZ_STEP_N, 0.0, N_FZ - 1.0)
+    iz = np.minimum(x.astype(int), N_FZ - 2)
+    wz = x - iz
+    if tab.ndim > 1:
+        wz = wz[..., None]
+    return tab[iz] * (1.0 - wz) + tab[iz + 1] * wz
 
 
 def force_table(cfg: AdaptiveConfig) -> np.ndarray:
@@ -97,24 +183,37 @@ def force_table(cfg: AdaptiveConfig) -> np.ndarray:
 
 
 def load_sensitive_split(axle: np.ndarray, fz: np.ndarray, cfg: AdaptiveConfig,
-                         table: np.ndarray | None = None) -> np.ndarray:
+                         table: np.ndarray | None = None, mu: np.ndarray | None = None,
+                         cap: np.ndarray | None = None, alpha: np.ndarray | None = None) -> np.ndarray:
     """Per-tyre forces from the (n, 2) axle means and (n, 4) loads: the one slip angle α per axle at
     which the two tyres' forces add up to the axle's, each tyre's force at it. The tyre's force is
     the table of its Magic Formula, linear between the knots (in load, then in α), so the pair's
     sum is piecewise linear in α and its inverse is exact: the first knot j where the sum reaches
     the axle's force, then linear between j - 1 and j (the fixed-point version does the same).
     Small forces share as the cornering stiffnesses (the first segment), large ones as the
-    friction limits; beyond the pair's peak, as at the peak."""
+    friction limits; beyond the pair's peak, as at the peak.
+
+    With ``mu`` (n, 4) each tyre's curve is the Magic Formula's similarity at that friction,
+    μ F(α/μ) (D times μ, B over μ: the slip stiffness kept; exact for this formula), sampled at the
+    knots (α/μ linear between the table's knots, held beyond its last); with ``cap`` (n, 4) it is
+    scaled by the friction ellipse's factor. ``alpha`` (n, 2), if given, receives each axle's slip
+    angle [deg] (the knots' position where the pair's sum is reached; the peak's beyond it)."""
     tab = force_table(cfg) if table is None else table
     out = np.empty_like(fz)
     rows = np.arange(len(fz))
+    knots = np.arange(N_ALPHA, dtype=np.float64)
     for a, (i, j) in enumerate(((0, 1), (2, 3))):
         f = []
         for w in (i, j):
-            x = np.clip(fz[:, w] / FZ_STEP_N, 0.0, N_FZ - 1.0)
-            iz = np.minimum(x.astype(int), N_FZ - 2)
-            wz = (x - iz)[:, None]
-            f.append(tab[iz] * (1.0 - wz) + tab[iz + 1] * wz)  # (n, N_ALPHA)
+            g = _at_load(tab, fz[:, w])  # (n, N_ALPHA)
+            if mu is not None:
+                xa = np.minimum(knots[None, :] / mu[:, w:w + 1], N_ALPHA - 1.0)
+                ia = np.minimum(xa.astype(int), N_ALPHA - 2)
+                wa = xa - ia
+                g = (np.take_along_axis(g, ia, 1) * (1.0 - wa) + np.take_along_axis(g, ia + 1, 1) * wa) * mu[:, w:w + 1]
+            if cap is not None:
+                g = g * cap[:, w:w + 1]
+            f.append(g)
         tot = f[0] + f[1]
         want = 2.0 * np.abs(axle[:, a])
         reach = tot[:, 1:] >= want[:, None]
@@ -129,6 +228,8 @@ def load_sensitive_split(axle: np.ndarray, fz: np.ndarray, cfg: AdaptiveConfig,
         share = np.where(k > 0, share, f[0][rows, top] / tot[rows, top])
         out[:, i] = 2.0 * axle[:, a] * share
         out[:, j] = 2.0 * axle[:, a] - out[:, i]
+        if alpha is not None:
+            alpha[:, a] = np.where(k > 0, kk - 1 + np.clip(t, 0.0, 1.0), top) * ALPHA_STEP_DEG
     return out
 
 
@@ -186,6 +287,113 @@ def estimate_mass(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf: tf
     return mass, std
 
 
+def wheel_forces(u: tf.Inputs, mask: np.ndarray, skf: tf.SkfConfig) -> np.ndarray:
+    """(n, 4) eq. 30's Fxi = (Ti − Iw ω̇i)/rw as the SKFMEC computes them (its filtered ω̇, updated
+    on steps whose inputs are valid, held otherwise)."""
+    ts = skf.ts
+    alpha_w = ts / (skf.tau_wdot + ts)
+    out = np.zeros((len(u), 4))
+    wdot, w_prev, fx = np.zeros(4), None, np.zeros(4)
+    for k in range(len(u)):
+        if int(mask[k]) & int(lib.VH_SKF_U_VALID):
+            w = u.omega[k]
+            if w_prev is None:
+                w_prev = w.copy()
+            wdot += alpha_w * ((w - w_prev) / ts - wdot)
+            w_prev = w
+            fx = (u.torque[k] - skf.iw * wdot) / skf.rw
+        out[k] = fx
+    return out
+
+
+def ellipse(fx: np.ndarray, fz: np.ndarray, mu: np.ndarray, tabs: dict, cfg: AdaptiveConfig) -> np.ndarray:
+    """The friction ellipse's lateral factor √(1 − (Fx / (μ Dx(Fz)))²), floored (Pacejka, *Tire and
+    Vehicle Dynamics*, 3rd ed. 2012, sec. 4.3.2; the plant's combined slip never exceeds it)."""
+    r = fx / (mu * _at_load(tabs["dx"], fz))
+    return np.sqrt(np.maximum(cfg.ellipse_floor ** 2, 1.0 - r * r))
+
+
+def slip_observation(ex: float, fx_low: float, fz_low: float, alpha_deg: float, tabs: dict,
+                     cfg: AdaptiveConfig) -> float | None:
+    """The friction under the tyre that slips ``ex`` more than its linear (nominal-μ) slip
+    |Fx|/Cκ, from the combined-slip model of Bakker, Pacejka & Lidner 1989 under its similarity in
+    μ (the plant's tyre, docs/chassis_plant.md): the longitudinal secant stiffness Fx/κ =
+    Cκ Q(s) depends only on the normalised combined slip s = √((κ/κ_m)² + (α/α_m)²)/μ, so
+    Q(s) = κ_lin/(κ_lin + ex) gives s, then μ = √((κ/κ_m)² + (α/α_m)²)/s. None: the tyre is
+    linear (Q ≥ ``q_gate``), μ not observable."""
+    k_lin = abs(fx_low) * float(_at_load(tabs["compliance"], np.array(fz_low)))
+    kap = k_lin + ex
+    q = k_lin / kap
+    if q >= cfg.q_gate:
+        return None
+    row = _at_load(tabs["secant"], np.array(fz_low))
+    j = int(np.argmax(row <= q)) if np.any(row <= q) else N_S - 1
+    if row[j] <= q and j > 0:
+        s_n = (j - 1 + (row[j - 1] - q) / (row[j - 1] - row[j])) * S_STEP
+    else:
+        s_n = (N_S - 1) * S_STEP
+    xk = kap * float(_at_load(tabs["inv_kappa_m"], np.array(fz_low)))
+    xa = math.radians(alpha_deg) * float(_at_load(tabs["inv_alpha_m"], np.array(fz_low)))
+    return min(cfg.mu, max(cfg.mu_floor, math.hypot(xk, xa) / s_n))
+
+
+def estimate_friction(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf: tf.SkfConfig,
+                      cfg: AdaptiveConfig, fx: np.ndarray, fz: np.ndarray, axle: np.ndarray,
+                      tabs: dict) -> np.ndarray:
+    """(n, 2) friction of the left and right side (held between the 100 Hz updates). Per axle, the
+    excess differential slip e = (κR − κL) − (FxR/CκR − FxL/CκL), low-passed (the wheel-speed
+    difference at the yaw-corrected wheel speeds vx ∓ r t: an error of vx is common to both and
+    cancels); the side that slips more than its linear slip is the low-μ side, its μ from
+    ``slip_observation`` with the axle's slip angle of the previous step's split. Gated: inputs
+    valid, vx ≥ vx_gate, |Fx| ≥ fx_gate on both wheels in one direction. Without an observation a
+    side returns to ``mu`` (time constant tau_mu_forget); never below mu_floor."""
+    n, ts = len(u), skf.ts
+    a_lp = ts / (cfg.tau_slip + ts)
+    g_obs = cfg.decim * ts / cfg.tau_mu
+    g_fgt = cfg.decim * ts / cfg.tau_mu_forget
+    half = np.array([skf.tf, skf.tr])
+    comp = _at_load(tabs["compliance"], fz)  # (n, 4)
+    mu_side = np.array([cfg.mu, cfg.mu])
+    out = np.empty((n, 2))
+    e = np.zeros(2)
+    all_valid = int(lib.VH_SKF_ALL_VALID)
+    valid_run = 0
+    alpha = np.zeros((1, 2))
+    for k in range(n):
+        vx = base.x[k, 0]
+        if (int(mask[k]) & all_valid) == all_valid:
+            if vx >= cfg.vx_gate:
+                for a in range(2):
+                    i, j = 2 * a, 2 * a + 1
+                    rt = u.r[k] * half[a]
+                    dk = skf.rw * (u.omega[k, j] / (vx + rt) - u.omega[k, i] / (vx - rt))
+                    e[a] += a_lp * (dk - (fx[k, j] * comp[k, j] - fx[k, i] * comp[k, i]) - e[a])
+            valid_run += 1
+        else:
+            valid_run = 0
+        if (k + 1) % cfg.decim == 0:
+            seen = [False, False]
+            if valid_run > 5 * cfg.tau_lp / ts and vx >= cfg.vx_gate and k > 0:
+                mu4 = np.array([[mu_side[0], mu_side[1], mu_side[0], mu_side[1]]])
+                cap = ellipse(fx[k - 1:k], fz[k - 1:k], mu4, tabs, cfg) if cfg.combined else None
+                load_sensitive_split(axle[k - 1:k], fz[k - 1:k], cfg, mu=mu4, cap=cap, alpha=alpha)
+                for a in range(2):
+                    i, j = 2 * a, 2 * a + 1
+                    if not (fx[k, i] * fx[k, j] > 0 and min(abs(fx[k, i]), abs(fx[k, j])) >= cfg.fx_gate):
+                        continue
+                    ex = e[a] * math.copysign(1.0, fx[k, j])  # > 0: the right wheel slips more
+                    side, w = (1, j) if ex > 0 else (0, i)
+                    obs = slip_observation(abs(ex), fx[k, w], fz[k, w], alpha[0, a], tabs, cfg)
+                    if obs is not None:
+                        mu_side[side] += g_obs * (obs - mu_side[side])
+                        seen[side] = True
+            for side in range(2):
+                if not seen[side]:
+                    mu_side[side] += g_fgt * (cfg.mu - mu_side[side])
+        out[k] = mu_side
+    return out
+
+
 class AdaptiveSkfmec:
     """SKFMEC-A over a drive (double): the SKFMEC (default configuration) and what it adds."""
 
@@ -208,14 +416,25 @@ class AdaptiveSkfmec:
         k = (mass / skf.m)[:, None]
         axle = np.c_[base.fy[:, :2].mean(1), base.fy[:, 2:].mean(1)] * k
         fz = base.fz * k
-        if cfg.split:
+        mu = None
+        if cfg.split and (cfg.friction or cfg.combined):
+            tabs = friction_tables(cfg)
+            fx = wheel_forces(inputs, m, skf)
+            if cfg.friction:
+                side = estimate_friction(inputs, base, m, skf, cfg, fx, fz, axle, tabs)
+                mu = side[:, [0, 1, 0, 1]]
+            mu4 = np.full((n, 4), cfg.mu) if mu is None else mu
+            cap = ellipse(fx, fz, mu4, tabs, cfg) if cfg.combined else None
+            fy = load_sensitive_split(axle, fz, cfg, mu=mu, cap=cap)
+        elif cfg.split:
             fy = load_sensitive_split(axle, fz, cfg)
         else:
             fy = base.fy * k
         health = base.health.copy()
         unconverged = (std > cfg.mass_sigma_ok * skf.m) & (health == H_OK) & cfg.mass
         health[unconverged] = H_DEGRADED
-        return AdaptiveRun(x=base.x, fy=fy, fz=fz, health=health, resets=base.resets, mass=mass, mass_std=std)
+        return AdaptiveRun(x=base.x, fy=fy, fz=fz, health=health, resets=base.resets, mass=mass, mass_std=std,
+                           mu=mu)
 
 
 STRESS_DIR = "stress"  # firmware_sim/scenarios/chassis/stress/: scenarios of SKFMEC-A, not in any tuning
@@ -227,11 +446,14 @@ def config_to_c(cfg: AdaptiveConfig):
     """The ``vh_tfa_config_t`` of a configuration (its fields, for the C calibration function)."""
     c = ffi.new("vh_tfa_config_t *")
     for name in ("cda", "rho", "tau_lp", "decim", "ax_gate", "ay_gate", "vx_gate", "forget", "sigma_y",
-                 "mass_sigma0", "mass_sigma_floor", "mass_sigma_ok", "tyre_fz_scale", "mu"):
+                 "mass_sigma0", "mass_sigma_floor", "mass_sigma_ok", "tyre_fz_scale", "mu", "tau_slip", "fx_gate",
+                 "q_gate", "tau_mu", "tau_mu_forget", "mu_floor", "ellipse_floor", "friction", "combined"):
         setattr(c, name, getattr(cfg, name))
     c.mass_lo, c.mass_hi = cfg.mass_range
     for i, v in enumerate(cfg.tyre_a):
         c.tyre_a[i] = v
+    for i, v in enumerate(cfg.tyre_b):
+        c.tyre_b[i] = v
     return c
 
 
