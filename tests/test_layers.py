@@ -12,7 +12,7 @@ import vehest_can
 PKG = Path(vehest_can.__file__).parent
 #: a module's layer is its first package below vehest_can; higher layers import lower ones only
 LAYERS = {"cli": 7, "campaign": 6, "tools": 5, "faults": 5, "xcp": 4, "service": 4, "systems": 3, "sim": 2, "bus": 1}
-BASE = 0  # vehest_can/__init__, errors, native, paths, progress, _native
+BASE = 0  # vehest_can/__init__, errors, native, paths, plotting, progress, schema, _native
 
 
 def _modules() -> dict[str, Path]:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..plotting import Figures, pyplot
 from ..sim.report import FAIL, LEGEND, PASS
 from .spec import Campaign
 
@@ -97,11 +98,8 @@ def write_run_scenario(campaign: Campaign, index: int, path: Path) -> Path:
 
 
 def plots(campaign: Campaign, table, summary: dict, out: Path) -> list[Path]:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    files = []
+    plt = pyplot()
+    figs = Figures(out, dpi=100)
     ok = np.array([e is None for e in table.column("error").to_pylist()])
     names = [a.metric for a in campaign.acceptance] or list(summary["metrics"])[:6]
     for name in dict.fromkeys(names):
@@ -132,9 +130,5 @@ def plots(campaign: Campaign, table, summary: dict, out: Path) -> list[Path]:
         else:
             ax2.axis("off")
         fig.suptitle(f"campaign {campaign.name}")
-        fig.tight_layout()
-        f = out / f"{name.replace('/', '_')}.png"
-        fig.savefig(f, dpi=100)
-        plt.close(fig)
-        files.append(f)
-    return files
+        figs.save(fig, f"{name.replace('/', '_')}.png")
+    return figs.paths

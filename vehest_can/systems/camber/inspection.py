@@ -19,6 +19,7 @@ import numpy as np
 from ...bus.frames import database, e2e_data_id
 from ...errors import ConfigError
 from ...native import ffi, lib
+from ...plotting import Figures, pyplot
 from .api import WHEELS, Calibration, CaptureError, calibrate
 
 CIS = database("pt").get_message_by_name("CIS_Accel")
@@ -141,10 +142,7 @@ def min_worst_case_deg(lsb_mg: float = 4.0) -> float:
 
 def bound_plot(path: Path, lsb_mg: float = 4.0) -> Path:
     """Fig. 5: worst-case camber error (eq. 22) over camber and misalignment for a resolution."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     from .api import worst_case_error
 
@@ -158,8 +156,4 @@ def bound_plot(path: Path, lsb_mg: float = 4.0) -> Path:
     ax.set_ylabel("misalignment ψ [deg]")
     ax.set_title(f"eq. 22 worst-case camber error, {lsb_mg:g} mg per axis "
                  f"(min {min_worst_case_deg(lsb_mg):.4f}° at θ = 0)")
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return Figures(path.parent).save(fig, path.name)

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from ...bus.frames import TICK_S
+from ...plotting import Figures, pyplot
 from ...sim.report import decode
 from ...sim.session import Session
 from .api import DkfConfig, DrivelineKF
@@ -107,12 +108,8 @@ def table(all_metrics: list[dict]) -> str:
 
 
 def plots(session: Session, out_dir: Path) -> list[Path]:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    out_dir.mkdir(parents=True, exist_ok=True)
+    plt = pyplot()
+    figs = Figures(out_dir)
     sens = decode(session, "DLS_Sensors")
     est = decode(session, "VEHEST_DrivelineEst")
     truth = session.truth
@@ -120,7 +117,6 @@ def plots(session: Session, out_dir: Path) -> list[Path]:
     z = np.c_[sens["OutShaftSpeed"], 0.5 * (sens["WheelSpeedL"] + sens["WheelSpeedR"]), sens["ShaftTorque"]]
     u = est["TurbineTorque"]
     ok = np.all(np.isfinite(z), axis=1) & np.isfinite(u)
-    paths = []
 
     fig, axes = plt.subplots(2, 1, figsize=(11, 7), sharex=False)
     for ax, (lo, hi) in zip(axes, ((0, t[-1]), (t[-1] / 2, t[-1] / 2 + 0.25))):
@@ -135,10 +131,7 @@ def plots(session: Session, out_dir: Path) -> list[Path]:
     axes[1].set_title("zoom: 0.25 s")
     axes[1].set_xlabel("time [s]")
     axes[0].legend(loc="best", fontsize=8)
-    fig.tight_layout()
-    paths.append(out_dir / "torque.png")
-    fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
+    figs.save(fig, "torque.png")
 
     fig, ax = plt.subplots(figsize=(11, 4))
     noinput = DrivelineKF(DkfConfig.default("speeds+torque", use_input=False)).run(u[ok], z[ok]).x[:, 2]
@@ -150,10 +143,7 @@ def plots(session: Session, out_dir: Path) -> list[Path]:
     ax.set_title("estimation error against the plant's truth")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    paths.append(out_dir / "error.png")
-    fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
+    figs.save(fig, "error.png")
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for ax, meas in zip(axes, ("speeds+torque", "speeds")):
@@ -169,8 +159,5 @@ def plots(session: Session, out_dir: Path) -> list[Path]:
         ax.set_xlabel("step")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
-    fig.tight_layout()
-    paths.append(out_dir / "gain.png")
-    fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
-    return paths
+    figs.save(fig, "gain.png")
+    return figs.paths

@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from ...plotting import Figures, pyplot
 from ...sim.report import decode
 from ...sim.scenario import DT
 
@@ -118,17 +119,12 @@ def table(m: dict) -> str:
 def plots(session, out_dir: Path, title: str, passive=None) -> list[Path]:
     """Fig. 3-6: estimated against true roll angle and rate; with a passive twin, Fig. 8-15: control
     moments, yaw rate, roll angle and rate, passive against active."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    out_dir.mkdir(parents=True, exist_ok=True)
+    plt = pyplot()
+    figs = Figures(out_dir, dpi=100)
     tr = session.truth
     t = np.arange(len(tr)) * DT
     e = estimates(session)
     te = e["tick"] * DT
-    files = []
     fig, ax = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     ax[0].plot(t, np.degrees(tr["phi"]), label="truth (14-DOF plant)")
     ax[0].plot(te, np.degrees(e["RollEstAngle"]), "--", label="UKF (ECU, from the bus)")
@@ -141,9 +137,7 @@ def plots(session, out_dir: Path, title: str, passive=None) -> list[Path]:
         a.grid(True)
         a.legend()
     fig.suptitle(f"{title}: roll estimate (cf. seed 003 Fig. 3-6)")
-    files.append(out_dir / f"{title}_estimate.png")
-    fig.savefig(files[-1], dpi=100)
-    plt.close(fig)
+    figs.save(fig, f"{title}_estimate.png")
     if passive is not None:
         tp = passive.truth
         fig, ax = plt.subplots(4, 1, figsize=(8, 10), sharex=True)
@@ -160,10 +154,8 @@ def plots(session, out_dir: Path, title: str, passive=None) -> list[Path]:
             a.grid(True)
             a.legend()
         fig.suptitle(f"{title}: passive against active (cf. seed 003 Fig. 8-15)")
-        files.append(out_dir / f"{title}_passive_vs_active.png")
-        fig.savefig(files[-1], dpi=100)
-        plt.close(fig)
-    return files
+        figs.save(fig, f"{title}_passive_vs_active.png")
+    return figs.paths
 
 
 def _by_tick(session, name: str, n: int, scaling: bool = True) -> dict[str, np.ndarray]:

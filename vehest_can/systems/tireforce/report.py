@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import ConfigError, ScenarioError
+from ...plotting import Figures, pyplot
 from ...sim.report import write_metrics
 from . import api as tf
 from .adaptive import ADAPTIVE, AdaptiveConfig, AdaptiveRun, AdaptiveSkfmec
@@ -509,24 +510,14 @@ def plots(kind: str, truth, runs: dict[str, tf.TireForceRun] | None, out_dir: Pa
     "forces": Fig. 5 and 6 (inner FL and outer FR front lateral force: truth and each run) and the
     per-tire error of every run (y scale from t >= settle_s; the settling window shaded), and
     SKFMEC-A's mass estimate over time (``mass.png``, with ``true_mass_kg`` when given)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    plt = pyplot()
+    figs = Figures(out_dir)
     t = np.asarray(truth["t"], float)
     fy, fz = np.asarray(truth["fy"], float), np.asarray(truth["fz"], float)
     axle = _axles(fy)
-    paths: list[Path] = []
     prefix = f"{title}: " if title else ""
 
-    def save(fig, name):
-        fig.tight_layout()
-        paths.append(out_dir / name)
-        fig.savefig(paths[-1], dpi=110)
-        plt.close(fig)
+    save = figs.save
 
     if kind == "relations":
         cfg = config or tf.SkfConfig.default(tf.SKFMEC)
@@ -570,7 +561,7 @@ def plots(kind: str, truth, runs: dict[str, tf.TireForceRun] | None, out_dir: Pa
             ax.legend(fontsize=7, loc="upper left")
         fig.suptitle(f"{prefix}relation 2 (eq. 33-34), a_y ≥ {AY_BAND_G[0]:g} g (grey: > {AY_BAND_G[1]:g} g)")
         save(fig, "fig4_share.png")
-        return paths
+        return figs.paths
 
     if kind != "forces":
         raise ConfigError(f"plots: kind must be 'relations' or 'forces', not {kind!r}")
@@ -619,7 +610,7 @@ def plots(kind: str, truth, runs: dict[str, tf.TireForceRun] | None, out_dir: Pa
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
         save(fig, "mass.png")
-    return paths
+    return figs.paths
 
 
 # ---- command line ----------------------------------------------------------------------------
