@@ -2,6 +2,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "vh_mat.h"
 #include "vh_skf.h"
 
 #define NX VH_SKF_NX
@@ -381,18 +382,6 @@ static int sane(const vh_skf_t *f)
     return 1;
 }
 
-static int input_finite(const vh_skf_input_t *in)
-{
-    const double *v = &in->ax;
-    int i;
-    for (i = 0; i < VH_SKF_NU; ++i) {
-        if (!isfinite(v[i])) {
-            return 0;
-        }
-    }
-    return 1;
-}
-
 int vh_skf_step(vh_skf_t *f, const vh_skf_input_t *in, unsigned mask)
 {
     const vh_skf_config_t *c = &f->cfg;
@@ -403,7 +392,7 @@ int vh_skf_step(vh_skf_t *f, const vh_skf_input_t *in, unsigned mask)
     ctx_t ctx;
     int i, j, l;
 
-    if (!input_finite(in)) {
+    if (!vh_mat_finite(&in->ax, VH_SKF_NU)) {
         mask = 0u; /* nothing of this sample is usable: predict only with held inputs */
     }
     if (!f->x_init) {

@@ -2,6 +2,7 @@
 #include <math.h>
 
 #include "vh_cambernode.h"
+#include "vh_mat.h"
 
 
 /* ---- Node ---------------------------------------------------------------------------------- */
@@ -21,17 +22,6 @@ void vh_cambernode_config_default(vh_cambernode_config_t *cfg)
     cfg->seed = 1u;
 }
 
-static int all_finite(const double *v, size_t n)
-{
-    size_t i;
-    for (i = 0; i < n; ++i) {
-        if (!isfinite(v[i])) {
-            return 0;
-        }
-    }
-    return 1;
-}
-
 int vh_cambernode_init(vh_cambernode_t *node, const vh_cambernode_config_t *cfg)
 {
     double ca;
@@ -40,8 +30,8 @@ int vh_cambernode_init(vh_cambernode_t *node, const vh_cambernode_config_t *cfg)
     double sb;
     double cc;
     double sc;
-    if (!isfinite(cfg->theta_rad) || !isfinite(cfg->psi_rad) || !all_finite(cfg->chip_rad, 3u)
-        || !all_finite(cfg->lsb_g, 3u) || !all_finite(cfg->bias_g, 3u)
+    if (!isfinite(cfg->theta_rad) || !isfinite(cfg->psi_rad) || !vh_mat_finite(cfg->chip_rad, 3)
+        || !vh_mat_finite(cfg->lsb_g, 3) || !vh_mat_finite(cfg->bias_g, 3)
         || !isfinite(cfg->noise_std_g) || !isfinite(cfg->gravity_g) || !(cfg->noise_std_g >= 0.0)
         || !(cfg->gravity_g > 0.0) || !(cfg->lsb_g[0] > 0.0) || !(cfg->lsb_g[1] > 0.0)
         || !(cfg->lsb_g[2] > 0.0)) {

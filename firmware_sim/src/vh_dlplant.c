@@ -1,5 +1,6 @@
 /* vh_dlplant.c - see vh_dlplant.h. Equation numbers refer to seed 001 (Kim 2011). */
 #include "vh_dlplant.h"
+#include "vh_mat.h"
 #include "vh_tc.h"
 
 #include <math.h>
@@ -205,17 +206,6 @@ static void update_truth(vh_dlp_t *p, double thr, int gear, double td)
 
 /* ---- parameter check ----------------------------------------------------------------------- */
 
-static int finite_all(const double *v, size_t n)
-{
-    size_t i;
-    for (i = 0; i < n; ++i) {
-        if (!isfinite(v[i])) {
-            return 0;
-        }
-    }
-    return 1;
-}
-
 /* Upper bound of the fastest gear-independent rate [1/s] of the linearised dynamics. */
 static double base_rate(const vh_dlp_params_t *prm)
 {
@@ -259,7 +249,7 @@ static int params_ok(const vh_dlp_params_t *prm)
     size_t i;
     int g;
 
-    if (!finite_all(positive, np) || !finite_all(nonneg, nn) || !finite_all(prm->ri, VH_DLP_NGEARS)) {
+    if (!vh_mat_finite(positive, (int)np) || !vh_mat_finite(nonneg, (int)nn) || !vh_mat_finite(prm->ri, VH_DLP_NGEARS)) {
         return 0;
     }
     for (i = 0; i < np; ++i) {
