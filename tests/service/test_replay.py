@@ -224,3 +224,17 @@ def test_streams_far_apart_are_not_compared(session, tmp_path, monkeypatch):
     r = replay_file(tmp_path / "far.log")
     assert r.n_logged == 1 and r.n_produced > 1000
     assert r.identical is False and r.first_difference() in (0, 1)
+
+
+def test_the_c_reader_rounds_timestamps_as_python_does(tmp_path):
+    """The C reader's fast path for plain decimals (Clinger's: one exact division) and its strtod
+    fallback give the double python-can's float() gives, for every shape of timestamp."""
+    rng = random.Random(7)
+    stamps = ["0", "1.", ".5", "0.1", "1764620000.000500", "1764620000.123456789", "9007199254740993.5",
+              "123456789012345678", "1e3", "1.5E-3", "+2.5", "-0.25", "0.30000000000000004",
+              "4.35" + "0" * 30, "0." + "0" * 21 + "1"]
+    stamps += [f"{rng.randrange(10**10)}.{rng.randrange(10**6):06d}" for _ in range(300)]
+    stamps += [f"{rng.random() * 10 ** rng.randrange(-5, 17):.{rng.randrange(0, 20)}f}" for _ in range(300)]
+    (tmp_path / "ts.log").write_text("".join(f"({s}) can0 100#00\n" for s in stamps))
+    (_, ts), = list(iter_log_arrays(tmp_path / "ts.log"))
+    assert [float(t) for t in ts] == [float(s) for s in stamps] == [m.timestamp for m in read_log(tmp_path / "ts.log")]
