@@ -10,6 +10,7 @@ import pytest
 
 from vehest_can.bus import lockstep
 from vehest_can.bus.frames import TICK_S, same_frame, to_message
+from vehest_can.bus.frames import frame_id as frame_id_of
 from vehest_can.bus.log import SessionLog, iter_log_arrays, read_log
 from vehest_can.errors import ConfigError
 from vehest_can.service.replay import ECU_TX, Replayer, replay, replay_file
@@ -238,3 +239,169 @@ def test_the_c_reader_rounds_timestamps_as_python_does(tmp_path):
     (tmp_path / "ts.log").write_text("".join(f"({s}) can0 100#00\n" for s in stamps))
     (_, ts), = list(iter_log_arrays(tmp_path / "ts.log"))
     assert [float(t) for t in ts] == [float(s) for s in stamps] == [m.timestamp for m in read_log(tmp_path / "ts.log")]
+
+
+# -- the estimates as a table (--table), read back with other libraries ----------------------------
+
+def logged_estimates(path):
+    """The ECU frames of a session log, decoded with cantools from the DBC files (the reference)."""
+    import cantools
+
+    from vehest_can.paths import dbc_path
+
+    dbs = {b: cantools.database.load_file(str(dbc_path(b))) for b in ("pt", "ch")}
+    out = []
+    for m in read_log(path):
+        if m.arbitration_id in ECU_TX and not m.is_extended_id:
+            db = dbs["pt"] if m.arbitration_id in {x.frame_id for x in dbs["pt"].messages} else dbs["ch"]
+            msg = db.get_message_by_frame_id(m.arbitration_id)
+            out.append((m.timestamp, msg.name, msg.decode(bytes(m.data), decode_choices=False)))
+    return out
+
+
+@pytest.fixture(scope="module")
+def lockstep_log(session, tmp_path_factory):
+    path = tmp_path_factory.mktemp("table") / "ls.log"
+    write(path, lockstep_messages(session))
+    return path, logged_estimates(path)
+
+
+@pytest.mark.parametrize("ext", [".csv", ".parquet"])
+def test_the_table_holds_the_logged_estimates(lockstep_log, tmp_path, ext, capsys):
+    """CSV and Parquet read back with pandas: a row per ECU frame of the log, in order, at the log's
+    time, with the signals cantools decodes from the logged frame and nothing in other messages'."""
+    pd = pytest.importorskip("pandas")
+    from vehest_can.cli import main
+
+    log, ref = lockstep_log
+    assert main(["replay", str(log), "--table", str(tmp_path / f"est{ext}")]) == 0
+    assert f"estimates: {len(ref)} rows written" in capsys.readouterr().out
+    df = pd.read_csv(tmp_path / f"est{ext}") if ext == ".csv" else pd.read_parquet(tmp_path / f"est{ext}")
+    assert len(df) == len(ref) > 1000 and len({name for _, name, _ in ref}) >= 2
+    assert list(df["message"]) == [name for _, name, _ in ref]
+    assert np.allclose(df["time"], [t for t, _, _ in ref], rtol=0, atol=1e-6)
+    assert df["time"].iloc[0] > 1.7e9 and (np.diff(df["tick"]) >= 0).all()
+    for i, (_, name, sig) in enumerate(ref):
+        row = df.iloc[i]
+        assert all(row[f"{name}.{k}"] == pytest.approx(v, abs=0) for k, v in sig.items()), (i, name)
+        others = [c for c in df.columns if "." in c and not c.startswith(name + ".")]
+        assert row[others].isna().all()
+    if ext == ".parquet":
+        import pyarrow.parquet as pq
+
+        field = pq.read_schema(tmp_path / "est.parquet").field("VEHEST_DrivelineEst.DkfT_ShaftTorque")
+        assert field.metadata == {b"unit": b"Nm"}
+
+
+def test_the_mf4_table_holds_the_logged_estimates(lockstep_log, tmp_path):
+    """MF4 read back with asammdf: a channel group per message, each signal's samples and times
+    those of the logged frames, on the log's absolute time (the header's start time + t)."""
+    asammdf = pytest.importorskip("asammdf")
+    from vehest_can.cli import main
+
+    log, ref = lockstep_log
+    assert main(["replay", str(log), "--table", str(tmp_path / "est.mf4")]) == 0
+    mdf = asammdf.MDF(str(tmp_path / "est.mf4"))
+    start = mdf.header.start_time.timestamp()
+    names = sorted({name for _, name, _ in ref})
+    assert len(names) >= 2
+    for name in names:
+        rows = [(t, sig) for t, n, sig in ref if n == name]
+        for key in rows[0][1]:
+            s = mdf.get(f"{name}.{key}")
+            assert len(s.samples) == len(rows)
+            assert np.array_equal(s.samples.astype(float), [sig[key] for _, sig in rows]), (name, key)
+            assert np.allclose(start + s.timestamps, [t for t, _ in rows], rtol=0, atol=2e-6)
+    assert mdf.get("VEHEST_DrivelineEst.DkfT_ShaftTorque").unit == "Nm"
+    mdf.close()
+
+
+@pytest.mark.parametrize("args, problem", [
+    (["--table", "{tmp}/x.xyz"], "unknown table format '.xyz'"),
+    (["--table", "{tmp}"], "is a folder"),
+    (["--table", "{tmp}/missing/x.csv"], "does not exist"),
+    (["--table", "/proc/vehest-x.csv"], "error: "),   # a folder nobody can write in
+    (["-o", "{tmp}/x.xyz"], "unknown log format"),
+    (["-c", "x"], "apply to --play only"),
+    (["--play", "--table", "{tmp}/x.csv"], "--play only sends the log"),
+    (["--max-gap", "nan"], "--max-gap must be a positive"),
+])
+def test_bad_replay_arguments_are_clear_errors(lockstep_log, tmp_path, capsys, args, problem):
+    from vehest_can.cli import main
+
+    log, _ = lockstep_log
+    assert main(["replay", str(log), *(a.format(tmp=tmp_path) for a in args)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and problem in err and "Traceback" not in err, err
+
+
+@pytest.mark.parametrize("ext, module", [(".parquet", "pyarrow"), (".mf4", "asammdf")])
+def test_a_table_without_its_library_says_which(lockstep_log, tmp_path, capsys, monkeypatch, ext, module):
+    import sys
+
+    from vehest_can.cli import main
+
+    monkeypatch.setitem(sys.modules, module, None)  # import fails, as when it is not installed
+    log, _ = lockstep_log
+    assert main(["replay", str(log), "--table", str(tmp_path / f"x{ext}")]) == 1
+    err = capsys.readouterr().err
+    assert f"tables need {module}: pip install" in err and "Traceback" not in err, err
+    assert not (tmp_path / f"x{ext}").exists()
+
+
+# -- the log played onto a bus (--play) -----------------------------------------------------------
+
+def test_played_onto_a_bus_a_daemon_estimates_as_the_log_did(lockstep_log, tmp_path, capsys):
+    """`replay --play` on a host-only udp_multicast bus (a port of its own): a lockstep daemon in
+    its own process steps on the played SIM_Sync frames and sends, frame for frame, the ECU
+    frames the log holds (those are not played). Its own log shows them."""
+    from daemonproc import start_daemon, stop_daemon
+
+    from vehest_can.bus.bus import cli_args, private_multicast
+    from vehest_can.cli import main
+
+    log, ref = lockstep_log
+    config = private_multicast()
+    daemon = start_daemon(config, "--mode", "lockstep", "--idle-timeout", "3", "--log", str(tmp_path / "d.log"),
+                          tmp_path=tmp_path)
+    try:
+        assert main(["replay", str(log), "--play", *cli_args(config)]) == 0
+        _, err = daemon.communicate(timeout=120)  # it stops 3 s after the last frame (a loaded host: it lags)
+        rc = daemon.returncode
+    finally:
+        if daemon.poll() is None:
+            stop_daemon(daemon)
+    out = capsys.readouterr().out
+    n_in = sum(1 for m in read_log(log) if m.arbitration_id not in ECU_TX)
+    assert f"sent {n_in} frames" in out and f"{len(ref)} ECU frames of the log not sent" in out, out
+    assert rc == 0, err
+    logged = [m for m in read_log(log) if m.arbitration_id in ECU_TX]
+    got = [m for m in read_log(tmp_path / "d.log") if m.arbitration_id in ECU_TX]
+    assert all(not m.is_rx for m in got) and len(got) == len(logged) > 1000
+    assert all(same_frame(a, b) for a, b in zip(got, logged))
+
+
+def test_play_keeps_the_recorded_pace_and_shortens_long_gaps(tmp_path):
+    """Frames 0.2 s apart arrive 0.2 s apart (the schedule is absolute: lateness does not add up);
+    a 5 s gap is shortened to --max-gap; the ECU's own frames are not sent."""
+    from vehest_can.service.replay import play
+
+    sensor = frame_id_of("DLS_Sensors")
+    ecu = sorted(ECU_TX)[0]
+    times = [0.0, 0.2, 0.4, 0.6, 5.6, 5.8]
+    msgs = [can.Message(timestamp=1764620000.0 + t, arbitration_id=sensor, is_extended_id=False, is_fd=True,
+                        data=bytes([i]) * 16) for i, t in enumerate(times)]
+    msgs.insert(2, can.Message(timestamp=1764620000.25, arbitration_id=ecu, is_extended_id=False, is_fd=True,
+                               data=bytes(16)))
+    write(tmp_path / "pace.log", msgs)
+    channel = f"pace{random.random()}"
+    with can.Bus(interface="virtual", channel=channel, receive_own_messages=False) as tx, \
+            can.Bus(interface="virtual", channel=channel) as rx:
+        r = play(tmp_path / "pace.log", tx, max_gap_s=0.3)
+        got = []
+        while (m := rx.recv(0.5)) is not None:
+            got.append(m)
+    assert r.sent == 6 and r.not_sent == 1 and r.gaps == 1 and r.send_failures == 0
+    assert [m.data[0] for m in got] == list(range(6))
+    dt = np.diff([m.timestamp for m in got])
+    assert np.allclose(dt, [0.2, 0.2, 0.2, 0.3, 0.2], atol=0.08), dt

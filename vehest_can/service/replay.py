@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import queue
 import threading
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,13 +27,14 @@ import numpy as np
 
 from ..bus import lockstep
 from ..bus.frames import FRAME_DTYPE, TICK_S, sent_by, to_message
-from ..bus.log import SessionLog, iter_log_arrays, messages_to_arrays
+from ..bus.log import SessionLog, iter_log, iter_log_arrays, messages_to_arrays
 from ..native import ffi, lib
 from ..systems.ecu import Ecu
 from .estimates import EstimateTable
 
 # What the ECU core transmits (the lockstep acknowledge is the daemon's, not the core's)
-ECU_TX = sent_by({"VEHEST"}) - {lockstep.ACK.frame_id}
+ECU_SENT = sent_by({"VEHEST"})
+ECU_TX = ECU_SENT - {lockstep.ACK.frame_id}
 #: standard ID -> sent by the ECU core (a table lookup: np.isin sorts each batch)
 _IS_ECU_TX = np.zeros(0x800, dtype=bool)
 _IS_ECU_TX[sorted(ECU_TX)] = True
@@ -320,3 +322,51 @@ def replay_file(path: str | Path, ecu: Ecu | None = None, *, writer: can.Listene
     for frames, ts in _read_ahead(iter_log_arrays(path, progress=progress, copy=True)):
         r.feed(frames, ts)
     return r.finish()
+
+
+@dataclass
+class PlayResult:
+    sent: int
+    not_sent: int        # the ECU's own frames in the log (the ECU on the bus sends its own)
+    send_failures: int   # frames the bus refused (counted, not retried)
+    gaps: int            # gaps longer than max_gap_s, shortened to it
+    late_max_s: float    # the furthest behind its recorded time a frame was sent
+    seconds: float
+
+
+def play(path: str | Path, bus: can.BusABC, *, max_gap_s: float = MAX_GAP_S, stop: threading.Event | None = None,
+         clock=time.perf_counter, sleep=time.sleep) -> PlayResult:
+    """Send a log's frames onto `bus` at their recorded pace, like can-utils' canplayer or
+    python-can's ``can.player``, so that an ECU on that bus runs on them. The ECU's own frames
+    (VEHEST_*) are not sent: the ECU on the bus sends its own. The schedule is absolute (the
+    start plus the frame's time in the log), so one late frame does not delay the rest; a gap
+    longer than `max_gap_s` is shortened to it, as the offline replay does not step it either."""
+    sent = not_sent = failures = gaps = 0
+    late = 0.0
+    start = t0 = last = shift = 0.0
+    first = True
+    t_start = clock()
+    for m in iter_log(path):
+        if stop is not None and stop.is_set():
+            break
+        if not m.is_extended_id and m.arbitration_id in ECU_SENT:
+            not_sent += 1
+            continue
+        if first:
+            start, t0, last, first = clock(), m.timestamp, m.timestamp, False
+        if m.timestamp - last > max_gap_s:
+            shift += m.timestamp - last - max_gap_s
+            gaps += 1
+        last = max(last, m.timestamp)  # a frame older than the one before goes at once
+        delay = start + (m.timestamp - t0 - shift) - clock()
+        if delay > 0:
+            sleep(delay)
+        else:
+            late = max(late, -delay)
+        m.channel = None  # the log's bus name is not the bus it is played on
+        try:
+            bus.send(m)
+            sent += 1
+        except can.CanError:
+            failures += 1
+    return PlayResult(sent, not_sent, failures, gaps, late, clock() - t_start)
