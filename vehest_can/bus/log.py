@@ -174,12 +174,13 @@ _BLOCK_BYTES = 16 << 20
 
 
 def iter_log_arrays(path: str | Path, chunk: int = CHUNK_FRAMES, progress=None,
-                    copy: bool = True) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+                    copy: bool = True, buffers: int = 1) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """The data frames of a log in batches of up to `chunk`: (FRAME_DTYPE array, timestamps),
     in file order, in bounded memory. candump -L (``.log``) is parsed in C (``vh_candump_parse``,
     the rules of python-can's reader); other formats go through python-can's readers.
     `progress(done, total)` is called with bytes read. With copy=False a batch is valid only until
-    the next one is asked for (no copy of each batch)."""
+    the next one is asked for (no copy of each batch); with `buffers` > 1, until `buffers` - 1 more
+    are (candump -L: the batches rotate through that many buffers; other formats make new arrays)."""
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"{path}: no such log file")
@@ -196,10 +197,9 @@ def iter_log_arrays(path: str | Path, chunk: int = CHUNK_FRAMES, progress=None,
         if progress:
             progress(total, total)
         return
-    frames = np.zeros(chunk, dtype=FRAME_DTYPE)
-    ts = np.zeros(chunk, dtype=np.float64)
-    c_frames = ffi.cast("vh_frame_t *", ffi.from_buffer(frames))
-    c_ts = ffi.cast("double *", ffi.from_buffer(ts))
+    ring = [(np.zeros(chunk, dtype=FRAME_DTYPE), np.zeros(chunk, dtype=np.float64)) for _ in range(max(1, buffers))]
+    c_ring = [(ffi.cast("vh_frame_t *", ffi.from_buffer(fr)), ffi.cast("double *", ffi.from_buffer(t))) for fr, t in ring]
+    turn = 0
     n_out, used, lines, skipped = (ffi.new("size_t *") for _ in range(4))
     line_no = 0  # lines before `buf`
     done = 0
@@ -213,6 +213,8 @@ def iter_log_arrays(path: str | Path, chunk: int = CHUNK_FRAMES, progress=None,
                 buf += more
             pos = 0
             while True:
+                frames, ts = ring[turn]
+                c_frames, c_ts = c_ring[turn]
                 view = ffi.from_buffer(buf)
                 rc = lib.vh_candump_parse(view + pos, len(buf) - pos, int(eof), c_frames, c_ts, chunk,
                                           n_out, used, lines, skipped)
@@ -225,6 +227,7 @@ def iter_log_arrays(path: str | Path, chunk: int = CHUNK_FRAMES, progress=None,
                 if n_out[0]:
                     yield ((frames[: n_out[0]].copy(), ts[: n_out[0]].copy()) if copy
                            else (frames[: n_out[0]], ts[: n_out[0]]))
+                    turn = (turn + 1) % len(ring)
                 if n_out[0] < chunk:
                     break
             done += pos

@@ -103,7 +103,7 @@ class EstimateTable:
         keep = np.flatnonzero(np.isin(frames["id"], self._ids))
         if not len(keep):
             return
-        frames, ticks, times = frames[keep], np.asarray(ticks)[keep], np.asarray(times, np.float64)[keep]
+        frames, ticks, times = frames.take(keep), np.asarray(ticks)[keep], np.asarray(times, np.float64)[keep]
         if self.start is None:
             self.start = float(times[0])
         ids = frames["id"]
@@ -117,7 +117,7 @@ class EstimateTable:
             at = np.flatnonzero(ids == fid)
             names = [s.name for s in msg.signals]
             values = np.empty((len(at), len(names)))
-            for i, f in enumerate(frames[at]):
+            for i, f in enumerate(frames.take(at)):
                 d = msg.decode(bytes(f["data"][: f["len"]]), decode_choices=False)
                 assert isinstance(d, dict)  # one message, not a container
                 values[i] = np.array([d[n] for n in names], dtype=np.float64)

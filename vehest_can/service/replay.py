@@ -190,10 +190,11 @@ class Replayer:
         ext = (frames["flags"] & _EXT) != 0
         is_ecu = _IS_ECU_TX[ids & 0x7FF] & ~ext  # a standard frame's ID is <= 0x7FF
         if is_ecu.any():
-            logged = frames[is_ecu]
+            at = np.flatnonzero(is_ecu)
+            logged = frames.take(at)  # take, not a boolean index: ~20x faster on a structured array
             self._compare(logged=logged)
             if self.keep:
-                self.logged += [to_message(f, timestamp=float(t)) for f, t in zip(logged, ts[is_ecu])]
+                self.logged += [to_message(f, timestamp=float(t)) for f, t in zip(logged, ts[at])]
         if is_ecu.all():
             return
         self.inputs += int(len(frames) - np.count_nonzero(is_ecu))
@@ -203,7 +204,8 @@ class Replayer:
         if self.paced_by == "sync":
             self._feed_sync(frames, ts, sync, is_ecu)
         else:
-            self._feed_timestamps(frames[~is_ecu], ts[~is_ecu])
+            at = np.flatnonzero(~is_ecu)
+            self._feed_timestamps(frames.take(at), ts[at])
 
     def _feed_sync(self, frames: np.ndarray, ts: np.ndarray, sync: np.ndarray, is_ecu: np.ndarray) -> None:
         """In log order; the ECU frames of the log are events that do nothing. The log time of a
@@ -217,7 +219,7 @@ class Replayer:
 
     def _feed_timestamps(self, inp: np.ndarray, its: np.ndarray) -> None:
         order = np.argsort(its, kind="stable")
-        inp, its = inp[order], its[order]
+        inp, its = inp.take(order), its[order]
         if self.t0 is None:
             self.t0 = float(its[0])
         t0 = self.t0
@@ -317,9 +319,10 @@ def replay_file(path: str | Path, ecu: Ecu | None = None, *, writer: can.Listene
                 table: EstimateTable | None = None, max_gap_s: float = MAX_GAP_S, progress=None) -> ReplayResult:
     """Replay a log file in bounded memory (the result keeps counts, not frames); `writer` gets
     the ECU's frames with their session time, `table` their decoded signals with the log's time.
-    The log is read a batch or two ahead by a thread of its own (two batches in memory more)."""
+    The log is read up to two batches ahead by a thread of its own (three batches in memory more)."""
     r = Replayer(ecu, writer=writer, table=table, max_gap_s=max_gap_s)
-    for frames, ts in _read_ahead(iter_log_arrays(path, progress=progress, copy=True)):
+    depth = 2  # batches read ahead; buffers: those, the one being read and the one being replayed
+    for frames, ts in _read_ahead(iter_log_arrays(path, progress=progress, copy=False, buffers=depth + 2), depth):
         r.feed(frames, ts)
     return r.finish()
 
