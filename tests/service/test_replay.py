@@ -174,6 +174,8 @@ CANDUMP = """\
 (1764620000.002500) can0 20000080#0000000000000000
 (1764620000.003000) can0 00000123#
   (1764620000.0035) vcan0 180#11223344556677
+(1764620000.004000) can0 124#R R
+(1764620000.004500)\tcan0\t125#00
 """
 
 
@@ -182,7 +184,7 @@ def test_the_c_candump_reader_reads_what_python_can_reads(tmp_path):
     ref = read_log(tmp_path / "mix.log")  # python-can: remote and error frames dropped
     (frames, ts), = list(iter_log_arrays(tmp_path / "mix.log"))
     got = [to_message(f, timestamp=float(t)) for f, t in zip(frames, ts)]
-    assert len(got) == len(ref) == 6
+    assert len(got) == len(ref) == 7
     assert all(same_frame(a, b) and a.timestamp == b.timestamp and a.bitrate_switch == b.bitrate_switch
                for a, b in zip(got, ref))
 
@@ -196,6 +198,15 @@ def test_the_c_candump_reader_reads_what_python_can_reads(tmp_path):
     ("1.0 can0 123#00", "line 2"),
     ("(1.0) can0 123", "line 2"),
     ("\xff\xfe garbage", "line 2"),
+    # the field count, as python-can counts it (its reader raises on each of these)
+    ("(1.0) can0 R", "line 2"),
+    ("(1.0) 123#00 R", "line 2"),
+    ("(1.0) can0 123#00 xyz", "line 2"),
+    ("(1.0) can0 123#00 extra R", "line 2"),
+    ("(1.0) a b 123#00 R", "line 2"),
+    ("(1.0) can0 123#R junk", "line 2"),
+    ("(1.0) can0 12 3#00", "line 2"),
+    ("(1.0) can0 123#00\tR", "line 2"),
 ])
 def test_malformed_candump_lines_are_errors_with_the_line(tmp_path, line, where):
     (tmp_path / "bad.log").write_bytes(("(0.5) can0 100#00\n" + line + "\n").encode("latin-1"))
