@@ -416,3 +416,23 @@ def test_play_keeps_the_recorded_pace_and_shortens_long_gaps(tmp_path):
     assert [m.data[0] for m in got] == list(range(6))
     dt = np.diff([m.timestamp for m in got])
     assert np.allclose(dt, [0.2, 0.2, 0.2, 0.3, 0.2], atol=0.08), dt
+
+
+def test_the_table_of_a_timestamp_paced_log_is_on_its_clock(session, tmp_path):
+    """Without SIM_Sync a row's time is the tick of the log's clock that sent it: the first input's
+    time + k * 500 us, k as the message-by-message reference counts it."""
+    pd = pytest.importorskip("pandas")
+    from vehest_can.service.estimates import EstimateTable
+
+    msgs = [m for m in session.messages() if m.arbitration_id not in ECU_TX]
+    write(tmp_path / "ts.log", msgs)
+    inputs = read_log(tmp_path / "ts.log")
+    ref_prod, _, _ = reference_replay(inputs)
+    table = EstimateTable(tmp_path / "est.csv", ECU_TX)
+    replay_file(tmp_path / "ts.log", table=table)
+    table.close()
+    df = pd.read_csv(tmp_path / "est.csv")
+    assert len(df) == len(ref_prod) > 1000
+    assert np.allclose(df["time"] - inputs[0].timestamp, [m.timestamp for m in ref_prod], rtol=0, atol=1e-6)
+    assert np.allclose(df["tick"] * TICK_S, [m.timestamp for m in ref_prod], rtol=0, atol=1e-9)
+    assert [int(x, 16) for x in df["frame_id"]] == [m.arbitration_id for m in ref_prod]
