@@ -10,6 +10,7 @@ import pytest
 
 from vehest_can.bus import lockstep
 from vehest_can.bus.frames import TICK_S, same_frame, to_message
+from vehest_can.bus.frames import frame_id as frame_id_of
 from vehest_can.bus.log import SessionLog, iter_log_arrays, read_log
 from vehest_can.errors import ConfigError
 from vehest_can.service.replay import ECU_TX, Replayer, replay, replay_file
@@ -173,6 +174,8 @@ CANDUMP = """\
 (1764620000.002500) can0 20000080#0000000000000000
 (1764620000.003000) can0 00000123#
   (1764620000.0035) vcan0 180#11223344556677
+(1764620000.004000) can0 124#R R
+(1764620000.004500)\tcan0\t125#00
 """
 
 
@@ -181,7 +184,7 @@ def test_the_c_candump_reader_reads_what_python_can_reads(tmp_path):
     ref = read_log(tmp_path / "mix.log")  # python-can: remote and error frames dropped
     (frames, ts), = list(iter_log_arrays(tmp_path / "mix.log"))
     got = [to_message(f, timestamp=float(t)) for f, t in zip(frames, ts)]
-    assert len(got) == len(ref) == 6
+    assert len(got) == len(ref) == 7
     assert all(same_frame(a, b) and a.timestamp == b.timestamp and a.bitrate_switch == b.bitrate_switch
                for a, b in zip(got, ref))
 
@@ -195,6 +198,15 @@ def test_the_c_candump_reader_reads_what_python_can_reads(tmp_path):
     ("1.0 can0 123#00", "line 2"),
     ("(1.0) can0 123", "line 2"),
     ("\xff\xfe garbage", "line 2"),
+    # the field count, as python-can counts it (its reader raises on each of these)
+    ("(1.0) can0 R", "line 2"),
+    ("(1.0) 123#00 R", "line 2"),
+    ("(1.0) can0 123#00 xyz", "line 2"),
+    ("(1.0) can0 123#00 extra R", "line 2"),
+    ("(1.0) a b 123#00 R", "line 2"),
+    ("(1.0) can0 123#R junk", "line 2"),
+    ("(1.0) can0 12 3#00", "line 2"),
+    ("(1.0) can0 123#00\tR", "line 2"),
 ])
 def test_malformed_candump_lines_are_errors_with_the_line(tmp_path, line, where):
     (tmp_path / "bad.log").write_bytes(("(0.5) can0 100#00\n" + line + "\n").encode("latin-1"))
@@ -224,3 +236,203 @@ def test_streams_far_apart_are_not_compared(session, tmp_path, monkeypatch):
     r = replay_file(tmp_path / "far.log")
     assert r.n_logged == 1 and r.n_produced > 1000
     assert r.identical is False and r.first_difference() in (0, 1)
+
+
+def test_the_c_reader_rounds_timestamps_as_python_does(tmp_path):
+    """The C reader's fast path for plain decimals (Clinger's: one exact division) and its strtod
+    fallback give the double python-can's float() gives, for every shape of timestamp."""
+    rng = random.Random(7)
+    stamps = ["0", "1.", ".5", "0.1", "1764620000.000500", "1764620000.123456789", "9007199254740993.5",
+              "123456789012345678", "1e3", "1.5E-3", "+2.5", "-0.25", "0.30000000000000004",
+              "4.35" + "0" * 30, "0." + "0" * 21 + "1"]
+    stamps += [f"{rng.randrange(10**10)}.{rng.randrange(10**6):06d}" for _ in range(300)]
+    stamps += [f"{rng.random() * 10 ** rng.randrange(-5, 17):.{rng.randrange(0, 20)}f}" for _ in range(300)]
+    (tmp_path / "ts.log").write_text("".join(f"({s}) can0 100#00\n" for s in stamps))
+    (_, ts), = list(iter_log_arrays(tmp_path / "ts.log"))
+    assert [float(t) for t in ts] == [float(s) for s in stamps] == [m.timestamp for m in read_log(tmp_path / "ts.log")]
+
+
+# -- the estimates as a table (--table), read back with other libraries ----------------------------
+
+def logged_estimates(path):
+    """The ECU frames of a session log, decoded with cantools from the DBC files (the reference)."""
+    import cantools
+
+    from vehest_can.paths import dbc_path
+
+    dbs = {b: cantools.database.load_file(str(dbc_path(b))) for b in ("pt", "ch")}
+    out = []
+    for m in read_log(path):
+        if m.arbitration_id in ECU_TX and not m.is_extended_id:
+            db = dbs["pt"] if m.arbitration_id in {x.frame_id for x in dbs["pt"].messages} else dbs["ch"]
+            msg = db.get_message_by_frame_id(m.arbitration_id)
+            out.append((m.timestamp, msg.name, msg.decode(bytes(m.data), decode_choices=False)))
+    return out
+
+
+@pytest.fixture(scope="module")
+def lockstep_log(session, tmp_path_factory):
+    path = tmp_path_factory.mktemp("table") / "ls.log"
+    write(path, lockstep_messages(session))
+    return path, logged_estimates(path)
+
+
+@pytest.mark.parametrize("ext", [".csv", ".parquet"])
+def test_the_table_holds_the_logged_estimates(lockstep_log, tmp_path, ext, capsys):
+    """CSV and Parquet read back with pandas: a row per ECU frame of the log, in order, at the log's
+    time, with the signals cantools decodes from the logged frame and nothing in other messages'."""
+    pd = pytest.importorskip("pandas")
+    from vehest_can.cli import main
+
+    log, ref = lockstep_log
+    assert main(["replay", str(log), "--table", str(tmp_path / f"est{ext}")]) == 0
+    assert f"estimates: {len(ref)} rows written" in capsys.readouterr().out
+    df = pd.read_csv(tmp_path / f"est{ext}") if ext == ".csv" else pd.read_parquet(tmp_path / f"est{ext}")
+    assert len(df) == len(ref) > 1000 and len({name for _, name, _ in ref}) >= 2
+    assert list(df["message"]) == [name for _, name, _ in ref]
+    assert np.allclose(df["time"], [t for t, _, _ in ref], rtol=0, atol=1e-6)
+    assert df["time"].iloc[0] > 1.7e9 and (np.diff(df["tick"]) >= 0).all()
+    for i, (_, name, sig) in enumerate(ref):
+        row = df.iloc[i]
+        assert all(row[f"{name}.{k}"] == pytest.approx(v, abs=0) for k, v in sig.items()), (i, name)
+        others = [c for c in df.columns if "." in c and not c.startswith(name + ".")]
+        assert row[others].isna().all()
+    if ext == ".parquet":
+        import pyarrow.parquet as pq
+
+        field = pq.read_schema(tmp_path / "est.parquet").field("VEHEST_DrivelineEst.DkfT_ShaftTorque")
+        assert field.metadata == {b"unit": b"Nm"}
+
+
+def test_the_mf4_table_holds_the_logged_estimates(lockstep_log, tmp_path):
+    """MF4 read back with asammdf: a channel group per message, each signal's samples and times
+    those of the logged frames, on the log's absolute time (the header's start time + t)."""
+    asammdf = pytest.importorskip("asammdf")
+    from vehest_can.cli import main
+
+    log, ref = lockstep_log
+    assert main(["replay", str(log), "--table", str(tmp_path / "est.mf4")]) == 0
+    mdf = asammdf.MDF(str(tmp_path / "est.mf4"))
+    start = mdf.header.start_time.timestamp()
+    names = sorted({name for _, name, _ in ref})
+    assert len(names) >= 2
+    for name in names:
+        rows = [(t, sig) for t, n, sig in ref if n == name]
+        for key in rows[0][1]:
+            s = mdf.get(f"{name}.{key}")
+            assert len(s.samples) == len(rows)
+            assert np.array_equal(s.samples.astype(float), [sig[key] for _, sig in rows]), (name, key)
+            assert np.allclose(start + s.timestamps, [t for t, _ in rows], rtol=0, atol=2e-6)
+    assert mdf.get("VEHEST_DrivelineEst.DkfT_ShaftTorque").unit == "Nm"
+    mdf.close()
+
+
+@pytest.mark.parametrize("args, problem", [
+    (["--table", "{tmp}/x.xyz"], "unknown table format '.xyz'"),
+    (["--table", "{tmp}"], "is a folder"),
+    (["--table", "{tmp}/missing/x.csv"], "does not exist"),
+    (["--table", "/proc/vehest-x.csv"], "error: "),   # a folder nobody can write in
+    (["-o", "{tmp}/x.xyz"], "unknown log format"),
+    (["-c", "x"], "apply to --play only"),
+    (["--play", "--table", "{tmp}/x.csv"], "--play only sends the log"),
+    (["--max-gap", "nan"], "--max-gap must be a positive"),
+])
+def test_bad_replay_arguments_are_clear_errors(lockstep_log, tmp_path, capsys, args, problem):
+    from vehest_can.cli import main
+
+    log, _ = lockstep_log
+    assert main(["replay", str(log), *(a.format(tmp=tmp_path) for a in args)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and problem in err and "Traceback" not in err, err
+
+
+@pytest.mark.parametrize("ext, module", [(".parquet", "pyarrow"), (".mf4", "asammdf")])
+def test_a_table_without_its_library_says_which(lockstep_log, tmp_path, capsys, monkeypatch, ext, module):
+    import sys
+
+    from vehest_can.cli import main
+
+    monkeypatch.setitem(sys.modules, module, None)  # import fails, as when it is not installed
+    log, _ = lockstep_log
+    assert main(["replay", str(log), "--table", str(tmp_path / f"x{ext}")]) == 1
+    err = capsys.readouterr().err
+    assert f"tables need {module}: pip install" in err and "Traceback" not in err, err
+    assert not (tmp_path / f"x{ext}").exists()
+
+
+# -- the log played onto a bus (--play) -----------------------------------------------------------
+
+def test_played_onto_a_bus_a_daemon_estimates_as_the_log_did(lockstep_log, tmp_path, capsys):
+    """`replay --play` on a host-only udp_multicast bus (a port of its own): a lockstep daemon in
+    its own process steps on the played SIM_Sync frames and sends, frame for frame, the ECU
+    frames the log holds (those are not played). Its own log shows them."""
+    from daemonproc import start_daemon, stop_daemon
+
+    from vehest_can.bus.bus import cli_args, private_multicast
+    from vehest_can.cli import main
+
+    log, ref = lockstep_log
+    config = private_multicast()
+    daemon = start_daemon(config, "--mode", "lockstep", "--idle-timeout", "3", "--log", str(tmp_path / "d.log"),
+                          tmp_path=tmp_path)
+    try:
+        assert main(["replay", str(log), "--play", *cli_args(config)]) == 0
+        _, err = daemon.communicate(timeout=120)  # it stops 3 s after the last frame (a loaded host: it lags)
+        rc = daemon.returncode
+    finally:
+        if daemon.poll() is None:
+            stop_daemon(daemon)
+    out = capsys.readouterr().out
+    n_in = sum(1 for m in read_log(log) if m.arbitration_id not in ECU_TX)
+    assert f"sent {n_in} frames" in out and f"{len(ref)} ECU frames of the log not sent" in out, out
+    assert rc == 0, err
+    logged = [m for m in read_log(log) if m.arbitration_id in ECU_TX]
+    got = [m for m in read_log(tmp_path / "d.log") if m.arbitration_id in ECU_TX]
+    assert all(not m.is_rx for m in got) and len(got) == len(logged) > 1000
+    assert all(same_frame(a, b) for a, b in zip(got, logged))
+
+
+def test_play_keeps_the_recorded_pace_and_shortens_long_gaps(tmp_path):
+    """Frames 0.2 s apart arrive 0.2 s apart (the schedule is absolute: lateness does not add up);
+    a 5 s gap is shortened to --max-gap; the ECU's own frames are not sent."""
+    from vehest_can.service.replay import play
+
+    sensor = frame_id_of("DLS_Sensors")
+    ecu = sorted(ECU_TX)[0]
+    times = [0.0, 0.2, 0.4, 0.6, 5.6, 5.8]
+    msgs = [can.Message(timestamp=1764620000.0 + t, arbitration_id=sensor, is_extended_id=False, is_fd=True,
+                        data=bytes([i]) * 16) for i, t in enumerate(times)]
+    msgs.insert(2, can.Message(timestamp=1764620000.25, arbitration_id=ecu, is_extended_id=False, is_fd=True,
+                               data=bytes(16)))
+    write(tmp_path / "pace.log", msgs)
+    channel = f"pace{random.random()}"
+    with can.Bus(interface="virtual", channel=channel, receive_own_messages=False) as tx, \
+            can.Bus(interface="virtual", channel=channel) as rx:
+        r = play(tmp_path / "pace.log", tx, max_gap_s=0.3)
+        got = []
+        while (m := rx.recv(0.5)) is not None:
+            got.append(m)
+    assert r.sent == 6 and r.not_sent == 1 and r.gaps == 1 and r.send_failures == 0
+    assert [m.data[0] for m in got] == list(range(6))
+    dt = np.diff([m.timestamp for m in got])
+    assert np.allclose(dt, [0.2, 0.2, 0.2, 0.3, 0.2], atol=0.08), dt
+
+
+def test_the_table_of_a_timestamp_paced_log_is_on_its_clock(session, tmp_path):
+    """Without SIM_Sync a row's time is the tick of the log's clock that sent it: the first input's
+    time + k * 500 us, k as the message-by-message reference counts it."""
+    pd = pytest.importorskip("pandas")
+    from vehest_can.service.estimates import EstimateTable
+
+    msgs = [m for m in session.messages() if m.arbitration_id not in ECU_TX]
+    write(tmp_path / "ts.log", msgs)
+    inputs = read_log(tmp_path / "ts.log")
+    ref_prod, _, _ = reference_replay(inputs)
+    table = EstimateTable(tmp_path / "est.csv", ECU_TX)
+    replay_file(tmp_path / "ts.log", table=table)
+    table.close()
+    df = pd.read_csv(tmp_path / "est.csv")
+    assert len(df) == len(ref_prod) > 1000
+    assert np.allclose(df["time"] - inputs[0].timestamp, [m.timestamp for m in ref_prod], rtol=0, atol=1e-6)
+    assert np.allclose(df["tick"] * TICK_S, [m.timestamp for m in ref_prod], rtol=0, atol=1e-9)
+    assert [int(x, 16) for x in df["frame_id"]] == [m.arbitration_id for m in ref_prod]

@@ -21,6 +21,7 @@ malformed file is a :class:`ConfigError` naming the file.
 from __future__ import annotations
 
 import json
+import mmap
 import time
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -174,12 +175,13 @@ _BLOCK_BYTES = 16 << 20
 
 
 def iter_log_arrays(path: str | Path, chunk: int = CHUNK_FRAMES, progress=None,
-                    copy: bool = True) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+                    copy: bool = True, buffers: int = 1) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """The data frames of a log in batches of up to `chunk`: (FRAME_DTYPE array, timestamps),
     in file order, in bounded memory. candump -L (``.log``) is parsed in C (``vh_candump_parse``,
     the rules of python-can's reader); other formats go through python-can's readers.
     `progress(done, total)` is called with bytes read. With copy=False a batch is valid only until
-    the next one is asked for (no copy of each batch)."""
+    the next one is asked for (no copy of each batch); with `buffers` > 1, until `buffers` - 1 more
+    are (candump -L: the batches rotate through that many buffers; other formats make new arrays)."""
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"{path}: no such log file")
@@ -196,43 +198,46 @@ def iter_log_arrays(path: str | Path, chunk: int = CHUNK_FRAMES, progress=None,
         if progress:
             progress(total, total)
         return
-    frames = np.zeros(chunk, dtype=FRAME_DTYPE)
-    ts = np.zeros(chunk, dtype=np.float64)
-    c_frames = ffi.cast("vh_frame_t *", ffi.from_buffer(frames))
-    c_ts = ffi.cast("double *", ffi.from_buffer(ts))
+    ring = [(np.zeros(chunk, dtype=FRAME_DTYPE), np.zeros(chunk, dtype=np.float64)) for _ in range(max(1, buffers))]
+    c_ring = [(ffi.cast("vh_frame_t *", ffi.from_buffer(fr)), ffi.cast("double *", ffi.from_buffer(t))) for fr, t in ring]
+    turn = 0
     n_out, used, lines, skipped = (ffi.new("size_t *") for _ in range(4))
-    line_no = 0  # lines before `buf`
-    done = 0
-    buf = b""
-    with path.open("rb") as f:
-        eof = False
-        while True:
-            if not eof:
-                more = f.read(_BLOCK_BYTES)
-                eof = not more
-                buf += more
-            pos = 0
+    if total == 0:
+        return
+    line_no = 0  # lines before `pos`
+    pos = dropped = 0
+    # The file mapped, not read: the C parser reads the page cache in place (no copies into bytes
+    # objects, no fresh pages to fault in), and the pages behind it are dropped from this
+    # process's resident set as it goes (they stay in the page cache), so memory stays a batch.
+    with path.open("rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as mm:
+        mm.madvise(mmap.MADV_SEQUENTIAL)
+        view = ffi.from_buffer(mm)
+        try:
             while True:
-                view = ffi.from_buffer(buf)
-                rc = lib.vh_candump_parse(view + pos, len(buf) - pos, int(eof), c_frames, c_ts, chunk,
-                                          n_out, used, lines, skipped)
+                frames, ts = ring[turn]
+                c_frames, c_ts = c_ring[turn]
+                rc = lib.vh_candump_parse(view + pos, total - pos, 1, c_frames, c_ts, chunk, n_out, used, lines, skipped)
                 line_no += lines[0]
                 if rc != lib.VH_OK:
-                    bad = buf[pos + used[0]:].split(b"\n", 1)[0][:80]
+                    bad = mm[pos + used[0]:pos + used[0] + 200].split(b"\n", 1)[0][:80]
                     raise ConfigError(f"{path}: line {line_no + 1}: not a candump -L frame: "
                                       f"{bad.decode('utf-8', 'replace')!r}")
                 pos += used[0]
+                if pos - dropped >= _BLOCK_BYTES or pos == total:
+                    end = pos - pos % mmap.PAGESIZE
+                    if end > dropped:
+                        mm.madvise(mmap.MADV_DONTNEED, dropped, end - dropped)
+                        dropped = end
+                if progress:
+                    progress(pos, total)
                 if n_out[0]:
                     yield ((frames[: n_out[0]].copy(), ts[: n_out[0]].copy()) if copy
                            else (frames[: n_out[0]], ts[: n_out[0]]))
-                if n_out[0] < chunk:
-                    break
-            done += pos
-            buf = buf[pos:]
-            if progress:
-                progress(done, total)
-            if eof:
-                return
+                    turn = (turn + 1) % len(ring)
+                if n_out[0] < chunk:  # the rest of the file parsed
+                    return
+        finally:
+            ffi.release(view)  # before the map closes
 
 
 def messages_to_arrays(messages: list[can.Message]) -> tuple[np.ndarray, np.ndarray]:

@@ -1,40 +1,67 @@
-"""``vehest-can replay LOG``: run a recorded log through the ECU offline."""
+"""``vehest-can replay LOG``: run a recorded log through the ECU offline, or play it onto a bus."""
 from __future__ import annotations
 
 import math
 from pathlib import Path
 
+from ..bus import bus as busmod
 from ..bus.log import SessionLog, check_log_path
 from ..errors import ConfigError
 from ..progress import Progress
-from ..service.replay import MAX_GAP_S, replay_file
+from ..service.estimates import TABLE_FORMATS, EstimateTable, check_table_path
+from ..service.replay import ECU_TX, MAX_GAP_S, play, replay_file
+
+_BUS_FLAGS = ("interface", "channel", "bitrate", "fd", "data_bitrate", "timing", "bus_kwargs", "bus_config", "bus_context")
 
 
 def add_subparser(subparsers) -> None:
-    p = subparsers.add_parser("replay", help="run a recorded CAN log through the ECU offline",
+    p = subparsers.add_parser("replay", help="run a recorded CAN log through the ECU offline, or play it onto a bus",
                               description="Replay a log (candump -L, .asc, .blf, .mf4 ...) through the ECU. "
                                           "Lockstep logs (with SIM_Sync) are replayed tick for tick and the ECU's "
-                                          "output is compared with the one recorded. Exit status 3 when it differs.")
+                                          "output is compared with the one recorded. Exit status 3 when it differs. "
+                                          "With --play, the log's frames are sent onto a bus at their recorded pace "
+                                          "instead (like canplayer), for an ECU on that bus.")
     p.add_argument("log", metavar="LOG")
     p.add_argument("-o", "--output", metavar="FILE",
                    help="write the ECU frames of the replay to this log (format by extension, as --log)")
+    p.add_argument("--table", metavar="FILE",
+                   help="write the ECU's estimates decoded, one row per ECU frame with the log's time, to a table: "
+                        + ", ".join(f"{k} ({v})" for k, v in TABLE_FORMATS.items()))
     p.add_argument("--max-gap", type=float, default=MAX_GAP_S, metavar="S",
                    help=f"a gap between frames longer than S seconds is not stepped through tick by tick: the ECU "
-                        f"steps S seconds of idle ticks, then the clock jumps to the next frame (default {MAX_GAP_S:g})")
+                        f"steps S seconds of idle ticks, then the clock jumps to the next frame; with --play, the "
+                        f"gap is shortened to S (default {MAX_GAP_S:g})")
+    p.add_argument("--play", action="store_true",
+                   help="send the log's frames (not the ECU's own) onto the bus of -i/-c at their recorded pace "
+                        "(default: udp_multicast on this host only)")
+    busmod.add_arguments(p)
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     if not (math.isfinite(args.max_gap) and args.max_gap > 0):
         raise ConfigError(f"--max-gap must be a positive number of seconds, not {args.max_gap}")
+    if args.play:
+        return _play(args)
+    given = [f for f in _BUS_FLAGS if getattr(args, f, None) not in (None, False, [], {})]  # python-can's: absent if not given
+    if given:
+        raise ConfigError(f"bus options ({', '.join('--' + f.replace('_', '-') for f in given)}) apply to --play only: "
+                          "the offline replay uses no bus")
+    if not Path(args.log).is_file():
+        raise ConfigError(f"{args.log}: no such log file")
+    table_path = check_table_path(args.table) if args.table else None
     writer = SessionLog(check_log_path(args.output), {"VEHEST"}) if args.output else None
+    table = None
     try:
+        table = EstimateTable(table_path, ECU_TX) if table_path else None
         progress = Progress(f"replay {Path(args.log).name}", unit="B")
-        result = replay_file(args.log, writer=writer, max_gap_s=args.max_gap, progress=progress)
+        result = replay_file(args.log, writer=writer, table=table, max_gap_s=args.max_gap, progress=progress)
         progress.done()
     finally:
         if writer is not None:
             writer.stop()
+        if table is not None:
+            table.close()
     print(f"replayed {result.frames_in} frames in {result.ticks} ticks (paced by {result.paced_by})")
     if result.gaps:
         print(f"gaps: {result.gaps} longer than {args.max_gap:g} s, {result.idle_ticks_skipped} idle ticks "
@@ -42,6 +69,8 @@ def run(args) -> int:
     if result.out_of_order:
         print(f"out of order: {result.out_of_order} frames older than one before them (handed in late)")
     print(f"ECU frames: {result.n_produced} produced, {result.n_logged} in the log")
+    if table is not None:
+        print(f"estimates: {table.rows} rows written to {table.path}")
     faults = ", ".join(f"{k}={v}" for k, v in result.counters.items() if v) or "none"
     print(f"RX faults: {faults}")
     if result.identical is None:
@@ -52,3 +81,24 @@ def run(args) -> int:
         return 0
     print(f"DIFFERENT: first difference at ECU frame {result.first_difference()}")
     return 3
+
+
+def _play(args) -> int:
+    offline = [flag for flag, v in (("-o/--output", args.output), ("--table", args.table)) if v]
+    if offline:
+        raise ConfigError(f"{' and '.join(offline)} write the offline replay's results; --play only sends the log "
+                          "onto a bus (log the ECU there with `vehest-can daemon --log`)")
+    if not Path(args.log).is_file():
+        raise ConfigError(f"{args.log}: no such log file")
+    config = busmod.bus_config(args)
+    bus = busmod.open_bus(config)
+    try:
+        print(f"playing {args.log} onto {busmod.describe_bus(bus, config)}", flush=True)
+        r = play(args.log, bus, max_gap_s=args.max_gap)
+    finally:
+        bus.shutdown()
+    print(f"sent {r.sent} frames in {r.seconds:.2f} s ({r.not_sent} ECU frames of the log not sent"
+          + (f", {r.send_failures} refused by the bus" if r.send_failures else "")
+          + (f", {r.gaps} gaps shortened to {args.max_gap:g} s" if r.gaps else "") + ")")
+    print(f"latest frame: {1e3 * r.late_max_s:.1f} ms behind its recorded time")
+    return 1 if r.send_failures else 0

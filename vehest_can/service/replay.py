@@ -15,6 +15,10 @@ small logs); :func:`replay_file` streams a file.
 """
 from __future__ import annotations
 
+import queue
+import threading
+import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -23,13 +27,17 @@ import numpy as np
 
 from ..bus import lockstep
 from ..bus.frames import FRAME_DTYPE, TICK_S, sent_by, to_message
-from ..bus.log import SessionLog, iter_log_arrays, messages_to_arrays
+from ..bus.log import SessionLog, iter_log, iter_log_arrays, messages_to_arrays
 from ..native import ffi, lib
 from ..systems.ecu import Ecu
+from .estimates import EstimateTable
 
 # What the ECU core transmits (the lockstep acknowledge is the daemon's, not the core's)
-ECU_TX = sent_by({"VEHEST"}) - {lockstep.ACK.frame_id}
-_ECU_TX = np.array(sorted(ECU_TX), dtype=np.uint32)
+ECU_SENT = sent_by({"VEHEST"})
+ECU_TX = ECU_SENT - {lockstep.ACK.frame_id}
+#: standard ID -> sent by the ECU core (a table lookup: np.isin sorts each batch)
+_IS_ECU_TX = np.zeros(0x800, dtype=bool)
+_IS_ECU_TX[sorted(ECU_TX)] = True
 MAX_GAP_S = 1.0
 #: ECU frames held for comparison on the side that is ahead; beyond this the two streams are not
 #: aligned (e.g. a log that has none of the ECU's frames) and are not compared further
@@ -86,10 +94,11 @@ class Replayer:
     """Batches of a log in (:meth:`feed`), the result out (:meth:`finish`)."""
 
     def __init__(self, ecu: Ecu | None = None, *, keep: bool = False, writer: can.Listener | None = None,
-                 max_gap_s: float = MAX_GAP_S):
+                 table: EstimateTable | None = None, max_gap_s: float = MAX_GAP_S):
         self.ecu = ecu or Ecu()
         self.keep = keep
         self.writer = writer
+        self.table = table
         self.max_idle = max(1, int(round(max_gap_s / TICK_S)))
         self.paced_by: str | None = None
         self.frames_in = 0
@@ -140,8 +149,8 @@ class Replayer:
             self._qlog = self._qprod = np.zeros(0, FRAME_DTYPE)
 
     # -- the ECU ------------------------------------------------------------------------------
-    def _run(self, frames: np.ndarray, op: np.ndarray, steps: np.ndarray, tick_of) -> None:
-        """Events through the C ECU; `tick_of(event, step)` gives the tick (timestamp) of its frames."""
+    def _run(self, frames: np.ndarray, op: np.ndarray, steps: np.ndarray, when) -> None:
+        """Events through the C ECU; `when(event, step)` gives the tick and the log time of its frames."""
         n = len(op)
         frames = np.ascontiguousarray(frames)
         op = np.ascontiguousarray(op, dtype=np.uint8)
@@ -154,11 +163,12 @@ class Replayer:
                                     ffi.cast("uint32_t *", ffi.from_buffer(steps)), n, pos, *self._c_out, _OUT_CAP)
             if got:
                 out = self._out[:got].copy()
-                ticks = tick_of(self._out_event[:got], self._out_step[:got])
-                self._produced(out, ticks)
+                self._produced(out, *when(self._out_event[:got], self._out_step[:got]))
 
-    def _produced(self, out: np.ndarray, ticks: np.ndarray) -> None:
+    def _produced(self, out: np.ndarray, ticks: np.ndarray, times: np.ndarray) -> None:
         self._compare(produced=out)
+        if self.table is not None:
+            self.table.write(out, ticks, times)
         if self.keep or self.writer is not None:
             for f, k in zip(out, ticks):
                 msg = to_message(f, timestamp=float(k) * TICK_S)
@@ -176,36 +186,40 @@ class Replayer:
             self.first_ts = float(ts[0])
             if isinstance(self.writer, SessionLog) and self.writer.epoch is None:
                 self.writer.epoch = self.first_ts  # the replay's frames on the log's own time base
+        ids = frames["id"]
         ext = (frames["flags"] & _EXT) != 0
-        is_ecu = np.isin(frames["id"], _ECU_TX) & ~ext
+        is_ecu = _IS_ECU_TX[ids & 0x7FF] & ~ext  # a standard frame's ID is <= 0x7FF
         if is_ecu.any():
-            logged = frames[is_ecu]
+            at = np.flatnonzero(is_ecu)
+            logged = frames.take(at)  # take, not a boolean index: ~20x faster on a structured array
             self._compare(logged=logged)
             if self.keep:
-                self.logged += [to_message(f, timestamp=float(t)) for f, t in zip(logged, ts[is_ecu])]
+                self.logged += [to_message(f, timestamp=float(t)) for f, t in zip(logged, ts[at])]
         if is_ecu.all():
             return
         self.inputs += int(len(frames) - np.count_nonzero(is_ecu))
-        sync = ((frames["id"] == lockstep.SYNC.frame_id) & ~ext & (frames["len"] == lockstep.SYNC.length))
+        sync = ((ids == lockstep.SYNC.frame_id) & ~ext & (frames["len"] == lockstep.SYNC.length))
         if self.paced_by is None:
             self.paced_by = "sync" if sync.any() else "timestamps"
         if self.paced_by == "sync":
-            self._feed_sync(frames, sync, is_ecu)
+            self._feed_sync(frames, ts, sync, is_ecu)
         else:
-            self._feed_timestamps(frames[~is_ecu], ts[~is_ecu])
+            at = np.flatnonzero(~is_ecu)
+            self._feed_timestamps(frames.take(at), ts[at])
 
-    def _feed_sync(self, frames: np.ndarray, sync: np.ndarray, is_ecu: np.ndarray) -> None:
-        """In log order; the ECU frames of the log are events that do nothing."""
+    def _feed_sync(self, frames: np.ndarray, ts: np.ndarray, sync: np.ndarray, is_ecu: np.ndarray) -> None:
+        """In log order; the ECU frames of the log are events that do nothing. The log time of a
+        tick's frames is that of the SIM_Sync frame that stepped it."""
         tick = np.ascontiguousarray(frames["data"][:, :4]).view("<u4").ravel()
         cmd = frames["data"][:, 4]
         op = np.where(sync, np.where(cmd == lockstep.RESET, lib.VH_REPLAY_RESET, lib.VH_REPLAY_NONE),
                       np.where(is_ecu, lib.VH_REPLAY_NONE, lib.VH_REPLAY_RX)).astype(np.uint8)
         steps = (sync & (cmd == lockstep.STEP)).astype(np.uint32)
-        self._run(frames, op, steps, lambda ev, _st: tick[ev].astype(np.float64))
+        self._run(frames, op, steps, lambda ev, _st: (tick[ev].astype(np.float64), ts[ev]))
 
     def _feed_timestamps(self, inp: np.ndarray, its: np.ndarray) -> None:
         order = np.argsort(its, kind="stable")
-        inp, its = inp[order], its[order]
+        inp, its = inp.take(order), its[order]
         if self.t0 is None:
             self.t0 = float(its[0])
         t0 = self.t0
@@ -224,13 +238,19 @@ class Replayer:
         self.skipped += int((full - steps).sum())
         self.k = int(k[-1])
         op = np.full(len(inp), lib.VH_REPLAY_RX, dtype=np.uint8)
-        self._run(inp, op, steps, lambda ev, st: (before[ev] + st).astype(np.float64))
+        self._run(inp, op, steps, lambda ev, st: self._ticks_and_times(before[ev] + st))
+
+    def _ticks_and_times(self, k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Ticks of the log's clock and their times on it (a timestamp-paced log)."""
+        assert self.t0 is not None
+        k = np.asarray(k, dtype=np.float64)
+        return k, self.t0 + k * TICK_S
 
     def finish(self) -> ReplayResult:
         if self.paced_by == "timestamps":  # the tick of the last frame
             k = self.k
             self._run(np.zeros(1, FRAME_DTYPE), np.zeros(1, np.uint8), np.ones(1, np.uint32),
-                      lambda ev, st: np.full(len(ev), float(k)))
+                      lambda ev, st: self._ticks_and_times(np.full(len(ev), k)))
         if self._aligned:
             self._compare()
         elif self.first_mismatch is None:
@@ -250,11 +270,106 @@ def replay(messages: list[can.Message], ecu: Ecu | None = None, *, max_gap_s: fl
     return r.finish()
 
 
+def _read_ahead(batches: Iterator, depth: int = 2) -> Iterator:
+    """`batches` read by a thread of its own, up to `depth` batches ahead: the C parser (which, like
+    every cffi call, releases the GIL) reads the next batch while the ECU runs this one. A reader's
+    error is raised here."""
+    q: queue.Queue = queue.Queue(maxsize=depth)
+    stop = threading.Event()
+    end = object()
+
+    def put(item) -> bool:
+        while not stop.is_set():
+            try:
+                q.put(item, timeout=0.1)
+                return True
+            except queue.Full:
+                continue
+        return False
+
+    def read() -> None:
+        try:
+            for item in batches:
+                if not put(item):
+                    return
+            put(end)
+        except BaseException as exc:  # noqa: BLE001 - handed to the consumer, which raises it
+            put(exc)
+        finally:
+            close = getattr(batches, "close", None)
+            if close is not None:
+                close()
+
+    reader = threading.Thread(target=read, name="replay-reader", daemon=True)
+    reader.start()
+    try:
+        while True:
+            item = q.get()
+            if item is end:
+                return
+            if isinstance(item, BaseException):
+                raise item
+            yield item
+    finally:
+        stop.set()
+        reader.join()
+
+
 def replay_file(path: str | Path, ecu: Ecu | None = None, *, writer: can.Listener | None = None,
-                max_gap_s: float = MAX_GAP_S, progress=None) -> ReplayResult:
+                table: EstimateTable | None = None, max_gap_s: float = MAX_GAP_S, progress=None) -> ReplayResult:
     """Replay a log file in bounded memory (the result keeps counts, not frames); `writer` gets
-    the ECU's frames with their session time."""
-    r = Replayer(ecu, writer=writer, max_gap_s=max_gap_s)
-    for frames, ts in iter_log_arrays(path, progress=progress, copy=False):
+    the ECU's frames with their session time, `table` their decoded signals with the log's time.
+    The log is read up to two batches ahead by a thread of its own (three batches in memory more)."""
+    r = Replayer(ecu, writer=writer, table=table, max_gap_s=max_gap_s)
+    depth = 2  # batches read ahead; buffers: those, the one being read and the one being replayed
+    for frames, ts in _read_ahead(iter_log_arrays(path, progress=progress, copy=False, buffers=depth + 2), depth):
         r.feed(frames, ts)
     return r.finish()
+
+
+@dataclass
+class PlayResult:
+    sent: int
+    not_sent: int        # the ECU's own frames in the log (the ECU on the bus sends its own)
+    send_failures: int   # frames the bus refused (counted, not retried)
+    gaps: int            # gaps longer than max_gap_s, shortened to it
+    late_max_s: float    # the furthest behind its recorded time a frame was sent
+    seconds: float
+
+
+def play(path: str | Path, bus: can.BusABC, *, max_gap_s: float = MAX_GAP_S, stop: threading.Event | None = None,
+         clock=time.perf_counter, sleep=time.sleep) -> PlayResult:
+    """Send a log's frames onto `bus` at their recorded pace, like can-utils' canplayer or
+    python-can's ``can.player``, so that an ECU on that bus runs on them. The ECU's own frames
+    (VEHEST_*) are not sent: the ECU on the bus sends its own. The schedule is absolute (the
+    start plus the frame's time in the log), so one late frame does not delay the rest; a gap
+    longer than `max_gap_s` is shortened to it, as the offline replay does not step it either."""
+    sent = not_sent = failures = gaps = 0
+    late = 0.0
+    start = t0 = last = shift = 0.0
+    first = True
+    t_start = clock()
+    for m in iter_log(path):
+        if stop is not None and stop.is_set():
+            break
+        if not m.is_extended_id and m.arbitration_id in ECU_SENT:
+            not_sent += 1
+            continue
+        if first:
+            start, t0, last, first = clock(), m.timestamp, m.timestamp, False
+        if m.timestamp - last > max_gap_s:
+            shift += m.timestamp - last - max_gap_s
+            gaps += 1
+        last = max(last, m.timestamp)  # a frame older than the one before goes at once
+        delay = start + (m.timestamp - t0 - shift) - clock()
+        if delay > 0:
+            sleep(delay)
+        else:
+            late = max(late, -delay)
+        m.channel = None  # the log's bus name is not the bus it is played on
+        try:
+            bus.send(m)
+            sent += 1
+        except can.CanError:
+            failures += 1
+    return PlayResult(sent, not_sent, failures, gaps, late, clock() - t_start)
