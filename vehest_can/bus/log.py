@@ -51,23 +51,32 @@ def bus_of_id() -> dict[int, str]:
     return {m.frame_id: b for b in BUSES for m in database(b).messages if not m.is_extended_frame}
 
 
-def check_log_path(path: str | Path) -> Path:
-    """A path --log can write: a known extension, not a folder, in a folder that exists."""
+def check_output_path(path: str | Path, formats: dict[str, str], what: str,
+                      needs: dict[str, tuple[str, str]] | None = None) -> Path:
+    """A path a verb can write a ``what`` (log, table) to: an extension of ``formats``, not a folder,
+    in a folder that exists, and the library its format ``needs`` (extension -> module, how) installed."""
     path = Path(path)
     suffix = path.suffix.lower()
     if path.is_dir():
-        raise ConfigError(f"{path}: is a folder, not a log file")
-    if suffix not in FORMATS:
-        known = ", ".join(f"{k} ({v})" for k, v in FORMATS.items())
-        raise ConfigError(f"{path}: unknown log format {suffix or '(no extension)'!r}; the extension chooses one of {known}")
+        raise ConfigError(f"{path}: is a folder, not a {what} file")
+    if suffix not in formats:
+        known = ", ".join(f"{k} ({v})" for k, v in formats.items())
+        raise ConfigError(f"{path}: unknown {what} format {suffix or '(no extension)'!r}; the extension chooses one of "
+                          f"{known}")
     if not path.parent.is_dir():
         raise ConfigError(f"{path}: folder {path.parent} does not exist")
-    if suffix == ".mf4":
+    if suffix in (needs or {}):
+        module, how = (needs or {})[suffix]
         try:
-            import asammdf  # noqa: F401
+            __import__(module)
         except ImportError:
-            raise ConfigError(f"{path}: MF4 logs need asammdf: pip install 'vehest-can[mf4]'") from None
+            raise ConfigError(f"{path}: {formats[suffix].split(' (')[0]} {what}s need {module}: {how}") from None
     return path
+
+
+def check_log_path(path: str | Path) -> Path:
+    """A path --log can write."""
+    return check_output_path(path, FORMATS, "log", {".mf4": ("asammdf", "pip install 'vehest-can[mf4]'")})
 
 
 def bus_log_path(path: Path, bus: str) -> Path:

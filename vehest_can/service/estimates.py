@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..bus.frames import BUSES, database
-from ..errors import ConfigError
+from ..bus.log import check_output_path
 
 TABLE_FORMATS = {
     ".csv": "CSV",
@@ -36,26 +36,9 @@ KEYS = ("time", "tick", "bus", "frame_id", "message")
 
 
 def check_table_path(path: str | Path) -> Path:
-    """A path --table can write: a known extension, not a folder, in a folder that exists, and the
-    library of its format installed."""
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if path.is_dir():
-        raise ConfigError(f"{path}: is a folder, not a table file")
-    if suffix not in TABLE_FORMATS:
-        known = ", ".join(f"{k} ({v})" for k, v in TABLE_FORMATS.items())
-        raise ConfigError(f"{path}: unknown table format {suffix or '(no extension)'!r}; the extension chooses one of "
-                          f"{known}")
-    if not path.parent.is_dir():
-        raise ConfigError(f"{path}: folder {path.parent} does not exist")
-    need = {".parquet": ("pyarrow", "pip install pyarrow"), ".mf4": ("asammdf", "pip install 'vehest-can[mf4]'")}
-    if suffix in need:
-        module, how = need[suffix]
-        try:
-            __import__(module)
-        except ImportError:
-            raise ConfigError(f"{path}: {TABLE_FORMATS[suffix].split(' (')[0]} tables need {module}: {how}") from None
-    return path
+    """A path --table can write, the library of its format installed."""
+    return check_output_path(path, TABLE_FORMATS, "table", {
+        ".parquet": ("pyarrow", "pip install pyarrow"), ".mf4": ("asammdf", "pip install 'vehest-can[mf4]'")})
 
 
 class EstimateTable:
