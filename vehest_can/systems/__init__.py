@@ -58,12 +58,13 @@ class FaultStudy(Protocol):
     def truth(self, car: Any) -> float: ...                             # the plant's value this tick
 
 
-class CampaignRunner(Protocol):
+@dataclass(frozen=True)
+class CampaignRunner:
     """A campaign's run of a system: a scenario from a (varied) document, one in-process run to
     its figures as a nested dict of numbers (no plots: a campaign runs thousands)."""
 
-    def from_dict(self, doc: dict, path: Path) -> Any: ...
-    def run(self, scenario: Any) -> dict: ...
+    from_dict: Callable[[dict, Path], Any]
+    run: Callable[[Any], dict]
 
 
 class System(Protocol):

@@ -10,6 +10,7 @@ from pathlib import Path
 from ...errors import ScenarioError
 from ...sim.scenario import scenario_from_dict
 from ...sim.session import drive_from_scenario, run_inprocess
+from .. import CampaignRunner
 from ..ecu import Ecu
 from . import inspection
 from .api import WHEELS
@@ -17,36 +18,34 @@ from .api import WHEELS
 FIXTURE_S = 6.0  # each calibration capture, as the demo's
 
 
-class CamberCampaign:
-    @staticmethod
-    def from_dict(doc: dict, path: Path):
-        sc = scenario_from_dict(doc, path)
-        if sc.camber is None:
-            raise ScenarioError(f"{path}: camber: missing (a camber campaign needs the [camber] table)")
-        return sc
-
-    @staticmethod
-    def run(scenario) -> dict:
-        captures = []
-        for pose in ("x_down", "z_down"):
-            drive = drive_from_scenario(replace(scenario, camber=replace(scenario.camber, pose=pose)), FIXTURE_S)
-            captures.append(inspection.capture_messages(run_inprocess(drive, Ecu()).messages()))
-        ecu = Ecu()
-        ecu.set_camber_calibrations(inspection.calibrate_wheels(*captures))
-        results = inspection.ecu_results(run_inprocess(drive_from_scenario(scenario), ecu).messages()) or {}
-        nan = float("nan")
-        out: dict = {}
-        errors = []
-        for i, w in enumerate(WHEELS):
-            r = results.get(w, {"reason": "NO_RESULT_YET", "camber_deg": nan, "bound_deg": nan})
-            ok = r["reason"] == "OK"
-            err = r["camber_deg"] - scenario.camber.theta_deg[i] if ok else nan
-            out[w] = {"camber_error_deg": err, "abs_camber_error_deg": abs(err), "ok": float(ok),
-                      "bound_deg": r["bound_deg"] if ok else nan}
-            errors.append(abs(err))
-        # a wheel without a result makes the worst case unknown (NaN fails every acceptance line)
-        out["worst_abs_camber_error_deg"] = max(errors) if all(e == e for e in errors) else float("nan")
-        return out
+def _from_dict(doc: dict, path: Path):
+    sc = scenario_from_dict(doc, path)
+    if sc.camber is None:
+        raise ScenarioError(f"{path}: camber: missing (a camber campaign needs the [camber] table)")
+    return sc
 
 
-CAMPAIGN = CamberCampaign()
+def _run(scenario) -> dict:
+    captures = []
+    for pose in ("x_down", "z_down"):
+        drive = drive_from_scenario(replace(scenario, camber=replace(scenario.camber, pose=pose)), FIXTURE_S)
+        captures.append(inspection.capture_messages(run_inprocess(drive, Ecu()).messages()))
+    ecu = Ecu()
+    ecu.set_camber_calibrations(inspection.calibrate_wheels(*captures))
+    results = inspection.ecu_results(run_inprocess(drive_from_scenario(scenario), ecu).messages()) or {}
+    nan = float("nan")
+    out: dict = {}
+    errors = []
+    for i, w in enumerate(WHEELS):
+        r = results.get(w, {"reason": "NO_RESULT_YET", "camber_deg": nan, "bound_deg": nan})
+        ok = r["reason"] == "OK"
+        err = r["camber_deg"] - scenario.camber.theta_deg[i] if ok else nan
+        out[w] = {"camber_error_deg": err, "abs_camber_error_deg": abs(err), "ok": float(ok),
+                  "bound_deg": r["bound_deg"] if ok else nan}
+        errors.append(abs(err))
+    # a wheel without a result makes the worst case unknown (NaN fails every acceptance line)
+    out["worst_abs_camber_error_deg"] = max(errors) if all(e == e for e in errors) else float("nan")
+    return out
+
+
+CAMPAIGN = CampaignRunner(from_dict=_from_dict, run=_run)

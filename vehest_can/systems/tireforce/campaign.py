@@ -3,23 +3,16 @@ document, and one run to its figures: the 14-DOF plant and chassis sensor node, 
 frames through every variant's array API (the fixed-point one is the ECU's C, bit for bit)."""
 from __future__ import annotations
 
-from pathlib import Path
-
+from .. import CampaignRunner
 from . import report
 from .scenario import tireforce_scenario_from_dict
 
 
-class TireForceCampaign:
-    @staticmethod
-    def from_dict(doc: dict, path: Path):
-        return tireforce_scenario_from_dict(doc, path)
-
-    @staticmethod
-    def run(scenario) -> dict:
-        truth, _, runs = report.simulate(scenario)
-        m = report.evaluate(truth, runs)
-        m.pop("acceptance", None)
-        return m
+def _run(scenario) -> dict:
+    truth, _, runs = report.simulate(scenario)
+    m = report.evaluate(truth, runs)
+    m.pop("acceptance", None)
+    return m
 
 
-CAMPAIGN = TireForceCampaign()
+CAMPAIGN = CampaignRunner(from_dict=tireforce_scenario_from_dict, run=_run)
