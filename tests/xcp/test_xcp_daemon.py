@@ -10,13 +10,17 @@ import struct
 import threading
 import time
 
+import numpy as np
 import pytest
 
 from vehest_can.bus import bus as busmod
+from vehest_can.bus.frames import database
+from vehest_can.schema import read_toml
 from vehest_can.service.daemon import EcuDaemon
 from vehest_can.sim.scenario import load_scenario
 from vehest_can.sim.session import SimMaster, drive_from_scenario
 from vehest_can.systems.ecu import Ecu
+from vehest_can.systems.roll.scenario import RollCar, roll_scenario_from_dict, roll_scenario_path
 from vehest_can.xcp import ecu as xcp_ecu
 from vehest_can.xcp.description import C_TYPES
 
@@ -204,3 +208,82 @@ def test_without_seed_and_key_a_write_is_refused(rig):
     assert code(e) == ERR_ACCESS_LOCKED
     assert r.read("xcp.slave.n.err_locked")[0] == 1
     m.disconnect()
+
+
+def test_a_roll_limit_written_through_pyxcp_limits_the_moment_the_running_ecu_commands(pyxcp_master):
+    """The daemon in lockstep with the roll car (72 km/h, 5 deg steer held, active) on its bus and XCP
+    on a bus of its own (the daemon's routes: RES/DTO to "xcp", so the simulator's SIM_Sync acks count
+    only its bus's frames). Once the controller holds its front moment, pyxcp writes
+    cal.roll.smc.m_max_f = 1000 Nm: every VEHEST_RollCmd from the commit on (after the rate limit's
+    ramp down) commands |M_F| <= 1000 Nm while the rear still acts, and the frames before it equal a
+    run without the write; 5000 Nm (above the actuator's 4800) is refused, counted, the limit kept.
+    Lockstep keeps the loop whole on a loaded machine (in real time the late daemon makes the UKF
+    miss samples and the controller fade, by design)."""
+    from vehest_can.sim.session import run_inprocess
+
+    cmd = database("ch").get_message_by_name("VEHEST_RollCmd")
+    path = roll_scenario_path("roll_paper_72kph_active")
+    doc = read_toml(path)
+    doc["duration_s"] = 5.0
+    sc = roll_scenario_from_dict(doc, path)
+    main, xcp = busmod.private_multicast(), busmod.private_multicast()
+    ecu_bus, car_bus = busmod.open_bus(main), busmod.open_bus(main)
+    ecu_xcp, master_bus = busmod.open_bus(xcp), busmod.open_bus(xcp)
+    ecu = Ecu()
+    desc = xcp_ecu.enable(ecu)
+    daemon = EcuDaemon({"ch": ecu_bus, "xcp": ecu_xcp}, ecu, routes={desc.dto_id: "xcp"})
+    out: dict = {}
+    threads = [threading.Thread(target=lambda: out.update(d=daemon.serve_lockstep(exit_on_end=True)), daemon=True),
+               threading.Thread(target=lambda: out.update(s=SimMaster(car_bus, RollCar(sc)).run_lockstep()), daemon=True)]
+    try:
+        threads[0].start()
+        time.sleep(0.2)
+        threads[1].start()
+        m = pyxcp_master(None, desc, bus=master_bus, timeout=5.0)
+        m.__enter__()
+        m.connect()
+        m.getCommModeInfo()
+
+        def read(name: str):
+            it = desc.item(name)
+            m.setMta(it.address)
+            return struct.unpack("<" + C_TYPES[it.ctype][4] * it.count, m.fetch(it.size))[0]
+        while read("tick") < 6000:  # 3 s: the steer ramp ended at 2.5 s
+            time.sleep(0.05)
+        m.cond_unlock("calpag")
+        m.setMta(desc.item("cal.roll.smc.m_max_f").address)
+        raw = struct.pack("<d", 1000.0)
+        m.download(raw[:6])
+        m.download(raw[6:])
+        t_write = read("tick")  # at or after the commit (the tick boundary after the last byte)
+        assert read("roll.smc.m_max_f") == 1000.0
+        m.setMta(desc.item("cal.roll.smc.m_max_f").address)
+        with pytest.raises(types.XcpResponseError) as e:
+            bad = struct.pack("<d", 5000.0)
+            m.download(bad[:6])
+            m.download(bad[6:])
+        assert code(e) == ERR_OUT_OF_RANGE
+        assert read("xcp.slave.n.err_range") == 1 and read("cal.roll.smc.m_max_f") == 1000.0
+        m.disconnect()
+        m.__exit__(None, None, None)
+        threads[1].join(120)
+        threads[0].join(10)
+    finally:
+        daemon.stop_event.set()
+        for b in (ecu_bus, car_bus, ecu_xcp, master_bus):
+            b.shutdown()
+    session = out["s"]
+    f = session.frames
+    is_cmd = f["id"] == cmd.frame_id
+    ticks = session.frame_tick[is_cmd]
+    mom = np.array([[cmd.decode(bytes(d))[s] for s in ("MomentCmdF", "MomentCmdR")] for d in f[is_cmd]["data"]])
+    ref = run_inprocess(RollCar(sc), Ecu())  # the same car and ECU without the write
+    ref_f = ref.frames[ref.frames["id"] == cmd.frame_id]
+    before, after = ticks < t_write - 200, ticks > t_write + 400  # the ramp: 3.6 kNm at 16 kNm/s, 0.23 s
+    print(f"roll over the daemon (lockstep, XCP on its own bus): write committed by tick {t_write}; |M_F| "
+          f"max before {np.max(np.abs(mom[before, 0])):.0f} Nm, after {np.max(np.abs(mom[after, 0])):.0f} Nm; "
+          f"|M_R| after {np.max(np.abs(mom[after, 1])):.0f} Nm; daemon buses {out['d'].buses}")
+    assert np.array_equal(f[is_cmd][before]["data"], ref_f[: int(before.sum())]["data"])  # untouched until then
+    assert np.max(np.abs(mom[before, 0])) > 2000.0
+    assert np.max(np.abs(mom[after, 0])) <= 1000.0 + 0.25  # the DBC's resolution
+    assert np.max(np.abs(mom[after, 1])) > 1000.0          # the rear still acts
