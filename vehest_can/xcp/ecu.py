@@ -150,6 +150,13 @@ def _add_bus_arguments(group) -> None:
     from can.cli import add_bus_arguments
 
     from ..bus.bus import parse_bitrate
+    from ..errors import BusError
+
+    def bitrate(text: str) -> int:
+        try:
+            return int(parse_bitrate(text) or 0)
+        except BusError as exc:
+            raise argparse.ArgumentTypeError(str(exc).removeprefix("bitrate ")) from None
 
     donor = argparse.ArgumentParser(add_help=False)
     add_bus_arguments(donor, prefix="xcp")
@@ -157,7 +164,7 @@ def _add_bus_arguments(group) -> None:
         if action.dest in ("xcp_fd", "help"):
             continue
         if action.dest in ("xcp_bitrate", "xcp_data_bitrate"):
-            action.type = lambda text, flag=action.option_strings[0]: parse_bitrate(text, flag)
+            action.type = bitrate
             action.help = (action.help or "") + " (bit/s: 500000, 500k, 2M)"
         action.help = (action.help or "") + " [the XCP bus]"
         group._add_action(action)
