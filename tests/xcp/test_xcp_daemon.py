@@ -340,16 +340,18 @@ def test_roll_daq_over_the_daemon_equals_its_roll_estimate_frames(pyxcp_master):
     offsets = {mid["tick"] - k for k, e in frames.items() if e["RES_Counter"] == (mid["roll.tx_counter[1]"] - 1) % 15}
 
     def compare(off: int) -> tuple[int, int]:
-        n = bad = 0
+        """(samples compared, 1 at the first that differs, else 0)."""
+        n = 0
         for s in daq:
             e = frames.get(s["tick"] - off)
             if e is None:
                 continue
             n += 1
-            bad += (e["RES_Counter"] != (s["roll.tx_counter[1]"] - 1) % 15 or e["RollUkf_Health"] != s["roll.ukf.health"]
+            if (e["RES_Counter"] != (s["roll.tx_counter[1]"] - 1) % 15 or e["RollUkf_Health"] != s["roll.ukf.health"]
                     or e["RollSmc_Health"] != s["roll.smc.health"] & 0x7F
-                    or any(abs(s[name] - e[sig]) > tol + 1e-9 for name, (sig, tol) in signals.items()))
-        return n, bad
+                    or any(abs(s[name] - e[sig]) > tol + 1e-9 for name, (sig, tol) in signals.items())):
+                return n, 1
+        return n, 0
     results = {off: compare(off) for off in offsets}
     good = [off for off, (n, bad) in results.items() if bad == 0]
     assert len(good) == 1, results

@@ -126,15 +126,17 @@ def test_daq_over_the_daemon_on_its_own_xcp_bus_equals_its_estimate_frames(pyxcp
     candidates = {mid["tick"] - i for i, f in by_idx.items() if f["DLE_Counter"] == (mid["drv.tx_counter[0]"] - 1) % N_COUNTER}
 
     def compare(off: int) -> tuple[int, int]:
-        n = bad = 0
+        """(samples compared, 1 at the first that differs, else 0)."""
+        n = 0
         for s in daq:
             f = by_idx.get(s["tick"] - off)
             if f is None:
                 continue
             n += 1
-            bad += (f["DLE_Counter"] != (s["drv.tx_counter[0]"] - 1) % N_COUNTER or
-                    any(abs(s[name] - f[sig]) > (0 if "health" in name else 0.125 + 1e-9) for name, sig in SIGNALS.items()))
-        return n, bad
+            if (f["DLE_Counter"] != (s["drv.tx_counter[0]"] - 1) % N_COUNTER or
+                    any(abs(s[name] - f[sig]) > (0 if "health" in name else 0.125 + 1e-9) for name, sig in SIGNALS.items())):
+                return n, 1
+        return n, 0
     results = {off: compare(off) for off in candidates}
     good = [off for off, (n, bad) in results.items() if bad == 0]
     assert len(good) == 1, results
