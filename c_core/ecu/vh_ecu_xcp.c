@@ -7,6 +7,46 @@
 
 #define EXT_BIT 0x80000000u /* XCP-on-CAN convention: bit 31 of an identifier = 29-bit */
 
+/* The roll tuning: one list of the members, for gather and apply (the same names on both sides). */
+#define ROLL_UKF_SCALARS(X) X(reg_eps) X(nis_max) X(phi_max)
+#define ROLL_SMC_SCALARS(X) X(lambda) X(k) X(p) X(ref_frac) X(ref_tau) X(ay_tau) X(front_share) \
+    X(m_max_f) X(m_max_r) X(rate_max_f) X(rate_max_r) X(fade_time) X(recover_time) X(not_ok_debounce)
+
+static void roll_gather(const vh_roll_app_config_t *cfg, vh_ecu_cal_roll_t *c)
+{
+    memcpy(c->ukf.q, cfg->ukf.q, sizeof c->ukf.q);
+    memcpy(c->ukf.r, cfg->ukf.r, sizeof c->ukf.r);
+    memcpy(c->ukf.p0, cfg->ukf.p0, sizeof c->ukf.p0);
+#define GET_UKF(m) c->ukf.m = cfg->ukf.m;
+#define GET_SMC(m) c->smc.m = cfg->smc.m;
+    ROLL_UKF_SCALARS(GET_UKF)
+    ROLL_SMC_SCALARS(GET_SMC)
+    c->stuck_samples = cfg->stuck_samples;
+}
+
+/* Into the configuration (vh_roll_app_reset starts from it) and into the running float32 UKF and
+ * SMC, converted as their inits convert (a plain cast): the same as a start with these values.
+ * Nothing of the filters derives from these at init, except p0, which only a reset reads. */
+static void roll_apply(vh_roll_app_config_t *cfg, vh_roll_app_t *a, const vh_ecu_cal_roll_t *c)
+{
+    int i;
+    for (i = 0; i < VH_ROLL_NX; ++i) {
+        cfg->ukf.q[i] = c->ukf.q[i];
+        cfg->ukf.p0[i] = c->ukf.p0[i];
+        a->ukf.q[i] = (float)c->ukf.q[i];
+        a->ukf.p0[i] = (float)c->ukf.p0[i];
+    }
+    for (i = 0; i < VH_ROLL_NZ; ++i) {
+        cfg->ukf.r[i] = c->ukf.r[i];
+        a->ukf.r[i] = (float)c->ukf.r[i];
+    }
+#define SET_UKF(m) cfg->ukf.m = c->ukf.m; a->ukf.m = (float)c->ukf.m;
+#define SET_SMC(m) cfg->smc.m = c->smc.m; a->smc.m = (float)c->smc.m;
+    ROLL_UKF_SCALARS(SET_UKF)
+    ROLL_SMC_SCALARS(SET_SMC)
+    cfg->stuck_samples = c->stuck_samples;
+}
+
 void vh_ecu_cal_gather(const vh_ecu_t *ecu, vh_ecu_cal_t *c)
 {
     int i;
@@ -23,6 +63,7 @@ void vh_ecu_cal_gather(const vh_ecu_t *ecu, vh_ecu_cal_t *c)
     c->camber_mag_tol_g = ecu->cfg.camber.mag_tol_g;
     c->camber_std_max_g = ecu->cfg.camber.std_max_g;
     c->rx_burst_frames = ecu->cfg.rx_burst_frames;
+    roll_gather(&ecu->cfg.roll, &c->roll);
 }
 
 /* Into the configuration (so vh_ecu_reset keeps it) and into the running filters. The values
@@ -52,6 +93,7 @@ void vh_ecu_cal_apply(vh_ecu_t *ecu, const vh_ecu_cal_t *c)
         ecu->cis.cmb[i].cfg.std_max_g = c->camber_std_max_g;
     }
     ecu->cfg.rx_burst_frames = c->rx_burst_frames;
+    roll_apply(&ecu->cfg.roll, &ecu->roll, &c->roll);
 }
 
 int vh_ecu_xcp_enable(vh_ecu_t *ecu, const vh_ecu_xcp_config_t *cfg)

@@ -21,6 +21,7 @@
 
 #include "vh_dkf.h"
 #include "vh_driveline_app.h"
+#include "vh_roll.h"
 #include "vh_skfq.h"
 #include "vh_xcp.h"
 
@@ -42,10 +43,36 @@ typedef struct {
     int32_t r[VH_SKFQ_NY]; /* measurement noise R* (VH_SKFQ_FU) */
 } vh_ecu_cal_skf_t;
 
+/* The roll UKF's tuning (seed 003), as in vh_roll_params_t: -> cfg.roll.ukf and roll.ukf */
+typedef struct {
+    double q[VH_ROLL_NX];  /* process noise Q diagonal, per step */
+    double r[VH_ROLL_NZ];  /* measurement noise R diagonal */
+    double p0[VH_ROLL_NX]; /* initial covariance diagonal (eq. 14): used at the filter's next reset */
+    double reg_eps;        /* regularisation of the Cholesky retry, relative to the mean diagonal */
+    double nis_max;        /* innovation test per measurement (0 off) */
+    double phi_max;        /* |roll| above this: diverged, reset [rad] */
+} vh_ecu_cal_roll_ukf_t;
+
+/* The roll sliding-mode controller's tuning, as in vh_roll_smc_params_t: -> cfg.roll.smc and
+ * roll.smc. Its model terms (i_roll, ms_e, kphi, cphi) and dt are the vehicle's, not tuning. */
+typedef struct {
+    double lambda, k, p;                    /* eq. 28, eq. 32-33, eq. 34-35 */
+    double ref_frac, ref_tau, ay_tau, front_share;
+    double m_max_f, m_max_r, rate_max_f, rate_max_r;
+    double fade_time, recover_time, not_ok_debounce;
+} vh_ecu_cal_roll_smc_t;
+
+typedef struct {
+    vh_ecu_cal_roll_ukf_t ukf;
+    vh_ecu_cal_roll_smc_t smc;
+    uint8_t stuck_samples;  /* -> cfg.roll.stuck_samples */
+} vh_ecu_cal_roll_t;
+
 /* Every system's tuning the master may change (the calibration segment). */
 typedef struct {
     vh_ecu_cal_dkf_t dkf[VH_ECU_N_DKF];
     vh_ecu_cal_skf_t skf;
+    vh_ecu_cal_roll_t roll;
     double we_min;            /* -> cfg.we_min [rad/s] */
     double camber_still_ww;   /* -> cfg.camber_still_ww [rad/s] */
     float camber_mag_tol_g;   /* -> cfg.camber.mag_tol_g and each window's */

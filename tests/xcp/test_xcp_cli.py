@@ -116,3 +116,25 @@ def test_the_daemon_starts_on_a_calibration_file(tmp_path):
         xcp_ecu.from_args(parser.parse_args(["--xcp-cal", str(f)]), Ecu())
     with pytest.raises(ConfigError, match="needs the XCP slave"):
         xcp_ecu.from_args(parser.parse_args(["--xcp", "off", "--xcp-cal", str(f)]), Ecu())
+
+
+def test_the_xcp_bus_flags_are_python_cans_and_checked(capsys):
+    """--xcp-interface/--xcp-channel/--xcp-bus-kwargs name the XCP bus (resolved like the ECU's bus);
+    without them the slave stays on the ECU's bus; a lone rate or an XCP bus without the slave is an error."""
+    import argparse
+
+    parser = argparse.ArgumentParser()
+    xcp_ecu.add_arguments(parser)
+    desc = xcp_ecu.description()
+    assert xcp_ecu.bus_config(parser.parse_args([]), desc) is None
+    config = xcp_ecu.bus_config(parser.parse_args(["--xcp-interface", "udp_multicast", "--xcp-channel", "239.74.163.9",
+                                                   "--xcp-bitrate", "500k", "--xcp-bus-kwargs", "port=50999"]), desc)
+    assert config == {"interface": "udp_multicast", "channel": "239.74.163.9", "bitrate": 500000, "port": 50999,
+                      "fd": True}
+    assert main(["daemon", "--xcp-data-bitrate", "4M", "--duration", "1"]) == 1
+    assert "--xcp-data-bitrate configures a separate XCP bus" in capsys.readouterr().err
+    assert main(["daemon", "--xcp", "off", "--xcp-channel", "239.74.163.9", "--duration", "1"]) == 1
+    assert "needs the XCP slave" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["daemon", "--xcp-interface", "udp_multicast", "--xcp-bitrate", "fast", "--duration", "1"])
+    assert "argument --xcp-bitrate: 'fast': expected a positive number of bit/s" in capsys.readouterr().err

@@ -9,14 +9,19 @@ import os
 import struct
 import threading
 import time
+from contextlib import contextmanager
 
+import numpy as np
 import pytest
 
 from vehest_can.bus import bus as busmod
+from vehest_can.bus.frames import database
+from vehest_can.schema import read_toml
 from vehest_can.service.daemon import EcuDaemon
 from vehest_can.sim.scenario import load_scenario
 from vehest_can.sim.session import SimMaster, drive_from_scenario
 from vehest_can.systems.ecu import Ecu
+from vehest_can.systems.roll.scenario import RollCar, roll_scenario_from_dict, roll_scenario_path
 from vehest_can.xcp import ecu as xcp_ecu
 from vehest_can.xcp.description import C_TYPES
 
@@ -204,3 +209,156 @@ def test_without_seed_and_key_a_write_is_refused(rig):
     assert code(e) == ERR_ACCESS_LOCKED
     assert r.read("xcp.slave.n.err_locked")[0] == 1
     m.disconnect()
+
+
+@contextmanager
+def lockstep_roll(pyxcp_master, sc):
+    """The daemon (EcuDaemon, lockstep) with the roll car on its bus and XCP on a bus of its own
+    (the daemon's routes: RES/DTO to "xcp", so the simulator's SIM_Sync acks count only its bus's
+    frames), pyxcp connected on the XCP bus. Yields (master, description, read(name), out); after
+    the block, out["s"] is the car's session and out["d"] the daemon's statistics."""
+    main, xcp = busmod.private_multicast(), busmod.private_multicast()
+    ecu_bus, car_bus = busmod.open_bus(main), busmod.open_bus(main)
+    ecu_xcp, master_bus = busmod.open_bus(xcp), busmod.open_bus(xcp)
+    ecu = Ecu()
+    desc = xcp_ecu.enable(ecu)
+    daemon = EcuDaemon({"ch": ecu_bus, "xcp": ecu_xcp}, ecu, routes={desc.dto_id: "xcp"})
+    out: dict = {}
+    threads = [threading.Thread(target=lambda: out.update(d=daemon.serve_lockstep(exit_on_end=True)), daemon=True),
+               threading.Thread(target=lambda: out.update(s=SimMaster(car_bus, RollCar(sc)).run_lockstep()), daemon=True)]
+    try:
+        threads[0].start()
+        time.sleep(0.2)
+        threads[1].start()
+        m = pyxcp_master(None, desc, bus=master_bus, timeout=5.0)
+        m.__enter__()
+        m.connect()
+        m.getCommModeInfo()
+
+        def read(name: str):
+            it = desc.item(name)
+            m.setMta(it.address)
+            return struct.unpack("<" + C_TYPES[it.ctype][4] * it.count, m.fetch(it.size))[0]
+        yield m, desc, read, out
+        m.disconnect()
+        m.__exit__(None, None, None)
+        threads[1].join(120)
+        threads[0].join(10)
+    finally:
+        daemon.stop_event.set()
+        for b in (ecu_bus, car_bus, ecu_xcp, master_bus):
+            b.shutdown()
+
+
+def _roll_case(duration_s: float):
+    path = roll_scenario_path("roll_paper_72kph_active")
+    doc = read_toml(path)
+    doc["duration_s"] = duration_s
+    return roll_scenario_from_dict(doc, path)
+
+
+def test_a_roll_limit_written_through_pyxcp_limits_the_moment_the_running_ecu_commands(pyxcp_master):
+    """The daemon in lockstep with the roll car (72 km/h, 5 deg steer held, active) on its bus and XCP
+    on a bus of its own (the daemon's routes: RES/DTO to "xcp", so the simulator's SIM_Sync acks count
+    only its bus's frames). Once the controller holds its front moment, pyxcp writes
+    cal.roll.smc.m_max_f = 1000 Nm: every VEHEST_RollCmd from the commit on (after the rate limit's
+    ramp down) commands |M_F| <= 1000 Nm while the rear still acts, and the frames before it equal a
+    run without the write; 5000 Nm (above the actuator's 4800) is refused, counted, the limit kept.
+    Lockstep keeps the loop whole on a loaded machine (in real time the late daemon makes the UKF
+    miss samples and the controller fade, by design)."""
+    from vehest_can.sim.session import run_inprocess
+
+    cmd = database("ch").get_message_by_name("VEHEST_RollCmd")
+    sc = _roll_case(5.0)
+    with lockstep_roll(pyxcp_master, sc) as (m, desc, read, out):
+        while read("tick") < 6000:  # 3 s: the steer ramp ended at 2.5 s
+            time.sleep(0.05)
+        m.cond_unlock("calpag")
+        m.setMta(desc.item("cal.roll.smc.m_max_f").address)
+        raw = struct.pack("<d", 1000.0)
+        m.download(raw[:6])
+        m.download(raw[6:])
+        t_write = read("tick")  # at or after the commit (the tick boundary after the last byte)
+        assert read("roll.smc.m_max_f") == 1000.0
+        m.setMta(desc.item("cal.roll.smc.m_max_f").address)
+        with pytest.raises(types.XcpResponseError) as e:
+            bad = struct.pack("<d", 5000.0)
+            m.download(bad[:6])
+            m.download(bad[6:])
+        assert code(e) == ERR_OUT_OF_RANGE
+        assert read("xcp.slave.n.err_range") == 1 and read("cal.roll.smc.m_max_f") == 1000.0
+    session = out["s"]
+    f = session.frames
+    is_cmd = f["id"] == cmd.frame_id
+    ticks = session.frame_tick[is_cmd]
+    mom = np.array([[cmd.decode(bytes(d))[s] for s in ("MomentCmdF", "MomentCmdR")] for d in f[is_cmd]["data"]])
+    ref = run_inprocess(RollCar(sc), Ecu())  # the same car and ECU without the write
+    ref_f = ref.frames[ref.frames["id"] == cmd.frame_id]
+    before, after = ticks < t_write - 200, ticks > t_write + 400  # the ramp: 3.6 kNm at 16 kNm/s, 0.23 s
+    print(f"roll over the daemon (lockstep, XCP on its own bus): write committed by tick {t_write}; |M_F| "
+          f"max before {np.max(np.abs(mom[before, 0])):.0f} Nm, after {np.max(np.abs(mom[after, 0])):.0f} Nm; "
+          f"|M_R| after {np.max(np.abs(mom[after, 1])):.0f} Nm; daemon buses {out['d'].buses}")
+    assert np.array_equal(f[is_cmd][before]["data"], ref_f[: int(before.sum())]["data"])  # untouched until then
+    assert np.max(np.abs(mom[before, 0])) > 2000.0
+    assert np.max(np.abs(mom[after, 0])) <= 1000.0 + 0.25  # the DBC's resolution
+    assert np.max(np.abs(mom[after, 1])) > 1000.0          # the rear still acts
+
+
+def test_roll_daq_over_the_daemon_equals_its_roll_estimate_frames(pyxcp_master):
+    """pyxcp's DAQ of the roll UKF and SMC internals on the 10 ms event, over the daemon (lockstep,
+    XCP on its own bus) with the roll car: each sample equals the VEHEST_RollEst frame the daemon sent
+    in that ECU tick (matched by tick and the frame's alive counter, roll.tx_counter[1] after the
+    TX), within half the DBC's resolution, health exactly."""
+    est = database("ch").get_message_by_name("VEHEST_RollEst")
+    names = ["tick", "roll.tx_counter[1]", "roll.ukf.x[4]", "roll.ukf.x[5]", "roll.ukf.ay_post", "roll.smc.fade",
+             "roll.ukf.health", "roll.smc.health"]
+    signals = {"roll.ukf.x[4]": ("RollEstAngle", 0.5e-5), "roll.ukf.x[5]": ("RollEstRate", 0.5e-4),
+               "roll.ukf.ay_post": ("RollEstLatAccel", 0.5e-3), "roll.smc.fade": ("RollFade", 0.5 * 0.005)}
+    with lockstep_roll(pyxcp_master, _roll_case(6.0)) as (m, desc, read, out):
+        m.cond_unlock("daq")
+        rows = [(n, desc.item(n).address, 0, C_TYPES[desc.item(n).ctype][3]) for n in names]
+        policy = Collect([DaqList(name="roll", event_num=2, stim=False, enable_timestamps=True, measurements=rows,
+                                  priority=0, prescaler=1)])
+        m.transport.policy = policy
+        policy.xcp_master = m
+        while read("tick") < 1000:
+            time.sleep(0.05)
+        policy.setup()
+        policy.start()
+        while read("tick") < 7000:  # the steer ramp (0.5-2.5 s) and after
+            time.sleep(0.1)
+        policy.stop()
+        time.sleep(0.3)
+    col = {h[0]: k for k, h in enumerate(policy.daq_lists[0].headers)}
+    daq = [{n: p[col[n]] for n in names} for _, p in policy.samples]
+    ticks = [s["tick"] for s in daq]
+    assert len(daq) > 200 and all(b - a == 20 for a, b in zip(ticks, ticks[1:]))  # every 10 ms, none lost
+    f, ft = out["s"].frames, out["s"].frame_tick
+    is_est = f["id"] == est.frame_id
+    frames = {int(k): est.decode(bytes(d), decode_choices=False) for k, d in zip(ft[is_est], f[is_est]["data"])}
+    mid = daq[len(daq) // 2]
+    offsets = {mid["tick"] - k for k, e in frames.items() if e["RES_Counter"] == (mid["roll.tx_counter[1]"] - 1) % 15}
+
+    def compare(off: int) -> tuple[int, int]:
+        """(samples compared, 1 at the first that differs, else 0)."""
+        n = 0
+        for s in daq:
+            e = frames.get(s["tick"] - off)
+            if e is None:
+                continue
+            n += 1
+            if (e["RES_Counter"] != (s["roll.tx_counter[1]"] - 1) % 15 or e["RollUkf_Health"] != s["roll.ukf.health"]
+                    or e["RollSmc_Health"] != s["roll.smc.health"] & 0x7F
+                    or any(abs(s[name] - e[sig]) > tol + 1e-9 for name, (sig, tol) in signals.items())):
+                return n, 1
+        return n, 0
+    results = {off: compare(off) for off in offsets}
+    good = [off for off, (n, bad) in results.items() if bad == 0]
+    assert len(good) == 1, results
+    n = results[good[0]][0]
+    roll = np.array([s["roll.ukf.x[4]"] for s in daq])
+    print(f"roll DAQ over the daemon: {len(daq)} samples on the 10 ms event (ECU ticks {ticks[0]}..{ticks[-1]}), "
+          f"{n} equal to their VEHEST_RollEst (tick offset {good[0]}); roll {np.degrees(roll.min()):.2f}.."
+          f"{np.degrees(roll.max()):.2f} deg")
+    assert n >= len(daq) - 2
+    assert np.ptp(roll) > 0.01  # the turn rolls the body: not a comparison of zeros

@@ -72,7 +72,10 @@ def run(args) -> int:
     if args.camber_cal:
         ecu.set_camber_calibrations(load_calibrations(args.camber_cal))
     xcp = xcp_ecu.from_args(args, ecu)
+    xcp_config = xcp_ecu.bus_config(args, xcp)  # checked before any bus opens
     buses, routes, channel = _open_buses(args)
+    if xcp_config is not None:  # a bus of its own for XCP: its frames go there, the rest stay
+        buses, routes = _add_xcp_bus(buses, routes, channel, xcp_config, xcp)
     writer = open_session_log(args, {"VEHEST"})  # the log sets each frame's channel (its bus)
     daemon = EcuDaemon(buses if len(buses) > 1 else next(iter(buses.values())), ecu, log_writer=writer,
                        log_channel=channel, notifier=sdnotify.Notifier.from_env(), routes=routes)
@@ -125,6 +128,23 @@ def _open_buses(args) -> tuple[dict, dict, str | None]:
             b.shutdown()
         raise
     return buses, hil.ecu_routes(), None
+
+
+def _add_xcp_bus(buses: dict, routes: dict, channel: str | None, config: dict, desc) -> tuple[dict, dict]:
+    """The XCP bus beside the ECU's, as "xcp": the slave's RES/ERR/DTO are routed there; its CRO is
+    heard on every bus the daemon serves (the ECU's RX knows IDs, not buses)."""
+    if "xcp" in buses:
+        raise ConfigError("the HIL configuration has a bus named 'xcp' already: leave out --xcp-interface/--xcp-channel")
+    try:
+        bus = busmod.open_bus(config)
+    except BaseException:
+        for b in buses.values():
+            b.shutdown()
+        raise
+    print(f"vehest-can daemon: XCP bus {busmod.describe_bus(bus, config)}", file=sys.stderr, flush=True)
+    if list(buses) == [""]:  # one bus: named by its log channel now that there are two
+        buses = {channel or "bus": buses[""]}
+    return {**buses, "xcp": bus}, {**routes, desc.dto_id & 0x1FFFFFFF: "xcp"}
 
 
 @contextmanager

@@ -138,6 +138,39 @@ def add_arguments(parser) -> None:
     g.add_argument("--xcp-max-dto", metavar="N", help=f"MAX_DTO 8..64 (default {d.max_dto}; above 8 needs CAN FD)")
     g.add_argument("--xcp-fd", choices=("on", "off"), help=f"XCP frames as CAN FD (default {'on' if d.fd else 'off'})")
     g.add_argument("--xcp-cal", metavar="FILE", help="start on this calibration file (`vehest-can xcp save` writes one)")
+    _add_bus_arguments(g)
+
+
+def _add_bus_arguments(group) -> None:
+    """The XCP bus's own python-can flags (python-can's prefixed bus arguments: --xcp-interface,
+    --xcp-channel, --xcp-bitrate, --xcp-data-bitrate, --xcp-timing, --xcp-bus-kwargs; its --xcp-fd
+    is ours above: the slave's frames and the bus are CAN FD together)."""
+    import argparse
+
+    from can.cli import add_bus_arguments
+
+    from ..bus.bus import parse_bitrate
+    from ..errors import BusError
+
+    def bitrate(text: str) -> int:
+        try:
+            return int(parse_bitrate(text) or 0)
+        except BusError as exc:
+            raise argparse.ArgumentTypeError(str(exc).removeprefix("bitrate ")) from None
+
+    donor = argparse.ArgumentParser(add_help=False)
+    add_bus_arguments(donor, prefix="xcp")
+    for action in donor._actions:
+        if action.dest in ("xcp_fd", "help"):
+            continue
+        if action.dest in ("xcp_bitrate", "xcp_data_bitrate"):
+            action.type = bitrate
+            action.help = (action.help or "") + " (bit/s: 500000, 500k, 2M)"
+        action.help = (action.help or "") + " [the XCP bus]"
+        group._add_action(action)
+    group.add_argument("--xcp-bus-context", metavar="SECTION",
+                       help="the XCP bus from this section of the python-can configuration file (--bus-config, "
+                            "~/.canrc); its flags win")
 
 
 def from_args(args, ecu: Ecu) -> Description | None:
@@ -156,6 +189,30 @@ def from_args(args, ecu: Ecu) -> Description | None:
     if args.xcp_cal:
         load_calibration(ecu, args.xcp_cal)
     return desc
+
+
+_BUS_KEYS = ("interface", "channel", "bitrate", "data_bitrate", "timing", "bus_kwargs")
+
+
+def bus_config(args, desc: Description | None) -> dict | None:
+    """The XCP bus's python-can configuration when the flags name one (--xcp-interface,
+    --xcp-channel or --xcp-bus-context; resolved as the main bus is: flags > configuration file >
+    the embedded udp_multicast default), else None: XCP on the ECU's (first) bus."""
+    from argparse import Namespace
+
+    from ..bus import bus as busmod
+
+    given = {k: getattr(args, f"xcp_{k}") for k in _BUS_KEYS if getattr(args, f"xcp_{k}", None) is not None}
+    context = getattr(args, "xcp_bus_context", None)
+    if not ({"interface", "channel"} & set(given) or context):
+        if given:
+            raise ConfigError(f"--xcp-{next(iter(given)).replace('_', '-')} configures a separate XCP bus: "
+                              "name it with --xcp-interface/--xcp-channel (or --xcp-bus-context)")
+        return None
+    if desc is None:
+        raise ConfigError("an XCP bus (--xcp-interface/--xcp-channel) needs the XCP slave (--xcp on)")
+    ns = Namespace(**given, fd=desc.fd, bus_config=getattr(args, "bus_config", None), bus_context=context)
+    return busmod.bus_config(ns)
 
 
 def summary(ecu: Ecu) -> str:
