@@ -77,6 +77,10 @@ void vh_roll_params_default(vh_roll_params_t *prm)
     prm->reg_eps = 1e-6;
     prm->nis_max = 1000.0;
     prm->phi_max = 0.3;
+    /* converged: roll within 0.02 deg, roll rate within 0.2 deg/s (1 sigma of P). From P0 that takes
+     * 6 steps at 5 ms; the steady state is 0.0015 deg / 0.026 deg/s (docs/roll.md) */
+    prm->conv_sd_phi = 3.5e-4;
+    prm->conv_sd_p = 3.5e-3;
 }
 
 void vh_roll_smc_params_default(vh_roll_smc_params_t *c, const vh_roll_params_t *prm)
@@ -135,7 +139,8 @@ int vh_roll_params_check(const vh_roll_params_t *prm)
     }
     ok = ok && prm->kappa >= 0.0 && prm->kappa < 1e6 && prm->hf < prm->h && prm->hr < prm->h &&
          prm->hf >= 0.0 && prm->hr >= 0.0 && prm->cphi_f >= 0.0 && prm->cphi_r >= 0.0 &&
-         prm->reg_eps > 0.0 && prm->reg_eps < 1.0 && prm->nis_max >= 0.0 && prm->phi_max > 0.0;
+         prm->reg_eps > 0.0 && prm->reg_eps < 1.0 && prm->nis_max >= 0.0 && prm->phi_max > 0.0 &&
+         prm->conv_sd_phi > 0.0 && prm->conv_sd_phi < 1e3 && prm->conv_sd_p > 0.0 && prm->conv_sd_p < 1e3;
     if (ok) {
         /* suspension roll stiffness with the tyres in series removed, the bar is what the springs
          * leave (as the plant, docs/chassis_plant.md): both must be physical */
