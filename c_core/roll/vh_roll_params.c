@@ -107,7 +107,11 @@ void vh_roll_smc_params_default(vh_roll_smc_params_t *c, const vh_roll_params_t 
     c->rate_max_r = 16000.0;
     c->fade_time = 0.3; /* = m_max / rate_max: the fastest the rate limit allows */
     c->recover_time = 0.5;
-    c->not_ok_debounce = 0.02; /* 20 steps: a lost frame or two does not fade the actuators */
+    /* ride-through: a not-OK estimate (frames missing, every input timed out, the actuators holding)
+     * for up to 60 ms = 12 sensor frames holds the fade and keeps acting on the UKF's prediction, so a
+     * host stall of a few tens of ms does not drop the actuators; a real fault trips 60 ms after it is
+     * detected and is faded out 0.36 s after (within the fault tests' 0.5 s; docs/roll.md) */
+    c->not_ok_debounce = 0.06;
     c->dt = prm->dt;
     c->i_roll = prm->ix + prm->ms * e * e;
     c->ms_e = prm->ms * e;

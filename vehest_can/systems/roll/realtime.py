@@ -66,7 +66,10 @@ def run(seconds: float = 60.0, config: dict | None = None) -> dict:
 
     est = estimates(session)
     late = est["tick"] >= int(1.0 / TICK_S)   # after the controller's start-up ramp
+    tripped = (est["RollSmc_Health"][late].astype(int) & 64) != 0
     return {
+        "smc_trips": int(np.sum(np.diff(tripped.astype(int)) == 1)),
+        "longest_command_gap_ms": float(np.diff(cmd_ticks).max() * TICK_S * 1e3) if len(cmd_ticks) > 1 else float("nan"),
         "ukf_not_ok_pct": 100 * float(np.mean(est["RollUkf_Health"][late] != 1)) if late.any() else float("nan"),
         "smc_tripped_pct": 100 * float(np.mean((est["RollSmc_Health"][late].astype(int) & 64) != 0))
         if late.any() else float("nan"),
