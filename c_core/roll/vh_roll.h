@@ -64,7 +64,8 @@ enum {
 
 /* UKF health (vh_roll_ukf_*_t.health) and flags (bits of .flags, sticky until _reset). */
 enum {
-    VH_ROLL_H_INIT = 0,      /* before the first update */
+    VH_ROLL_H_INIT = 0,      /* before the first update, and until the filter has converged after
+                              * each init or reset (P's roll and roll-rate variances below conv_sd_*) */
     VH_ROLL_H_OK = 1,
     VH_ROLL_H_DEGRADED = 2,  /* this step: measurements masked or a factorisation regularised */
     VH_ROLL_H_RESET = 3      /* this step: the filter was reset (NaN, divergence, failed factorisation) */
@@ -106,6 +107,8 @@ typedef struct {
     double reg_eps;               /* regularisation of the retry, relative to the mean diagonal */
     double nis_max;               /* innovation test: NIS per measurement above this -> reset; 0 off */
     double phi_max;               /* |roll| above this [rad] -> diverged, reset */
+    double conv_sd_phi, conv_sd_p; /* converged (health leaves INIT) once sqrt(P) of roll [rad] and of
+                                    * roll rate [rad/s] are both at or below these */
 } vh_roll_params_t;
 
 /* Sliding-mode controller parameters (eq. 27-35). */

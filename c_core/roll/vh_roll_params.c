@@ -77,6 +77,10 @@ void vh_roll_params_default(vh_roll_params_t *prm)
     prm->reg_eps = 1e-6;
     prm->nis_max = 1000.0;
     prm->phi_max = 0.3;
+    /* converged: roll within 0.02 deg, roll rate within 0.2 deg/s (1 sigma of P). From P0 that takes
+     * 6 steps at 5 ms; the steady state is 0.0015 deg / 0.026 deg/s (docs/roll.md) */
+    prm->conv_sd_phi = 3.5e-4;
+    prm->conv_sd_p = 3.5e-3;
 }
 
 void vh_roll_smc_params_default(vh_roll_smc_params_t *c, const vh_roll_params_t *prm)
@@ -103,7 +107,11 @@ void vh_roll_smc_params_default(vh_roll_smc_params_t *c, const vh_roll_params_t 
     c->rate_max_r = 16000.0;
     c->fade_time = 0.3; /* = m_max / rate_max: the fastest the rate limit allows */
     c->recover_time = 0.5;
-    c->not_ok_debounce = 0.02; /* 20 steps: a lost frame or two does not fade the actuators */
+    /* ride-through: a not-OK estimate (frames missing, every input timed out, the actuators holding)
+     * for up to 60 ms = 12 sensor frames holds the fade and keeps acting on the UKF's prediction, so a
+     * host stall of a few tens of ms does not drop the actuators; a real fault trips 60 ms after it is
+     * detected and is faded out 0.36 s after (within the fault tests' 0.5 s; docs/roll.md) */
+    c->not_ok_debounce = 0.06;
     c->dt = prm->dt;
     c->i_roll = prm->ix + prm->ms * e * e;
     c->ms_e = prm->ms * e;
@@ -135,7 +143,8 @@ int vh_roll_params_check(const vh_roll_params_t *prm)
     }
     ok = ok && prm->kappa >= 0.0 && prm->kappa < 1e6 && prm->hf < prm->h && prm->hr < prm->h &&
          prm->hf >= 0.0 && prm->hr >= 0.0 && prm->cphi_f >= 0.0 && prm->cphi_r >= 0.0 &&
-         prm->reg_eps > 0.0 && prm->reg_eps < 1.0 && prm->nis_max >= 0.0 && prm->phi_max > 0.0;
+         prm->reg_eps > 0.0 && prm->reg_eps < 1.0 && prm->nis_max >= 0.0 && prm->phi_max > 0.0 &&
+         prm->conv_sd_phi > 0.0 && prm->conv_sd_phi < 1e3 && prm->conv_sd_p > 0.0 && prm->conv_sd_p < 1e3;
     if (ok) {
         /* suspension roll stiffness with the tyres in series removed, the bar is what the springs
          * leave (as the plant, docs/chassis_plant.md): both must be physical */

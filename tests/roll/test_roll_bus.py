@@ -51,10 +51,10 @@ def test_ukf_on_the_bus_follows_the_plant(sessions):
     """UKF (the ECU's float32, its estimates decoded from VEHEST_RollEst) against the plant's truth."""
     for name, s in sessions.items():
         m = report.evaluate(s)
-        assert m["estimates"] == 600 and m["ukf_resets"] == 0, name
+        # 600 frames; the first 3 (30 ms) SNA while the UKF converges from P0 (INIT)
+        assert m["estimates"] == 597 and m["ukf_resets"] == 0, name
         assert m["ukf_roll_rms_pct_of_peak"] <= 5.0, name
-        if name.endswith("passive"):   # the paper's estimation cases (Fig. 3-6)
-            assert m["ukf_roll_rate_rms_pct_of_peak"] <= 10.0, name
+        assert m["ukf_roll_rate_rms_pct_of_peak"] <= 10.0, name
 
 
 def test_ecu_float32_equals_the_array_api_and_is_near_double(sessions):
@@ -146,7 +146,7 @@ def golden_lines(session) -> list[str]:
 def test_golden_record_of_the_active_72_kmh_case(sessions):
     """Every roll frame the ECU sent in the closed loop of the active 72 km/h case (tick, ID, payload):
     plant, nodes, UKF and controller bit-exact across builds. Regenerate with
-    `python tests/roll/test_roll_bus.py` only when the system is meant to change."""
+    `PYTHONPATH=tests python tests/roll/test_roll_bus.py` only when the system is meant to change."""
     expected = GOLDEN.read_text().splitlines()
     assert len(expected) == 1800
     assert golden_lines(sessions["roll_paper_72kph_active"]) == expected

@@ -76,3 +76,32 @@ def test_signal_faults_parse_validate_and_round_trip():
                      ("sna:ROLL_Sensors:signal=Qf_SuspDeflFL", "no SNA")):
         with pytest.raises(ConfigError, match=why):
             parse_fault(bad)
+
+
+def outage_run(ms: int):
+    """Every frame on the bus lost for `ms` from 2.0 s (both nodes and the ECU's commands: what a
+    stalled host does to a real-time run)."""
+    car = RollCar(load_roll_scenario("roll_paper_72kph_active"), 2.6)
+    return run_with_faults(car, faults_from_cli([f"silence:*:2-{2 + ms / 1000:g}"], seed=1), study=FAULTS)
+
+
+def test_a_short_total_outage_is_ridden_through_a_long_one_trips():
+    """Ride-through (docs/roll.md): the controller holds its fade while the estimate is not OK for up to
+    not_ok_debounce (60 ms = 12 sensor frames), acting on the UKF's prediction; a 40 ms outage of
+    every frame (the estimate DEGRADED, the actuators time out: HOLD, FAILSAFE at 40 ms, until commands
+    return) does not trip it,
+    a 200 ms one does, and fades it out."""
+    short, long_ = outage_run(40), outage_run(200)
+    for run in (short, long_):
+        est = FAULTS._decoded(run.est)
+        assert est["RollFade"][START - 10] == 1.0 and est["RollSmc_Health"][START - 10] == 0
+        assert np.any(est["RollUkf_Health"][START:START + 200] == 2)       # seen: the estimate DEGRADED
+    est = FAULTS._decoded(short.est)
+    sel = slice(START, END)
+    assert not np.any(est["RollSmc_Health"][sel].astype(int) & 64)           # never tripped
+    assert np.all(est["RollFade"][sel] == 1.0)
+    states = {int(STATUS.decode(bytes(m.data), decode_choices=False)["ArcState"])
+              for k in range(START, START + 200) for m in short.rx[k] if m.arbitration_id == STATUS.frame_id}
+    assert states & {2, 3} and status_at(short, START + 400)["ArcState"] == 1   # timed out, then active again
+    est = FAULTS._decoded(long_.est)
+    assert int(est["RollSmc_Health"][START + 300]) & 64 and est["RollFade"][END - 10] == 0.0

@@ -66,7 +66,20 @@ def run(seconds: float = 60.0, config: dict | None = None) -> dict:
 
     est = estimates(session)
     late = est["tick"] >= int(1.0 / TICK_S)   # after the controller's start-up ramp
+    tripped = (est["RollSmc_Health"][late].astype(int) & 64) != 0
+    onset = np.flatnonzero(np.diff(tripped.astype(int)) == 1) + 1
+    # why each trip: the estimate's health, RX fault bits and missing measurements a few frames before it
+    causes = [{"ukf_health": [int(v) for v in est["RollUkf_Health"][late][max(i - 8, 0):i + 1]],
+               "rx_fault": [int(v) for v in est["RollRxFault"][late][max(i - 8, 0):i + 1]],
+               "missing": [int(v) for v in est["RollMeasMissing"][late][max(i - 8, 0):i + 1]]} for i in onset[:5]]
     return {
+        "trip_causes": causes, "ukf_resets": int(np.nanmax(est["RollCntReset"])) if est["tick"].size else 0,
+        "smc_trips": int(np.sum(np.diff(tripped.astype(int)) == 1)),
+        # the car's own stalls do not show in its ticks (its clock skips ahead): the ECU's estimates (every
+        # 10 ms) queued up meanwhile arrive in one car tick; their number x 10 ms is the stall
+        "longest_car_stall_ms": 10.0 * float(np.bincount(ticks[fr["id"] == message("VEHEST_RollEst").frame_id]).max())
+        if np.any(fr["id"] == message("VEHEST_RollEst").frame_id) else float("nan"),
+        "longest_command_gap_ms": float(np.diff(cmd_ticks).max() * TICK_S * 1e3) if len(cmd_ticks) > 1 else float("nan"),
         "ukf_not_ok_pct": 100 * float(np.mean(est["RollUkf_Health"][late] != 1)) if late.any() else float("nan"),
         "smc_tripped_pct": 100 * float(np.mean((est["RollSmc_Health"][late].astype(int) & 64) != 0))
         if late.any() else float("nan"),

@@ -28,9 +28,22 @@ def chatter(m: np.ndarray, dt: float = DT, f_hz: float = 50.0) -> tuple[float, f
     return tv, float(spec[f > f_hz].sum() / tot) if tot > 0 else 0.0
 
 
+def _sna_to_nan(name: str, values: dict[str, np.ndarray], scaled: bool = True) -> None:
+    """The signals of message `name` sent as their SNA value (the DBC's "SNA" choice: e.g. the UKF's
+    estimates while it is INIT) to NaN, in place."""
+    from ...bus.frames import message
+
+    for sig in message(name).signals:
+        raw = next((k for k, v in (sig.choices or {}).items() if str(v) == "SNA"), None)
+        if raw is not None and sig.name in values:
+            v = values[sig.name]
+            v[v == (raw * sig.scale + sig.offset if scaled else raw)] = np.nan
+
+
 def estimates(session) -> dict[str, np.ndarray]:
-    """The ticks with a VEHEST_RollEst frame and its signals there."""
+    """The ticks with a VEHEST_RollEst frame and its signals there (NaN where sent as SNA)."""
     est = decode(session, "VEHEST_RollEst")
+    _sna_to_nan("VEHEST_RollEst", est)
     k = np.flatnonzero(~np.isnan(est["RollUkf_Health"]))
     return {"tick": k, **{name: v[k] for name, v in est.items()}}
 
@@ -195,15 +208,19 @@ def rerun(session) -> dict[str, Any]:
     w = [chs[f"WheelSpeed{x}"][steps] for x in ("FL", "FR", "RL", "RR")]
     vx = float(cfg.rw) * (((w[0] + w[1]) + w[2]) + w[3]) / 4.0   # as the ECU sums them
     u = np.column_stack([chs["SteerAngle"][steps], vx, act["AppliedMomentF"][steps], act["AppliedMomentR"][steps]])
-    x32, _, _ = rn.Ukf(prm, "f32").run(u, z)
+    x32, _, h32 = rn.Ukf(prm, "f32").run(u, z)
     x64, _, _ = rn.Ukf(prm, "f64").run(u, z)
     raw = _by_tick(session, "VEHEST_RollEst", n, scaling=False)
-    est_ticks = np.flatnonzero(~np.isnan(raw["RollEstAngle"]))
+    est_ticks = np.flatnonzero(~np.isnan(raw["RollUkf_Health"]))
     row = np.searchsorted(steps, est_ticks)
+    _sna_to_nan("VEHEST_RollEst", raw, scaled=False)
     from ...bus.frames import message
 
     sig = message("VEHEST_RollEst").get_signal_by_name
-    same = all(np.array_equal(np.floor(x32[row, i].astype(np.float64) / sig(s).scale + 0.5), raw[s][est_ticks])
+    init = h32[row] == rn.lib.VH_ROLL_H_INIT            # SNA while INIT (not converged), the value otherwise
+    same = all(np.array_equal(np.isnan(raw[s][est_ticks]), init) and
+               np.array_equal(np.floor(x32[row[~init], i].astype(np.float64) / sig(s).scale + 0.5),
+                              raw[s][est_ticks[~init]])
                for i, s in ((4, "RollEstAngle"), (5, "RollEstRate")))
     return {"ecu_equals_array_api": bool(same), "steps": int(len(steps)),
             "f32_vs_f64_roll_deg": float(np.degrees(np.abs(x32[:, 4] - x64[:, 4]).max())),

@@ -6,6 +6,7 @@ from pathlib import Path
 
 from .. import Setup
 from . import report
+from .campaign import CAMPAIGN
 from .faults import FAULTS
 from .scenario import KINDS, RollCar, load_roll_scenario, roll_scenario_dir
 
@@ -16,7 +17,7 @@ class Roll:
     nodes = ("CHS", "ROLL")  # the 14-DOF plant with its chassis node and its roll node (sensors, actuators)
     realtime = True
     faults = FAULTS
-    campaign = None
+    campaign = CAMPAIGN  # vehest-can campaign
 
     def scenario_dir(self) -> Path:
         return roll_scenario_dir()

@@ -1,0 +1,36 @@
+"""The roll system in campaigns (issue 14): each run the closed loop in-process (plant, nodes, the
+ECU's float32 UKF + SMC), its figures against the plant's truth; the shipped small campaign runs."""
+from dataclasses import replace
+
+import numpy as np
+
+from vehest_can.campaign import Store, execute, load_campaign, summarize
+from vehest_can.paths import shipped_dir, shipped_file
+from vehest_can.systems import registered
+from vehest_can.systems.roll.campaign import CAMPAIGN
+from vehest_can.systems.roll.scenario import load_roll_scenario
+
+
+def shipped(name):
+    return load_campaign(shipped_file(name, shipped_dir("campaigns", "firmware_sim/campaigns", "*.toml")))
+
+
+def test_registered_and_a_run_is_the_bus_loop_figures():
+    assert next(s for s in registered() if s.name == "roll").campaign is CAMPAIGN
+    sc = load_roll_scenario("roll_paper_36kph_active")
+    m = CAMPAIGN.run(replace(sc, plant=replace(sc.plant, duration_s=2.0)))
+    assert m["estimates"] == 197 and m["ukf_resets"] == 0 and m["limits_respected"] == 1.0
+    assert 0 < m["ukf_roll_rms_pct_of_peak"] < 5 and 0 < m["ukf_roll_rate_rms_pct_of_peak"] < 10
+    assert m["moment_peak_nm"]["front"] > 0 and np.isfinite(m["peak_ay_m_s2"])
+
+
+def test_shipped_roll_campaign_runs(tmp_path):
+    c = shipped("roll_small")
+    assert c.runs >= 12 and shipped("roll_spread").runs >= 100
+    c = replace(c, runs=3)
+    counts = execute(c, Store(tmp_path, c), workers=1)
+    assert counts["ran"] == 3 and counts["failed"] == 0
+    s = summarize(c, Store(tmp_path, c).table())
+    assert [a["passed"] for a in s["acceptance"]][2] == 3      # limits respected in every run
+    for key in ("ukf_roll_rms_pct_of_peak", "ukf_roll_rate_rms_pct_of_peak"):
+        assert s["metrics"][key]["no_value"] == 0 and s["metrics"][key]["worst"] > 0
