@@ -5,11 +5,10 @@ float32 UKF + SMC, lockstep) to its figures: the UKF's roll angle and rate again
 health. No plots and no passive twin (a campaign runs hundreds)."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from ...sim.session import run_inprocess
+from .. import CampaignRunner
 from ..ecu import Ecu
 from . import report
 from .scenario import RollCar, roll_scenario_from_dict
@@ -19,22 +18,16 @@ _KEEP = ("peak_roll_deg", "peak_roll_rate_deg_s", "peak_yaw_rate_deg_s", "peak_a
          "ukf_health_ok_pct", "ukf_resets", "moment_total_variation_nm", "moment_energy_above_50hz_pct")
 
 
-class RollCampaign:
-    @staticmethod
-    def from_dict(doc: dict, path: Path):
-        return roll_scenario_from_dict(doc, path)
-
-    @staticmethod
-    def run(scenario) -> dict:
-        s = run_inprocess(RollCar(scenario), Ecu())
-        arc = scenario.arc_params(*_native())
-        m = report.evaluate(s, tuple((float(arc[i].m_max), float(arc[i].rate_max)) for i in range(2)))
-        out: dict = {k: float(m[k]) for k in _KEEP}
-        out["moment_peak_nm"] = {"front": m["moment_peak_nm"][0], "rear": m["moment_peak_nm"][1]}
-        out["limits_respected"] = float(m["limits_respected"])
-        e = report.estimates(s)
-        out["smc_tripped_pct"] = 100 * float(np.mean((e["RollSmc_Health"].astype(int) & 64) != 0)) if e["tick"].size else 100.0
-        return out
+def _run(scenario) -> dict:
+    s = run_inprocess(RollCar(scenario), Ecu())
+    arc = scenario.arc_params(*_native())
+    m = report.evaluate(s, tuple((float(arc[i].m_max), float(arc[i].rate_max)) for i in range(2)))
+    out: dict = {k: float(m[k]) for k in _KEEP}
+    out["moment_peak_nm"] = {"front": m["moment_peak_nm"][0], "rear": m["moment_peak_nm"][1]}
+    out["limits_respected"] = float(m["limits_respected"])
+    e = report.estimates(s)
+    out["smc_tripped_pct"] = 100 * float(np.mean((e["RollSmc_Health"].astype(int) & 64) != 0)) if e["tick"].size else 100.0
+    return out
 
 
 def _native():
@@ -43,4 +36,4 @@ def _native():
     return ffi, lib
 
 
-CAMPAIGN = RollCampaign()
+CAMPAIGN = CampaignRunner(from_dict=roll_scenario_from_dict, run=_run)
