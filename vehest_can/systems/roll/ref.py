@@ -120,7 +120,24 @@ def sigma_points(x, P, gamma):
     return np.vstack([x, x + gamma * L.T, x - gamma * L.T])                     # eq. 15 / 19
 
 
-class RefUkf:
+class _Filter:
+    """What both reference filters share: a run over arrays, step by step."""
+
+    x: np.ndarray
+
+    def step(self, u, z, mask: int = (1 << NZ) - 1) -> None:
+        raise NotImplementedError
+
+    def run(self, u, z, mask=None) -> np.ndarray:
+        """States after each step; ``mask`` (bit j: measurement j valid) per step, all valid if None."""
+        xs = np.zeros((len(u), NX))
+        for k in range(len(u)):
+            self.step(u[k], z[k], (1 << NZ) - 1 if mask is None else int(mask[k]))
+            xs[k] = self.x
+        return xs
+
+
+class RefUkf(_Filter):
     """The paper's UKF steps (eq. 13-26) in numpy, on RollModel."""
 
     def __init__(self, p: dict):
@@ -158,12 +175,6 @@ class RefUkf:
         self.P = Pp - K @ Pzz @ K.T                                             # eq. 26
         self.P = 0.5 * (self.P + self.P.T)
 
-    def run(self, u, z, mask=None):
-        xs = np.zeros((len(u), NX))
-        for k in range(len(u)):
-            self.step(u[k], z[k], (1 << NZ) - 1 if mask is None else int(mask[k]))
-            xs[k] = self.x
-        return xs
 
 
 def filterpy_ukf(p: dict):
@@ -188,7 +199,7 @@ def filterpy_step(ukf, u, z):
     ukf.update(z, u=u)
 
 
-class RefEkf:
+class RefEkf(_Filter):
     """An EKF on the same model (RollModel), tuning (Q, R, P0) and masking, for the comparison
     the issue asks for (the paper argues the UKF beats the EKF here). Jacobians by central
     differences of the discrete model F and of H (step 1e-6 of each state's sqrt(p0))."""
@@ -226,9 +237,3 @@ class RefEkf:
         IKH = np.eye(NX) - K @ Hm
         self.P = IKH @ Pp @ IKH.T + K @ self.R[np.ix_(sel, sel)] @ K.T   # Joseph form
 
-    def run(self, u, z, mask=None):
-        xs = np.zeros((len(u), NX))
-        for k in range(len(u)):
-            self.step(u[k], z[k], (1 << NZ) - 1 if mask is None else int(mask[k]))
-            xs[k] = self.x
-        return xs
