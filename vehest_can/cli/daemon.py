@@ -16,7 +16,7 @@ from ..service.hil import load_hil_config
 from ..systems.camber.api import load_calibrations
 from ..systems.ecu import Ecu, EcuConfig
 from ..xcp import ecu as xcp_ecu
-from ._common import add_log_arguments, check_log_arguments, open_session_log
+from ._common import add_log_arguments, add_secoc_arguments, check_log_arguments, open_session_log, secoc_from_args
 
 
 def add_subparser(subparsers) -> None:
@@ -44,6 +44,7 @@ def add_subparser(subparsers) -> None:
                         "each, each frame sent on its DBC's bus; instead of the python-can bus flags")
     sdnotify.add_log_level(p)
     xcp_ecu.add_arguments(p)  # the XCP slave in the ECU (its own flags, docs/xcp.md)
+    add_secoc_arguments(p)
     busmod.add_arguments(p)
     p.set_defaults(func=run)
 
@@ -72,6 +73,9 @@ def run(args) -> int:
     if args.camber_cal:
         ecu.set_camber_calibrations(load_calibrations(args.camber_cal))
     xcp = xcp_ecu.from_args(args, ecu)
+    secoc = secoc_from_args(args, "VEHEST")
+    if secoc is not None:
+        ecu.enable_secoc(*secoc)
     buses, routes, channel = _open_buses(args)
     writer = open_session_log(args, {"VEHEST"})  # the log sets each frame's channel (its bus)
     daemon = EcuDaemon(buses if len(buses) > 1 else next(iter(buses.values())), ecu, log_writer=writer,
@@ -92,8 +96,12 @@ def run(args) -> int:
     print("\n".join(stats.lines()), file=sys.stderr)
     if xcp is not None:
         print(xcp_ecu.summary(ecu), file=sys.stderr)
+    if ecu.secoc is not None:
+        ecu.secoc.maintain()
+        print("SecOC: " + ", ".join(f"{k} {v}" for k, v in ecu.secoc.counters().items()), file=sys.stderr)
     if args.stats:
-        Path(args.stats).write_text(json.dumps(asdict(stats), indent=2) + "\n")
+        doc = asdict(stats) | ({"secoc": ecu.secoc.counters()} if ecu.secoc is not None else {})
+        Path(args.stats).write_text(json.dumps(doc, indent=2) + "\n")
     return 0
 
 
