@@ -94,6 +94,10 @@ static const struct {
     {VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_FRAME_ID, rx_none},
     {VH_CH_VEHEST_ROLL_CMD_FRAME_ID, rx_none},
     {VH_CH_VEHEST_ROLL_EST_FRAME_ID, rx_none},
+    /* SecOC sync frames: the SecOC hook's when it is on (vh_secoc_bus_rx), nobody's when it is off */
+    {VH_PT_VEHEST_SEC_OC_SYNC_PT_FRAME_ID, rx_none},
+    {VH_CH_VEHEST_SEC_OC_SYNC_CH_FRAME_ID, rx_none},
+    {VH_CH_ROLL_SEC_OC_SYNC_FRAME_ID, rx_none},
 };
 
 void vh_ecu_rx(vh_ecu_t *ecu, const vh_frame_t *frame)
