@@ -16,7 +16,11 @@ For each ``dbc/vehest_<bus>.dbc`` this writes into the output folder:
   scaled by an exact fraction s_num/s_den (a filter's scaling S), so the scale factor between the
   Q format and the DBC raw unit is always the DBC's fraction times the filter's;
 * ``vh_<bus>.cdef``: cffi declarations of the generated structs and functions, so Python
-  tests can call the generated C directly.
+  tests can call the generated C directly;
+* ``vh_secoc_table.h`` (one for all buses): the SecOC-secured messages (attribute ``SecOCDataID``;
+  ``SecOCSync`` marks a node's sync frame) with their data ID, authentic length (the DBC length less
+  the 4-byte tail) and sending node, and the sending nodes' indices (``VH_SECOC_NODE_*``, the
+  senders of every DBC in name order; c_core/secoc/vh_secoc_bus.h).
 
 A cycle time that is not a whole number of ECU ticks cannot build: the meta header asserts it
 against ``VH_TICK_US`` at compile time.
@@ -69,6 +73,7 @@ def meta_header(db, name: str) -> str:
         lines.append(f"#define {pre}_E2E_DATA_ID ({int(_attr(m, 'E2EDataID', 0))}u)")
         lines.append(f"#define {pre}_RX_TIMEOUT_CYCLES ({int(_attr(m, 'RxTimeoutCycles', 0))}u)")
         lines.append(f"#define {pre}_IS_FD ({1 if m.is_fd else 0}u)")
+        lines.append(f"#define {pre}_SECOC_DATA_ID ({int(_attr(m, 'SecOCDataID', 0))}u)")
         # a cycle the tick cannot hit would run early or late every period: refuse to build
         lines.append(f"typedef char {pre.lower()}_cycle_is_whole_ticks[({pre}_CYCLE_TIME_US % VH_TICK_US) == 0u ? 1 : -1];")
     lines += ["", f"#endif /* {up}_META_H */", ""]
@@ -196,10 +201,38 @@ def cdef_from_header(header: str) -> str:
     return "\n".join(out) + "\n"
 
 
+SECOC_TAIL_BYTES = 4  # VH_SECOC_TAIL_BYTES
+
+
+def secoc_table_header(dbs: list) -> str:
+    """The secured messages of every DBC and the sending nodes' indices (see the module docstring)."""
+    nodes = sorted({n for db in dbs for m in db.messages for n in m.senders})
+    lines = ["/* vh_secoc_table.h - generated from the DBCs by c_core/dbcgen.py: do not edit. */",
+             "#ifndef VH_SECOC_TABLE_H", "#define VH_SECOC_TABLE_H", "",
+             '#include "vh_secoc_bus.h"', ""]
+    lines += [f"#define VH_SECOC_NODE_{n.upper()} {i}u" for i, n in enumerate(nodes)]
+    lines += [f"#define VH_SECOC_N_NODES {len(nodes)}", "",
+              "static const char *const VH_SECOC_NODE_NAMES[VH_SECOC_N_NODES] = {"
+              + ", ".join(f'"{n}"' for n in nodes) + "};", "",
+              "static const vh_secoc_msg_t VH_SECOC_MSGS[] = {"]
+    for db in dbs:
+        for m in db.messages:
+            data_id = int(_attr(m, "SecOCDataID", 0))
+            if not data_id:
+                continue
+            if len(m.senders) != 1 or m.length <= SECOC_TAIL_BYTES:
+                raise ValueError(f"{m.name}: a SecOC message needs one sender and room for the tail")
+            sync = int(_attr(m, "SecOCSync", 0))
+            lines.append(f"    {{0x{m.frame_id:X}u, {data_id}u, {m.length - SECOC_TAIL_BYTES}u, "
+                         f"VH_SECOC_NODE_{m.senders[0].upper()}, {sync}u}}, /* {m.name} */")
+    lines += ["};", "", "#endif /* VH_SECOC_TABLE_H */", ""]
+    return "\n".join(lines)
+
+
 def generate_all(out_dir: Path, dbc_dir: Path = DBC_DIR) -> list[str]:
     """Regenerate everything for every DBC; returns the bus database names."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    names = []
+    names, dbs = [], []
     for dbc_path in sorted(dbc_dir.glob("vehest_*.dbc")):
         name = db_name(dbc_path)
         db = cantools.database.load_file(str(dbc_path), strict=True)
@@ -211,6 +244,8 @@ def generate_all(out_dir: Path, dbc_dir: Path = DBC_DIR) -> list[str]:
         _write(out_dir / f"{name}_q.h", fixed_header(db, name))
         _write(out_dir / f"{name}.cdef", cdef_from_header(header))
         names.append(name)
+        dbs.append(db)
+    _write(out_dir / "vh_secoc_table.h", secoc_table_header(dbs))
     return names
 
 

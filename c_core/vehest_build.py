@@ -24,6 +24,9 @@ ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
 import dbcgen  # noqa: E402  (sits beside this file)
 
+sys.path.insert(0, str(HERE / "secoc"))
+from crypto_link import libcrypto  # noqa: E402  (SecOC's AES on the host: OpenSSL)
+
 GEN_DIR = ROOT / "build" / "generated"
 # The warnings that make the build fail; the same set the Makefile's strict build uses.
 STRICT_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
@@ -31,12 +34,15 @@ STRICT_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
 OPT_FLAGS = ["-O3"]
 #: the systems of the firmware, one folder each (sources, headers, the system's ECU application)
 SYSTEMS = ("driveline", "tireforce", "camber", "roll")
-#: every folder of the firmware: what it shares, the systems, the XCP slave, the scheduler
-FIRMWARE_DIRS = [HERE / "common", *(HERE / s for s in SYSTEMS), HERE / "xcp", HERE / "ecu"]
-#: firmware built as a cffi module of its own (vehest_can._secoc), not yet in the ECU's tick; the XCP
-#: slave alone (vehest_can._xcp) and the roll filter without its ECU application (vehest_can._roll)
-#: also build alone (xcp_build.py, roll_build.py)
-STANDALONE_DIRS = [HERE / "secoc"]
+#: every folder of the firmware: what it shares, the systems, the XCP slave, SecOC, the scheduler
+FIRMWARE_DIRS = [HERE / "common", *(HERE / s for s in SYSTEMS), HERE / "xcp", HERE / "secoc", HERE / "ecu"]
+#: firmware folders that are only a cffi module of their own: none now (SecOC is in the ECU's tick and
+#: also builds alone as vehest_can._secoc; so do the XCP slave, vehest_can._xcp, and the roll filter
+#: without its ECU application, vehest_can._roll: secoc_build.py, xcp_build.py, roll_build.py)
+STANDALONE_DIRS: list[Path] = []
+#: what a program built from the firmware's sources links: libm, and OpenSSL's libcrypto for SecOC's
+#: AES on the host (vh_aes128_host.c; a target links its HSM driver instead)
+LINK_FLAGS = ["-lm", libcrypto()]
 SIM_SRC_DIR = ROOT / "firmware_sim" / "src"
 SIM_INCLUDE_DIR = ROOT / "firmware_sim" / "include"
 #: built into the extension but never flashed (host-side calibration helpers)
@@ -177,7 +183,8 @@ def cdef_text(gen_dir: Path = GEN_DIR) -> str:
 
 def include_text(gen_dir: Path = GEN_DIR) -> str:
     headers = [p.name for p in public_headers(gen_dir)]
-    headers += [p.name for p in sorted(gen_dir.glob("vh_*.h")) if p.name not in headers and "_meta" not in p.name]
+    headers += [p.name for p in sorted(gen_dir.glob("vh_*.h"))
+                if p.name not in headers and "_meta" not in p.name and p.name != "vh_secoc_table.h"]
     return "\n".join(f'#include "{h}"' for h in headers)
 
 
@@ -229,6 +236,7 @@ def make_ffi() -> FFI:
         include_dirs=[str(d) for d in sim_include_dirs()],
         extra_objects=objects,
         libraries=["m"],
+        extra_link_args=LINK_FLAGS[1:],
     )
     return ffi
 

@@ -26,7 +26,7 @@ def test_firmware_under_asan_ubsan(tmp_path):
     includes = [f"-I{d}" for d in vehest_build.sim_include_dirs(gen)]
     exe = tmp_path / "sanitize"
     build = subprocess.run(
-        ["cc", *vehest_build.STRICT_FLAGS, *SAN, *defines, *includes, *sources, "-lm", "-o", str(exe)],
+        ["cc", *vehest_build.STRICT_FLAGS, *SAN, *defines, *includes, *sources, *vehest_build.LINK_FLAGS, "-o", str(exe)],
         capture_output=True, text=True,
     )
     assert build.returncode == 0, build.stderr

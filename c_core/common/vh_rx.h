@@ -32,6 +32,7 @@ typedef struct {
     uint16_t deadline_miss;
     uint16_t rx_burst;
     uint16_t saturation; /* fixed-point SKFMEC steps that saturated (chassis only) */
+    uint16_t secoc_reject; /* secured frames that failed SecOC (both buses; powertrain counters only) */
 } vh_ecu_counters_t;
 
 /* Reception state of one cyclic message: E2E, freshness, timeout. */

@@ -211,8 +211,10 @@ int vh_drv_app_fill_status(vh_drv_app_t *a, const vh_dkf_t dkf[VH_ECU_N_DKF], co
     st.cnt_filter_reset = cnt->filter_reset;
     st.cnt_deadline_miss = cnt->deadline_miss;
     st.cnt_rx_burst = cnt->rx_burst;
+    st.cnt_secoc_reject = cnt->secoc_reject;
     st.rx_fault_active = (uint8_t)((d->rx.timed_out ? 1u : 0u) | (((d->valid & 0x3Fu) != 0x3Fu) ? 2u : 0u) |
-                                   (a->ti_valid ? 0u : 4u));
+                                   (a->ti_valid ? 0u : 4u) | (cnt->secoc_reject != a->secoc_seen ? 8u : 0u));
+    a->secoc_seen = cnt->secoc_reject;
     (void)vh_pt_vehest_status_pack(data, &st, VH_PT_VEHEST_STATUS_LENGTH);
     vh_e2e_p01_protect(data, VH_PT_VEHEST_STATUS_LENGTH, VH_PT_VEHEST_STATUS_E2E_DATA_ID, &a->tx_counter[1]);
     return 1;

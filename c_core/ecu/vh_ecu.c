@@ -11,7 +11,7 @@
 /* Ticks per cycle of a message; the meta headers refuse a cycle that is not whole ticks. */
 #define TICKS(cycle_us) ((cycle_us) / VH_TICK_US)
 /* room in a tick's TX for the XCP frames (vh_ecu_xcp_tx) beside the systems' nine */
-typedef char vh_ecu_tx_room_check[(VH_ECU_MAX_TX >= 9 + VH_ECU_XCP_MAX_TX) ? 1 : -1];
+typedef char vh_ecu_tx_room_check[(VH_ECU_MAX_TX >= 9 + 2 + VH_ECU_XCP_MAX_TX) ? 1 : -1];
 
 int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_params_t *prm,
                        const vh_tfa_params_t *tprm)
@@ -30,7 +30,7 @@ int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_
             return VH_EINVAL;
         }
     }
-    memset(ecu, 0, sizeof *ecu);
+    memset(ecu, 0, sizeof *ecu); /* SecOC off */
     ecu->cfg = *cfg;
     ecu->chs.skf.prm = *prm; /* the filter keeps its constants; vh_ecu_reset re-initialises from them */
     ecu->chs.tfa.prm = *tprm;
@@ -50,6 +50,9 @@ void vh_ecu_reset(vh_ecu_t *ecu)
     vh_roll_app_reset(&ecu->roll, &ecu->cfg.roll);
     memset(&ecu->cnt, 0, sizeof ecu->cnt);
     ecu->tick = 0u;
+    if (ecu->secoc != NULL) {
+        vh_secoc_bus_resync(ecu->secoc);
+    }
 }
 
 int vh_ecu_set_camber_calibration(vh_ecu_t *ecu, unsigned wheel, const vh_camber_cal_t *cal)
@@ -91,11 +94,29 @@ static const struct {
     {VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_FRAME_ID, rx_none},
     {VH_CH_VEHEST_ROLL_CMD_FRAME_ID, rx_none},
     {VH_CH_VEHEST_ROLL_EST_FRAME_ID, rx_none},
+    /* SecOC sync frames: the SecOC hook's when it is on (vh_secoc_bus_rx), nobody's when it is off */
+    {VH_PT_VEHEST_SEC_OC_SYNC_PT_FRAME_ID, rx_none},
+    {VH_CH_VEHEST_SEC_OC_SYNC_CH_FRAME_ID, rx_none},
+    {VH_CH_ROLL_SEC_OC_SYNC_FRAME_ID, rx_none},
 };
 
 void vh_ecu_rx(vh_ecu_t *ecu, const vh_frame_t *frame)
 {
     size_t i;
+    vh_frame_t verified;
+    /* SecOC before any application sees the frame */
+    switch (ecu->secoc != NULL ? vh_secoc_bus_rx(ecu->secoc, frame, &verified) : VH_SECOC_BUS_PASS) {
+    case VH_SECOC_BUS_PASS:
+        break;
+    case VH_SECOC_BUS_OK:
+        frame = &verified;
+        break;
+    case VH_SECOC_BUS_REJECTED:
+        vh_rx_count(&ecu->cnt.secoc_reject);
+        return;
+    default: /* a sync frame */
+        return;
+    }
     for (i = 0; i < sizeof RX_TABLE / sizeof RX_TABLE[0]; ++i) {
         if (RX_TABLE[i].id == frame->id) {
             RX_TABLE[i].rx(ecu, frame);
@@ -187,10 +208,15 @@ size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap)
             }
         }
     }
+    if (ecu->secoc != NULL) { /* the systems' frames secured, sync frames when due */
+        n = vh_secoc_bus_tx(ecu->secoc, tx, n, cap);
+    }
     n = vh_ecu_xcp_tx(ecu, tx, n, cap);
     ++ecu->tick;
     return n;
 }
+
+void vh_ecu_set_secoc(vh_ecu_t *ecu, vh_secoc_bus_t *s) { ecu->secoc = s; }
 
 void vh_ecu_note_deadline_miss(vh_ecu_t *ecu, uint32_t n)
 {

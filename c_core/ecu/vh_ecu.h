@@ -22,12 +22,13 @@
 #include "vh_ecu_xcp.h"
 #include "vh_roll_app.h"
 #include "vh_rx.h"
+#include "vh_secoc_bus.h"
 #include "vh_skf.h"
 #include "vh_tfa_host.h"
 #include "vh_tireforce_app.h"
 #include "vh_types.h"
 
-#define VH_ECU_MAX_TX 10 /* the systems' 9 + VH_ECU_XCP_MAX_TX */
+#define VH_ECU_MAX_TX 12 /* the systems' 9 + SecOC's 2 sync frames + VH_ECU_XCP_MAX_TX */
 
 typedef struct {
     vh_dkf_config_t dkf[VH_ECU_N_DKF]; /* ri is taken from gear_ratio[gear] at run time */
@@ -53,6 +54,9 @@ typedef struct {
     vh_ecu_counters_t cnt;      /* the powertrain bus's counters (VEHEST_Status); chassis: chs.cnt */
     uint32_t tick;
     vh_ecu_xcp_t xcp;           /* the XCP slave (vh_ecu_xcp.h); off until vh_ecu_xcp_enable */
+    vh_secoc_bus_t *secoc;      /* SecOC (vh_secoc_bus.h) as node VEHEST, NULL: off. Caller-owned, outside this
+                                   struct: the keys stay out of the memory XCP may read. Its freshness survives
+                                   vh_ecu_reset (a reset re-sends the sync frames) */
 } vh_ecu_t;
 
 /* Host side (vh_ecu_host.c, not flashed): the defaults, and init from a configuration whose
@@ -64,7 +68,9 @@ int vh_ecu_init(vh_ecu_t *ecu, const vh_ecu_config_t *cfg);
 int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_params_t *prm,
                        const vh_tfa_params_t *tprm);
 void vh_ecu_reset(vh_ecu_t *ecu);
-/* Hand in one received frame; checked and counted now, used at the next vh_ecu_step. */
+/* Hand in one received frame; checked and counted now, used at the next vh_ecu_step. With SecOC on, a
+ * secured frame is verified first, here for every application; one that fails is counted
+ * (cnt.secoc_reject, and by reason in secoc.cnt) and reaches none of them. */
 void vh_ecu_rx(vh_ecu_t *ecu, const vh_frame_t *frame);
 /* One 500 us tick. Writes up to cap frames to tx; returns how many (VH_ECU_MAX_TX is enough). */
 size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap);
@@ -73,6 +79,9 @@ size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap);
 int vh_ecu_set_camber_calibration(vh_ecu_t *ecu, unsigned wheel, const vh_camber_cal_t *cal);
 /* The daemon's wall-clock scheduler reports ticks that started late; published in VEHEST_Status. */
 void vh_ecu_note_deadline_miss(vh_ecu_t *ecu, uint32_t n);
+/* SecOC on the ECU's frames: s keyed and started as node VEHEST (vh_secoc_bus_init, _set_key,
+ * _start), or NULL: off (the default). Survives vh_ecu_reset. */
+void vh_ecu_set_secoc(vh_ecu_t *ecu, vh_secoc_bus_t *s);
 
 /* XCP (vh_ecu_xcp.c). Enable the slave on the ECU as configured now (its tuning becomes the
  * reference page); survives vh_ecu_reset, which keeps the calibration. VH_EINVAL: bad config. */

@@ -7,13 +7,16 @@ links the shared library by its file name, so no development headers are needed.
 """
 from __future__ import annotations
 
-import ctypes.util
 import re
+import sys
 from pathlib import Path
 
 from cffi import FFI
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from crypto_link import libcrypto  # noqa: E402  (sits beside this file)
+
 HEADERS = [HERE / "vh_aes128.h", HERE / "vh_cmac.h", HERE / "vh_secoc.h"]
 SOURCES = [HERE / "vh_cmac.c", HERE / "vh_secoc.c", HERE / "vh_aes128_host.c"]
 STRICT_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
@@ -31,15 +34,6 @@ def cdef_text() -> str:
                 continue
             lines.append(line)
     return "\n".join(lines)
-
-
-def libcrypto() -> str:
-    """The linker argument for OpenSSL's libcrypto (``-l:libcrypto.so.3``), or a clear error."""
-    name = ctypes.util.find_library("crypto")
-    if not name:
-        raise SystemExit("vehest-can needs OpenSSL's libcrypto (the library Python's ssl module uses) "
-                         "for SecOC's AES; none was found by ctypes.util.find_library('crypto')")
-    return f"-l:{name}"
 
 
 def compile_objects(out_dir: Path = HERE.parent.parent / "build" / "secoc_obj",

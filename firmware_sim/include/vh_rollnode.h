@@ -28,6 +28,7 @@
 
 #include "vh_e2e.h"
 #include "vh_rng.h"
+#include "vh_secoc_bus.h"
 #include "vh_types.h"
 #include "vh_veh14.h"
 
@@ -78,6 +79,7 @@ typedef struct {
     uint32_t cnt_timeout;         /* entries into HOLD */
     uint32_t cnt_rejected;        /* command frames refused (length, CRC, repeated counter) */
     uint32_t applied_tick;        /* tick at which the last good command was first applied */
+    vh_secoc_bus_t *secoc;        /* the node's SecOC (caller-owned, kept across resets), NULL: off */
 } vh_rln_t;
 
 void vh_rln_config_default(vh_rln_config_t *cfg);
@@ -87,13 +89,16 @@ int vh_rln_init(vh_rln_t *n, const vh_rln_config_t *cfg);
 /* Counters, filter and supervision to their start, random stream restarted from cfg.seed; the
  * plant is taken to start in its static equilibrium (unsprung velocities 0). */
 void vh_rln_reset(vh_rln_t *n);
-/* One frame from the bus: VEHEST_RollCmd is checked (length, E2E) and kept for the next tick;
- * any other frame is ignored. */
+/* SecOC for the node's frames (vh_secoc_bus_init'ed for VH_SECOC_NODE_ROLL, keyed, started), or NULL. */
+void vh_rln_set_secoc(vh_rln_t *n, vh_secoc_bus_t *s);
+/* One frame from the bus: VEHEST_RollCmd is checked (SecOC when on, length, E2E) and kept for the
+ * next tick; the ECU's SecOC sync frame resynchronises; any other frame is ignored. A command that
+ * fails its MAC or freshness is counted as rejected and, like a lost one, never applied. */
 void vh_rln_rx(vh_rln_t *n, const vh_frame_t *f);
 /* Before the plant's step of a tick: the supervision's moment commands into the plant. */
 void vh_rln_actuate(vh_rln_t *n, vh_v14_t *p);
-/* After the plant's step: sample, and write this tick's frames (at most 4) to out[0..cap).
- * Returns the number written. */
+/* After the plant's step: sample, and write this tick's frames (at most 4, 5 with SecOC's sync
+ * frame) to out[0..cap). Returns the number written. */
 size_t vh_rln_step(vh_rln_t *n, const vh_v14_t *p, vh_frame_t *out, size_t cap);
 
 #endif /* VH_ROLLNODE_H */

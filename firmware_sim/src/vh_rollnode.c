@@ -6,6 +6,7 @@
 #include "vh_ch.h"
 #include "vh_ch_enc.h"
 #include "vh_ch_meta.h"
+#include "vh_secoc_bus.h"
 
 #define TICKS(cycle_us) ((cycle_us) / VH_TICK_US)
 #define SENS_TICKS TICKS(VH_CH_ROLL_SENSORS_CYCLE_TIME_US)
@@ -51,6 +52,7 @@ int vh_rln_init(vh_rln_t *n, const vh_rln_config_t *cfg)
         }
     }
     n->cfg = *cfg;
+    n->secoc = NULL;
     vh_rln_reset(n);
     return VH_OK;
 }
@@ -78,13 +80,37 @@ void vh_rln_reset(vh_rln_t *n)
     n->cmd_age = 0u;
     n->cnt_timeout = n->cnt_rejected = 0u;
     n->applied_tick = 0u;
+    if (n->secoc != NULL) {
+        vh_secoc_bus_resync(n->secoc); /* the ECU may have restarted too */
+    }
 }
+
+void vh_rln_set_secoc(vh_rln_t *n, vh_secoc_bus_t *s) { n->secoc = s; }
 
 void vh_rln_rx(vh_rln_t *n, const vh_frame_t *f)
 {
     struct vh_ch_vehest_roll_cmd_t m;
     vh_e2e_status_t st;
-    if (f->id != VH_CH_VEHEST_ROLL_CMD_FRAME_ID || (f->flags & VH_FRAME_EXT) != 0u) {
+    vh_frame_t verified;
+    if ((f->id != VH_CH_VEHEST_ROLL_CMD_FRAME_ID && f->id != VH_CH_VEHEST_SEC_OC_SYNC_CH_FRAME_ID) ||
+        (f->flags & VH_FRAME_EXT) != 0u) {
+        return;
+    }
+    if (n->secoc != NULL) { /* SecOC first: a rejected command is a lost one (hold, then fail safe) */
+        switch (vh_secoc_bus_rx(n->secoc, f, &verified)) {
+        case VH_SECOC_BUS_OK:
+            f = &verified;
+            break;
+        case VH_SECOC_BUS_PASS:
+            break;
+        case VH_SECOC_BUS_REJECTED:
+            ++n->cnt_rejected;
+            return;
+        default: /* the sync frame */
+            return;
+        }
+    }
+    if (f->id != VH_CH_VEHEST_ROLL_CMD_FRAME_ID) {
         return;
     }
     st = f->len == VH_CH_VEHEST_ROLL_CMD_LENGTH
@@ -252,5 +278,5 @@ size_t vh_rln_step(vh_rln_t *n, const vh_v14_t *p, vh_frame_t *out, size_t cap)
         }
     }
     ++n->tick;
-    return k;
+    return n->secoc != NULL ? vh_secoc_bus_tx(n->secoc, out, k, cap) : k;
 }

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from vehest_can.bus.frames import frame_id
 from vehest_can.bus.log import read_log
 from vehest_can.cli import build_parser
 from vehest_can.sim.report import LEGEND, verdict_word
@@ -85,7 +86,9 @@ def test_check_passes_when_every_line_passes(tmp_path, capsys):
     # the session logs as asked: ASC, one per bus (this car has only powertrain frames)
     pt = read_log(tmp_path / "out" / "one" / "session-pt.asc")
     assert pt and {m.channel for m in pt} == {0} and any(not m.is_rx for m in pt)
-    assert read_log(tmp_path / "out" / "one" / "session-ch.asc") == []
+    # ... and on the chassis bus only the ECU's SecOC sync frame (1 Hz, one per bus; the demo has SecOC on)
+    assert {m.arbitration_id for m in read_log(tmp_path / "out" / "one" / "session-ch.asc")} == {
+        frame_id("VEHEST_SecOCSyncCh", "ch")}
 
 
 def test_verdict_words():

@@ -514,6 +514,7 @@ def test_realtime_daemon_survives_faults_and_counts_them():
     assert r.load["0x1"] * r.window_s == pytest.approx(0.3 * 0.6, abs=0.001)
     est = [f for f in r.session.frames if f["id"] == 0x180]
     assert len(est) > 2000
-    decoded = [DB.get_message_by_frame_id(0x180).decode(bytes(f["data"][:16]), decode_choices=False) for f in est]
+    est_msg = DB.get_message_by_frame_id(0x180)
+    decoded = [est_msg.decode(bytes(f["data"][:est_msg.length]), decode_choices=False) for f in est]
     assert all(d["DkfT_Valid"] == 0 or d["DkfT_Health"] == 1 for d in decoded)
     assert any(d["DkfT_Valid"] for d in decoded[-200:])   # valid again after the faults

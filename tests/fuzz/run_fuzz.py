@@ -38,7 +38,7 @@ def build(work: Path, defines: tuple[str, ...] = ()) -> Path:
     exe = work / "fuzz_ecu"
     includes = [f"-I{d}" for d in vehest_build.firmware_include_dirs(gen)]
     r = subprocess.run([clang, "-std=c99", "-Wall", "-Wextra", "-Werror", *SAN, *defines, *includes,
-                        *map(str, firmware), str(HERE / "fuzz_ecu.c"), "-lm", "-o", str(exe)],
+                        *map(str, firmware), str(HERE / "fuzz_ecu.c"), *vehest_build.LINK_FLAGS, "-o", str(exe)],
                        capture_output=True, text=True)
     if r.returncode != 0:
         raise RuntimeError(f"fuzz target build failed:\n{r.stderr}")

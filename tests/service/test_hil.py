@@ -125,7 +125,7 @@ CASES = [
      "lower than the nominal"),
     (dict(buses__pt__fd=False), "buses.pt.fd", "must be true: vehest_pt.dbc has CAN FD frames"),
     (dict(buses__pt__bitrate=500_000, buses__pt__data_bitrate=2_000_000), "buses.pt.data_bitrate",
-     "worst-case bus load 70.4% at 500k/2M bit/s exceeds 60%"),
+     "worst-case bus load 75.7% at 500k/2M bit/s exceeds 60%"),
     (dict(buses__pt__dbc="nowhere/pt.dbc"), "buses.pt.dbc", "no such file"),
     (dict(buses__pt__dbc="vehest_body"), "buses.pt.dbc", "no bundled DBC named 'vehest_body'"),
     (dict(buses__pt__kwargs={"bitrate": 500_000}), "buses.pt.kwargs.bitrate", "set bitrate in buses.pt"),

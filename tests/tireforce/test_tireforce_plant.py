@@ -939,7 +939,7 @@ def test_plant_tyre_and_node_under_asan_ubsan(tmp_path):
     inc = [f"-I{d}" for d in vehest_build.sim_include_dirs(gen)]
     exe = tmp_path / "san"
     san = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer", "-g", "-O1"]
-    build = subprocess.run(["cc", *vehest_build.STRICT_FLAGS, *san, *inc, *sources, "-lm", "-o", str(exe)],
+    build = subprocess.run(["cc", *vehest_build.STRICT_FLAGS, *san, *inc, *sources, *vehest_build.LINK_FLAGS, "-o", str(exe)],
                            capture_output=True, text=True)
     assert build.returncode == 0, build.stderr
     res = subprocess.run([str(exe)], capture_output=True, text=True, timeout=600,

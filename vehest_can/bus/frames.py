@@ -97,6 +97,26 @@ def same_frame(a: can.Message, b: can.Message) -> bool:
         b.arbitration_id, b.is_extended_id, b.is_fd, bytes(b.data))
 
 
+@cache
+def _secoc_tails() -> dict[int, int]:
+    """Frame ID -> authentic length, for the DBCs' SecOC-secured messages (attribute SecOCDataID)."""
+    out = {}
+    for bus in BUSES:
+        for m in database(bus).messages:
+            attrs = m.dbc.attributes if m.dbc else {}
+            if "SecOCDataID" in attrs and attrs["SecOCDataID"].value:
+                out[m.frame_id] = m.length - 4
+    return out
+
+
+def authentic_data(frame_id: int, data: bytes) -> bytes:
+    """A frame's payload as its sender's application packed it: a SecOC-secured frame's tail (FV and
+    MAC, docs/secoc.md) zeroed, which the E2E CRC covers as zeros. Verifying the tail is the SecOC
+    receiver's job (vehest_can.bus.secoc); this is for tools that only decode."""
+    n = _secoc_tails().get(frame_id)
+    return data if n is None or len(data) <= n else data[:n] + bytes(len(data) - n)
+
+
 def e2e_data_id(message) -> int:
     attrs = message.dbc.attributes if message.dbc else {}
     return int(attrs["E2EDataID"].value) if "E2EDataID" in attrs else 0

@@ -244,3 +244,88 @@ def cmac(key: bytes, msg: bytes) -> bytes:
     lib.vh_cmac(k, msg, len(msg), tag)
     lib.vh_cmac_wipe(k)
     return bytes(tag)
+
+
+# ---- SecOC on the bus: a node's vh_secoc_bus_t (c_core/secoc/vh_secoc_bus.h) in the ECU or a plant node ----
+
+#: the widest reservation bound: a node without a state file persists nothing (every start is FV 1)
+_NO_BOUND = 2**64 - 1
+#: what a node's hook counts (vh_secoc_bus_counters_t); "rejected" is the sum of the five reasons
+BUS_COUNTERS = ("accepted", "bad_mac", "replayed", "unsynced", "malformed", "no_key", "rejected",
+                "syncs", "protected_", "tx_dropped", "sync_sent")
+
+
+def secured_messages() -> dict[int, tuple[str, int, int, bool]]:
+    """The DBCs' secured messages: frame ID -> (sender, SecOC data ID, authentic bytes, is a sync frame)."""
+    from .frames import BUSES, database
+
+    out = {}
+    for bus in BUSES:
+        for m in database(bus).messages:
+            attrs = m.dbc.attributes if m.dbc else {}
+            if "SecOCDataID" in attrs and attrs["SecOCDataID"].value:
+                sync = bool("SecOCSync" in attrs and attrs["SecOCSync"].value)
+                out[m.frame_id] = (m.senders[0], int(attrs["SecOCDataID"].value), m.length - TAIL_BYTES, sync)
+    return out
+
+
+class BusSecoc:
+    """One node's SecOC hook in the C (``vh_secoc_bus_t``, handed to the ECU or a plant node), keyed
+    from a key file and started; the host's part is the freshness store:
+    :meth:`maintain` moves the reservation bound ahead (stored first) and remembers the receivers'
+    latest FVs. Keys are set in the C and never kept here beyond the :class:`Key` objects."""
+
+    def __init__(self, node: str, keys: dict[str, Key], *, store: FreshnessStore | None = None):
+        from ..native import ffi, lib
+
+        self.ffi, self.lib = ffi, lib
+        self.node = node
+        self.store = store
+        self.c = ffi.new("vh_secoc_bus_t *")  # handed to the node's C (vh_ecu_set_secoc, vh_rln_set_secoc)
+        self._idx = {}
+        self_idx = lib.vh_secoc_bus_node(node.encode())
+        if self_idx < 0:
+            raise ConfigError(f"SecOC: {node} sends nothing in the DBCs")
+        lib.vh_secoc_bus_init(self.c, self_idx)
+        for name, key in keys.items():
+            i = lib.vh_secoc_bus_node(name.encode())
+            if i < 0:
+                continue  # a key of a node these DBCs do not have: unused
+            if lib.vh_secoc_bus_set_key(self.c, i, key.raw) != lib.VH_OK:
+                raise ConfigError(f"SecOC: the AES backend refused the key of {name}")
+            self._idx[name] = i
+        if node not in keys:
+            raise ConfigError(f"SecOC: the key file has no key for {node}, the node that sends here")
+        self.restart()
+
+    def restart(self) -> None:
+        """As a restarted process: from the state file (above every FV sent, receivers where they
+        were), or without one from FV 1 with every receiver unsynchronised until its sender's sync
+        frame. A new session of the simulation (the lockstep RESET, a new car) is such a restart."""
+        lib, store = self.lib, self.store
+        for name, i in self._idx.items():
+            lib.vh_secoc_bus_restore_rx(self.c, i, store.latest.get(name, 0) if store else 0)
+        start = store.reserved if store else 1
+        if lib.vh_secoc_bus_start(self.c, start, start if store else _NO_BOUND) != lib.VH_OK:
+            raise ConfigError(f"SecOC: cannot start {self.node}")
+        self.maintain()
+
+    def maintain(self) -> None:
+        """Keep the reservation a block ahead (stored before use) and store the receivers' state;
+        call it at least every RESERVE_BLOCK // 2 frames sent (e.g. once a second)."""
+        if self.store is None:
+            return
+        tx = self.c.tx
+        if tx.reserved_until - tx.fv <= RESERVE_BLOCK // 2:
+            self.store.reserved = int(tx.fv) + RESERVE_BLOCK
+        self.store.latest = {n: int(self.c.rx[i].latest) for n, i in self._idx.items() if self.c.rx[i].latest}
+        self.store.save()
+        self.lib.vh_secoc_tx_reserve(self.ffi.addressof(self.c, "tx"), self.store.reserved)
+
+    def counters(self) -> dict[str, int]:
+        return {k: int(getattr(self.c.cnt, k)) for k in BUS_COUNTERS}
+
+    def wipe(self) -> None:
+        self.lib.vh_secoc_bus_wipe(self.c)
+
+

@@ -48,6 +48,32 @@ def open_session_log(args, nodes) -> SessionLog | None:
     return SessionLog(args.log, nodes, per_bus=args.log_per_bus) if args.log else None
 
 
+def add_secoc_arguments(parser: argparse.ArgumentParser, state: bool = True) -> None:
+    """--secoc-keys (and --secoc-state): SecOC on for this process's node (docs/secoc.md); off without."""
+    parser.add_argument("--secoc-keys", metavar="KEYFILE",
+                        help="SecOC on: secure this node's frames and verify the secured frames it receives, "
+                             "with the keys of this file (mode 600; 'vehest-can secoc keygen'). Default: off")
+    if state:
+        parser.add_argument("--secoc-state", metavar="FILE",
+                            help="with --secoc-keys: persist the freshness here (JSON), so a restart resumes "
+                                 "above every FV sent and stays synchronised; without it every start is FV 1")
+
+
+def secoc_from_args(args, node: str):
+    """The node's BusSecoc inputs from the flags: (keys, FreshnessStore or None), or None when off."""
+    from ..bus.secoc import FreshnessStore, load_keys
+
+    state = getattr(args, "secoc_state", None)
+    if not args.secoc_keys:
+        if state:
+            raise ConfigError("--secoc-state needs --secoc-keys")
+        return None
+    keys = load_keys(args.secoc_keys)
+    if node not in keys:
+        raise ConfigError(f"{args.secoc_keys}: no key for {node}, the node this process plays")
+    return keys, (FreshnessStore(state) if state else None)
+
+
 def check_seconds(value: float | None, option: str, *, maximum: float = MAX_SESSION_S, zero: bool = False) -> None:
     """A duration flag: a finite number of seconds, > 0 (>= 0 with zero=True), at most `maximum`."""
     if value is None:

@@ -16,7 +16,7 @@ from ..service.hil import load_hil_config
 from ..systems.camber.api import load_calibrations
 from ..systems.ecu import Ecu, EcuConfig
 from ..xcp import ecu as xcp_ecu
-from ._common import add_log_arguments, check_log_arguments, open_session_log
+from ._common import add_log_arguments, add_secoc_arguments, check_log_arguments, open_session_log, secoc_from_args
 
 
 def add_subparser(subparsers) -> None:
@@ -44,6 +44,7 @@ def add_subparser(subparsers) -> None:
                         "each, each frame sent on its DBC's bus; instead of the python-can bus flags")
     sdnotify.add_log_level(p)
     xcp_ecu.add_arguments(p)  # the XCP slave in the ECU (its own flags, docs/xcp.md)
+    add_secoc_arguments(p)
     busmod.add_arguments(p)
     p.set_defaults(func=run)
 
@@ -73,6 +74,9 @@ def run(args) -> int:
         ecu.set_camber_calibrations(load_calibrations(args.camber_cal))
     xcp = xcp_ecu.from_args(args, ecu)
     xcp_config = xcp_ecu.bus_config(args, xcp)  # checked before any bus opens
+    secoc = secoc_from_args(args, "VEHEST")
+    if secoc is not None:
+        ecu.enable_secoc(*secoc)
     buses, routes, channel = _open_buses(args)
     if xcp_config is not None:  # a bus of its own for XCP: its frames go there, the rest stay
         buses, routes = _add_xcp_bus(buses, routes, channel, xcp_config, xcp)
@@ -95,8 +99,12 @@ def run(args) -> int:
     print("\n".join(stats.lines()), file=sys.stderr)
     if xcp is not None:
         print(xcp_ecu.summary(ecu), file=sys.stderr)
+    if ecu.secoc is not None:
+        ecu.secoc.maintain()
+        print("SecOC: " + ", ".join(f"{k} {v}" for k, v in ecu.secoc.counters().items()), file=sys.stderr)
     if args.stats:
-        Path(args.stats).write_text(json.dumps(asdict(stats), indent=2) + "\n")
+        doc = asdict(stats) | ({"secoc": ecu.secoc.counters()} if ecu.secoc is not None else {})
+        Path(args.stats).write_text(json.dumps(doc, indent=2) + "\n")
     return 0
 
 

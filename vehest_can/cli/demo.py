@@ -8,6 +8,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -39,6 +40,9 @@ def add_subparser(subparsers) -> None:
     p.add_argument("--junit", metavar="FILE", help="write the acceptance lines as a JUnit XML report")
     p.add_argument("--log-format", choices=[k[1:] for k in FORMATS], default="log",
                    help="format of each scenario's session log (default: log, candump -L)")
+    p.add_argument("--secoc", choices=("on", "off"), default="on",
+                   help="SecOC-authenticated frames (default on: development keys are made for the run in a "
+                        "private temporary folder and deleted after it; docs/secoc.md)")
     p.add_argument("--log-per-bus", action="store_true",
                    help="one session log per bus (session-pt.log, session-ch.log) instead of one with a channel per bus")
     busmod.add_arguments(p)
@@ -76,6 +80,30 @@ def run(args, systems: list[System] | None = None) -> int:
 
     setups: dict[str, Setup] = {s.name: s.setup([sc for r, sc in runs if r is s], out) for s in systems}
     daemon_args = [a for st in setups.values() for a in st.daemon_args]
+    with tempfile.TemporaryDirectory(prefix="vehest-secoc-") as keydir:
+        keys = _dev_keys(Path(keydir)) if args.secoc == "on" else None
+        if keys is not None:
+            daemon_args += ["--secoc-keys", str(Path(keydir) / "dev_keys.toml")]
+            print(f"SecOC: on ({len(keys)} development keys made for this run, deleted after it)")
+        return _run(args, systems, runs, out, config, setups, daemon_args, keys)
+
+
+def _dev_keys(keydir: Path) -> dict:
+    from ..bus.secoc import write_dev_keys
+    from .secoc import sending_nodes
+
+    return write_dev_keys(keydir / "dev_keys.toml", sending_nodes())
+
+
+def _with_secoc(car, keys):
+    """The car with its secured nodes keyed (a car without any takes no keys)."""
+    enable = getattr(car, "enable_secoc", None)
+    if keys is not None and enable is not None:
+        enable(keys)
+    return car
+
+
+def _run(args, systems, runs, out: Path, config: dict, setups: dict, daemon_args: list[str], keys) -> int:
     ecu_proc = subprocess.Popen(_daemon_cmd(config, "lockstep", ["--idle-timeout", "60", *daemon_args]),
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy())
     results: list[tuple[System, dict]] = []
@@ -88,13 +116,15 @@ def run(args, systems: list[System] | None = None) -> int:
                 progress = Progress(f"{sc.name} (lockstep)")
                 # the ECU's view of the session (its frames Tx), as the daemon would log it
                 with SessionLog(sdir / f"session.{args.log_format}", {"VEHEST"}, per_bus=args.log_per_bus) as writer:
-                    master = SimMaster(bus, system.car(sc), log_writer=writer, progress=progress)
+                    master = SimMaster(bus, _with_secoc(system.car(sc), keys), log_writer=writer, progress=progress)
                     session = master.run_lockstep(end=False)
                 progress.done(f"{session.stats['realtime_factor']:.1f}x real time over the bus")
                 local_ecu = Ecu()  # configured like the daemon
                 for st in setups.values():
                     st.configure(local_ecu)
-                local = run_inprocess(system.car(sc), local_ecu)
+                if keys is not None:
+                    local_ecu.enable_secoc(keys)
+                local = run_inprocess(_with_secoc(system.car(sc), keys), local_ecu)
                 same = (len(local.frames) == len(session.frames)
                         and np.array_equal(local.frames, session.frames))
                 print(f"  bus lockstep == in-process lockstep: {'identical' if same else 'DIFFERENT'} "
@@ -113,7 +143,9 @@ def run(args, systems: list[System] | None = None) -> int:
     if args.realtime > 0:
         wall_clock = [(s, sc) for s, sc in runs if s.realtime]
         system, sc = (wall_clock or runs)[0]
-        all_metrics.append(_realtime(args, config, system.car(sc, args.realtime), sc.name, out))
+        secoc_args = [a for a in daemon_args if a == "--secoc-keys" or a.endswith("dev_keys.toml")]
+        all_metrics.append(_realtime(args, config, _with_secoc(system.car(sc, args.realtime), keys), sc.name, out,
+                                     secoc_args))
 
     write_metrics(all_metrics, out / "metrics.json")
     print()
@@ -136,11 +168,11 @@ def run(args, systems: list[System] | None = None) -> int:
     return 0
 
 
-def _realtime(args, config, car, name: str, out: Path) -> dict:
+def _realtime(args, config, car, name: str, out: Path, extra: list[str]) -> dict:
     stats_file = out / "realtime_daemon.json"
     stats_file.unlink(missing_ok=True)
     # no --duration: the daemon runs until the car is done and SIGTERM stops it (clean shutdown)
-    ecu_proc = subprocess.Popen(_daemon_cmd(config, "realtime", ["--stats", str(stats_file)]),
+    ecu_proc = subprocess.Popen(_daemon_cmd(config, "realtime", ["--stats", str(stats_file), *extra]),
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     time.sleep(1.0)  # let the daemon open its bus
     bus = busmod.open_bus(config)

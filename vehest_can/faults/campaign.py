@@ -37,7 +37,7 @@ class FaultRun:
     every tick; the methods decode its health, valid bits and estimates (the study knows how)."""
 
     config: FaultConfig
-    est: np.ndarray            # (n, 16) uint8
+    est: np.ndarray            # (n, the estimate frame's length) uint8
     counters: np.ndarray       # (n, len(ecu.COUNTERS)) after each step
     sample_age: np.ndarray     # (n,) s from the making of the newest sample the ECU accepted to its step
     truth: np.ndarray          # (n,) the plant's value of the first filter's estimate
@@ -91,7 +91,7 @@ def run_with_faults(drive, config: FaultConfig | None = None, *, bitrate: int = 
     # the counters of the study's application (default: the powertrain side's)
     cnt = study.counters_of(ecu) if hasattr(study, "counters_of") else ecu.c.cnt
     n = drive.n
-    est = np.zeros((n, 16), dtype=np.uint8)
+    est = np.zeros((n, message(study.estimate_message).length), dtype=np.uint8)
     counters = np.zeros((n, len(COUNTERS)), dtype=np.int64)
     sample_age = np.full(n, np.nan)
     truth = np.zeros(n)

@@ -5,6 +5,7 @@ sessions below it (``sim.session.run_inprocess``) are handed an ECU rather than 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import can
 
@@ -17,7 +18,7 @@ from .tireforce.api import SkfConfig
 
 COUNTERS = (
     "crc_error", "counter_repeat", "counter_skip", "dlc_error", "timeout", "unknown_id",
-    "signal_invalid", "input_invalid", "filter_reset", "deadline_miss", "rx_burst",
+    "signal_invalid", "input_invalid", "filter_reset", "deadline_miss", "rx_burst", "secoc_reject",
 )
 #: the chassis side's own counters (VEHEST_ChassisStatus)
 CHASSIS_COUNTERS = (
@@ -94,9 +95,24 @@ class Ecu:
         self._tx = ffi.new("vh_frame_t[]", lib.VH_ECU_MAX_TX)
         self._wide = (WideCounters(lambda: self.c.cnt, COUNTERS), WideCounters(lambda: self.c.chs.cnt, CHASSIS_COUNTERS))
         self._steps = self._frames = 0
+        self.secoc: Any = None  # SecOC off until enable_secoc (a vehest_can.bus.secoc.BusSecoc)
+
+    def enable_secoc(self, keys: dict, store=None):
+        """SecOC on, as node VEHEST (keys: vehest_can.bus.secoc.load_keys; store: its FreshnessStore
+        or None): its secured frames are protected and every secured frame it receives is verified in
+        the C before any system sees it. Returns the node's BusSecoc (its counters)."""
+        from ..bus.secoc import BusSecoc
+
+        self.secoc = BusSecoc("VEHEST", keys, store=store)
+        lib.vh_ecu_set_secoc(self.c, self.secoc.c)
+        return self.secoc
 
     def reset(self) -> None:
+        """A new session (the lockstep RESET): the C's reset, and SecOC restarted as by a new process
+        (vh_ecu_reset alone keeps the freshness: a firmware reset must not reuse FVs)."""
         lib.vh_ecu_reset(self.c)
+        if self.secoc is not None:
+            self.secoc.restart()
         for w in self._wide:
             w.reset()
 
@@ -125,6 +141,8 @@ class Ecu:
         self._steps += 1
         if self._steps % _POLL_STEPS == 0:
             self.poll_counters()
+        if self.secoc is not None and self._steps % lib.VH_SECOC_SYNC_PERIOD_TICKS == 0:
+            self.secoc.maintain()  # once a second: the FV reservation ahead, the receivers' state stored
         return [self._tx[i] for i in range(n)]
 
     def step(self, timestamp: float = 0.0) -> list[can.Message]:

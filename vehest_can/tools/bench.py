@@ -60,7 +60,8 @@ def c_loop(bench: str = "vh_bench.c") -> dict[str, tuple[float, float]] | None:
         sources = [str(s) for s in vehest_build.firmware_sources(gen)] + [str(src)]
         inc = [f"-I{d}" for d in vehest_build.bench_include_dirs(gen)]
         exe = Path(tmp) / "vh_bench"
-        subprocess.run([cc, *vehest_build.STRICT_FLAGS, *vehest_build.OPT_FLAGS, *inc, *sources, "-lm", "-o", str(exe)],
+        subprocess.run([cc, *vehest_build.STRICT_FLAGS, *vehest_build.OPT_FLAGS, *inc, *sources,
+                        *vehest_build.LINK_FLAGS, "-o", str(exe)],
                        check=True, capture_output=True, text=True)
         out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout
     rows = {}
@@ -118,6 +119,8 @@ def run(quick: bool = False) -> dict:
         res["filterpy_ns"] = _median_time(filterpy_run, max(1, repeats // 2)) / m * 1e9
     res["c_loop"] = c_loop()
     res["ecu_xcp"] = c_loop("vh_bench_ecu_xcp.c")  # the ECU tick with the XCP slave beside without
+    res["ecu_secoc"] = c_loop("vh_bench_ecu_secoc.c")  # the ECU tick with SecOC on beside off
+    res["secoc"] = c_loop("bench_secoc.c")  # CMAC, protect and verify per frame
     res["tireforce"] = tireforce(c_samples=4000 if quick else 40000, ref_steps=100 if quick else 400,
                                  repeats=1 if quick else 3)
     res["chassis_plant"] = chassis_plant(seconds=1.0 if quick else 10.0, repeats=3 if quick else 9)
@@ -243,6 +246,20 @@ def table(res: dict, lockstep: dict[str, float] | None = None) -> str:
         if "xcp_daq_dtos" in x:  # "xcp_daq_dtos ticks dtos overruns": the DAQ ran within its budget
             lines.append(f"{'  XCP DAQ in that run':<44}{x['xcp_daq_dtos'][0]:>9.0f} DTOs, "
                          f"{x['xcp_daq_dtos'][1]:.0f} samples dropped")
+    sc = res.get("ecu_secoc") or {}
+    if "ecu_tick_secoc_off" in sc:
+        base = sc["ecu_tick_secoc_off"][0]
+        for key, name in (("ecu_tick_secoc_off", "ECU tick, every system, SecOC off (same run)"),
+                          ("ecu_tick_secoc_on", "ECU tick, every system, SecOC on"),
+                          ("ecu_tick_secoc_forged", "  on + a forged frame every tick")):
+            lines.append(f"{name:<44}{sc[key][0] / 1000:>9.2f} µs/tick   p99 {sc[key][1] / 1000:.2f} µs, "
+                         f"{sc[key][0] / base:.2f}x the tick without SecOC")
+        if "secoc_counts" in sc:  # "secoc_counts ticks accepted rejected"
+            lines.append(f"{'  SecOC in that run':<44}{sc['secoc_counts'][0]:>9.0f} frames verified, "
+                         f"{sc['secoc_counts'][1]:.0f} rejected")
+    for key, value in (res.get("secoc") or {}).items():
+        if key != "clock":
+            lines.append(f"{'SecOC ' + key:<44}{value[0]:>9.0f} ns   p99 {value[1]:.0f} ns")
     tf = res.get("tireforce") or {}
     tc, ref = tf.get("c_loop") or {}, tf.get("numpy_ref_ns")
     for key, name in (("skfmec_fixed_step", "SKFMEC fixed-point step, C loop"),

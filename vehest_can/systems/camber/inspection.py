@@ -16,7 +16,7 @@ from typing import Any
 import can
 import numpy as np
 
-from ...bus.frames import database, e2e_data_id
+from ...bus.frames import authentic_data, database, e2e_data_id
 from ...errors import ConfigError
 from ...native import ffi, lib
 from ...plotting import Figures, pyplot
@@ -107,7 +107,8 @@ def ecu_results(messages) -> dict[str, dict] | None:
     for m in messages:
         if m.arbitration_id != CAMBER.frame_id or m.is_extended_id or len(m.data) != CAMBER.length:
             continue
-        if lib.vh_e2e_p01_check(e2e, bytes(m.data), CAMBER.length, e2e_data_id(CAMBER)) in (
+        data = authentic_data(CAMBER.frame_id, bytes(m.data))  # its SecOC tail, if on, is not the CRC's
+        if lib.vh_e2e_p01_check(e2e, data, CAMBER.length, e2e_data_id(CAMBER)) in (
                 lib.VH_E2E_OK, lib.VH_E2E_INITIAL, lib.VH_E2E_SKIPPED):
             last = CAMBER.decode(bytes(m.data), decode_choices=False)
     if last is None:

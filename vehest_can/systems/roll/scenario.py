@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -168,9 +169,10 @@ class RollCar:
         self._inputs = sc.plant.inputs(ffi)
         self._active = sc.active_at(np.arange(sc.n_steps) * DT)
         self._arc = sc.arc_params(ffi, lib)
-        self._out = ffi.new("vh_frame_t[5]")
+        self._out = ffi.new("vh_frame_t[6]")  # CHS 1 + the roll node's 4 + its SecOC sync frame
         self._rxf = ffi.new("vh_frame_t *")
         self.node = ffi.new("vh_rln_t *")
+        self.secoc: Any = None  # SecOC off until enable_secoc (a vehest_can.bus.secoc.BusSecoc)
         self.reset()
 
     def reset(self) -> None:
@@ -181,7 +183,19 @@ class RollCar:
         self._chs = self.scenario.plant.make_node(ffi, lib)
         if lib.vh_rln_init(self.node, self.scenario.node_config(ffi, lib)) != lib.VH_OK:
             raise ScenarioError(f"{self.scenario.plant._where()}: roll_sensors: the roll node refuses them")
+        if self.secoc is not None:  # the node's SecOC outlives the node (vh_rln_init clears the pointer)
+            lib.vh_rln_set_secoc(self.node, self.secoc.c)
+            self.secoc.restart()  # a new session: a lockstep session's ECU starts afresh too
         self._k = 0
+
+    def enable_secoc(self, keys: dict, store=None):
+        """SecOC on for the roll node (node ROLL): its secured frames protected, the ECU's commands
+        verified before they are applied (vehest_can.bus.secoc.BusSecoc); reset() restarts it."""
+        from ...bus.secoc import BusSecoc
+
+        self.secoc = BusSecoc("ROLL", keys, store=store)
+        self._lib.vh_rln_set_secoc(self.node, self.secoc.c)
+        return self.secoc
 
     def rx(self, frame) -> None:
         """One ECU frame (``can.Message`` or ``vh_frame_t`` cdata) to the roll node."""
@@ -200,7 +214,7 @@ class RollCar:
         lib.vh_rln_actuate(self.node, self._plant)
         lib.vh_v14_step(self._plant, self._inputs + k)
         n = lib.vh_chs_step(self._chs, ffi.addressof(self._plant, "truth"), self._out, 1)
-        n += lib.vh_rln_step(self.node, self._plant, self._out + n, 4)
+        n += lib.vh_rln_step(self.node, self._plant, self._out + n, 5)
         return [self._out[i] for i in range(n)]
 
     def truth(self) -> np.void:
