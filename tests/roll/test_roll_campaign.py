@@ -34,3 +34,17 @@ def test_shipped_roll_campaign_runs(tmp_path):
     assert [a["passed"] for a in s["acceptance"]][2] == 3      # limits respected in every run
     for key in ("ukf_roll_rms_pct_of_peak", "ukf_roll_rate_rms_pct_of_peak"):
         assert s["metrics"][key]["no_value"] == 0 and s["metrics"][key]["worst"] > 0
+
+
+def test_the_demo_reads_the_roll_acceptance_as_the_table_shows_it():
+    """The demo's acceptance summary (and --check, --junit) reads what the roll table shows: a
+    line that passes in the table passes there (it once read every roll line as FAIL)."""
+    from vehest_can.sim.report import checks_of
+    from vehest_can.systems.roll import report
+
+    m = {"ukf_roll_rms_pct_of_peak": 0.3, "ukf_roll_rate_rms_pct_of_peak": 12.0, "limits_respected": True,
+         "speed_kmh": 72.0, "vs_passive": {"peak_roll_reduction_pct": 58.7}}
+    table = report.acceptance(m)
+    checks = checks_of({"acceptance": report.acceptance_entries(m)}, "roll.x")
+    assert [c["passed"] for c in checks] == [ok for _, _, ok in table] == [True, False, True, True]
+    assert [c["detail"] for c in checks] == [fig for _, fig, _ in table]

@@ -107,6 +107,12 @@ def acceptance(m: dict) -> list[tuple[str, str, bool]]:
     return rows
 
 
+def acceptance_entries(m: dict) -> list[dict]:
+    """The acceptance lines as every system's metrics carry them (line, verdict, detail), which the
+    demo's acceptance summary, --check and --junit read."""
+    return [{"line": line, "verdict": "pass" if ok else "FAIL", "detail": figure} for line, figure, ok in acceptance(m)]
+
+
 def table(m: dict) -> str:
     lines = [f"roll: {m['scenario']} ({m['mode']})",
              f"  peak roll {m['peak_roll_deg']:.3f} deg, roll rate {m['peak_roll_rate_deg_s']:.3f} deg/s, "

@@ -53,7 +53,7 @@ class Roll:
             twin = sc.with_mode("passive")
             passive = run_inprocess(RollCar(twin, len(session.truth) * 0.0005), Ecu())
             m["vs_passive"] = report.compare(m, report.evaluate(passive))
-        m["acceptance"] = [{"line": a, "figure": f, "pass": ok} for a, f, ok in report.acceptance(m)]
+        m["acceptance"] = report.acceptance_entries(m)
         m["plots"] = [str(p) for p in report.plots(session, out_dir, sc.name, passive)]
         return m
 
