@@ -23,13 +23,9 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
 import dbcgen  # noqa: E402  (sits beside this file)
-
-sys.path.insert(0, str(HERE / "secoc"))
-from crypto_link import libcrypto  # noqa: E402  (SecOC's AES on the host: OpenSSL)
+from cbuild import STRICT_FLAGS, libcrypto  # noqa: E402  (the strict flags; SecOC's AES on the host: OpenSSL)
 
 GEN_DIR = ROOT / "build" / "generated"
-# The warnings that make the build fail; the same set the Makefile's strict build uses.
-STRICT_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
 # -O3: lets the compiler vectorise the 4x4 products of the filter step (~25% faster than -O2).
 OPT_FLAGS = ["-O3"]
 #: the systems of the firmware, one folder each (sources, headers, the system's ECU application)

@@ -13,14 +13,18 @@ from __future__ import annotations
 import os
 import shlex
 import subprocess
+import sys
 from pathlib import Path
 
 from cffi import FFI
 
 HERE = Path(__file__).resolve().parent
-ROOT = HERE.parent.parent
-STRICT_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-Wdouble-promotion"]
-OPT_FLAGS = ["-O2"]
+sys.path.insert(0, str(HERE.parent))
+import cbuild  # noqa: E402  (c_core/cbuild.py)
+
+ROOT = cbuild.ROOT
+STRICT_FLAGS = cbuild.STRICT_FLAGS + ["-Wdouble-promotion"]
+OPT_FLAGS = cbuild.OPT_FLAGS
 SOURCES = ["vh_roll_f32.c", "vh_roll_f64_host.c", "vh_roll_params.c"]
 
 
@@ -40,14 +44,7 @@ def cdef_text() -> str:
 
 
 def compile_roll(out_dir: Path = ROOT / "build" / "obj_roll", extra_flags: list[str] | None = None) -> list[str]:
-    from setuptools._distutils.ccompiler import new_compiler
-    from setuptools._distutils.sysconfig import customize_compiler
-
-    cc = new_compiler()
-    customize_compiler(cc)
-    flags = STRICT_FLAGS + OPT_FLAGS + ["-fPIC"] + (extra_flags or [])
-    return cc.compile([str(HERE / s) for s in SOURCES], output_dir=str(out_dir),
-                      include_dirs=[str(HERE)], extra_postargs=flags)
+    return cbuild.compile_strict([HERE / s for s in SOURCES], [HERE], out_dir, STRICT_FLAGS + OPT_FLAGS, extra_flags)
 
 
 def make_ffi() -> FFI:

@@ -7,39 +7,26 @@ include guards or ``#include``).
 """
 from __future__ import annotations
 
-import re
+import sys
 from pathlib import Path
 
 from cffi import FFI
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))
+from cbuild import ROOT, STRICT_FLAGS, compile_strict, header_cdef  # noqa: E402,F401  (c_core/cbuild.py)
+
 HEADER = HERE / "vh_xcp.h"
 SOURCES = [HERE / "vh_xcp.c"]
-STRICT_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
-OPT_FLAGS = ["-O2"]
-# An integer constant cffi can take as it stands; every other preprocessor line goes.
-_CONSTANT = re.compile(r"#define\s+\w+\s+\d+\b")
 
 
 def cdef_text(header: Path = HEADER) -> str:
-    lines = []
-    for line in header.read_text().splitlines():
-        stripped = line.strip()
-        if stripped.startswith("#") and not _CONSTANT.match(stripped):
-            continue
-        lines.append(line)
-    return "\n".join(lines)
+    return header_cdef([header])
 
 
-def compile_slave(out_dir: Path = HERE.parent.parent / "build" / "xcp_obj", extra_flags: list[str] | None = None) -> list[str]:
-    """The slave compiled with the strict flags, apart from cffi's glue (which -pedantic rejects)."""
-    from setuptools._distutils.ccompiler import new_compiler
-    from setuptools._distutils.sysconfig import customize_compiler
-
-    cc = new_compiler()
-    customize_compiler(cc)
-    return cc.compile([str(s) for s in SOURCES], output_dir=str(out_dir), include_dirs=[str(HERE)],
-                      extra_postargs=STRICT_FLAGS + OPT_FLAGS + ["-fPIC"] + (extra_flags or []))
+def compile_slave(out_dir: Path = ROOT / "build" / "xcp_obj", extra_flags: list[str] | None = None) -> list[str]:
+    """The slave compiled with the strict flags, apart from cffi's glue."""
+    return compile_strict(SOURCES, [HERE], out_dir, extra_flags=extra_flags)
 
 
 def make_ffi() -> FFI:
@@ -53,4 +40,4 @@ def make_ffi() -> FFI:
 ffibuilder = make_ffi()
 
 if __name__ == "__main__":
-    ffibuilder.compile(tmpdir=str(HERE.parent.parent / "build" / "cffi_xcp"), verbose=True)
+    ffibuilder.compile(tmpdir=str(ROOT / "build" / "cffi_xcp"), verbose=True)
