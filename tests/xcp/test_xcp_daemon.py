@@ -28,7 +28,8 @@ from vehest_can.xcp.description import C_TYPES
 pytestmark = pytest.mark.multicast
 pyxcp = pytest.importorskip("pyxcp")
 from pyxcp import types  # noqa: E402
-from pyxcp.daq_stim import DaqList, DaqOnlinePolicy  # noqa: E402
+from pyxcp.daq_stim import DaqList  # noqa: E402
+from xcp_daq_policy import Collect  # noqa: E402
 
 ERR_ACCESS_LOCKED, ERR_OUT_OF_RANGE = 0x25, 0x22
 
@@ -36,23 +37,6 @@ ERR_ACCESS_LOCKED, ERR_OUT_OF_RANGE = 0x25, 0x22
 def code(excinfo) -> int:
     c = excinfo.value.get_error_code()
     return getattr(c, "intvalue", c)
-
-
-class Collect(DaqOnlinePolicy):
-    def __init__(self, lists):
-        import logging
-        super().__init__(lists, logger=logging.getLogger("xcp-daemon-test"))
-        self.pid_off = False
-        self.samples: list = []
-
-    def initialize(self):
-        pass
-
-    def finalize(self):
-        pass
-
-    def on_daq_list(self, daq_list, ts0, ts1, payload):
-        self.samples.append((daq_list, list(payload)))
 
 
 class DaemonRig:
@@ -149,7 +133,7 @@ def test_pyxcp_measures_the_running_daemon_on_its_event_channels(rig):
     time.sleep(0.3)
     n = dict(zip(xcp_ecu.COUNTERS, (r.read(f"xcp.slave.n.{c}")[0] for c in xcp_ecu.COUNTERS)))
     m.disconnect()
-    fast_s = [p for i, p in policy.samples if i == 0]
+    fast_s = [p for i, _, p in policy.samples if i == 0]
     col = {h[0]: k for k, h in enumerate(policy.daq_lists[0].headers)}  # pyxcp's packing order
     ticks = [p[col["tick"]] for p in fast_s]
     # ECU ticks of the 1 ms list: every second tick, none missing (the daemon's clock may run late
@@ -330,7 +314,7 @@ def test_roll_daq_over_the_daemon_equals_its_roll_estimate_frames(pyxcp_master):
         policy.stop()
         time.sleep(0.3)
     col = {h[0]: k for k, h in enumerate(policy.daq_lists[0].headers)}
-    daq = [{n: p[col[n]] for n in names} for _, p in policy.samples]
+    daq = [{n: p[col[n]] for n in names} for _, _, p in policy.samples]
     ticks = [s["tick"] for s in daq]
     assert len(daq) > 200 and all(b - a == 20 for a, b in zip(ticks, ticks[1:]))  # every 10 ms, none lost
     f, ft = out["s"].frames, out["s"].frame_tick

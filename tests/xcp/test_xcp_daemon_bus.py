@@ -26,30 +26,14 @@ from vehest_can.xcp.description import C_TYPES
 
 pytestmark = pytest.mark.multicast
 pytest.importorskip("pyxcp")
-from pyxcp.daq_stim import DaqList, DaqOnlinePolicy  # noqa: E402
+from pyxcp.daq_stim import DaqList  # noqa: E402
+from xcp_daq_policy import Collect  # noqa: E402
 
 EST = database("pt").get_message_by_name("VEHEST_DrivelineEst")
 #: DAQ measurement -> its signal in VEHEST_DrivelineEst
 SIGNALS = {"dkf[0].x[2]": "DkfT_ShaftTorque", "dkf[0].x[3]": "DkfT_RoadLoadErr", "dkf[1].x[2]": "DkfS_ShaftTorque",
            "dkf[1].x[3]": "DkfS_RoadLoadErr", "dkf[0].health": "DkfT_Health", "dkf[1].health": "DkfS_Health"}
 N_COUNTER = 15  # E2E P01 alive counter 0..14
-
-
-class Collect(DaqOnlinePolicy):
-    def __init__(self, lists):
-        import logging
-        super().__init__(lists, logger=logging.getLogger("xcp-daemon-bus-test"))
-        self.pid_off = False
-        self.samples: list = []
-
-    def initialize(self):
-        pass
-
-    def finalize(self):
-        pass
-
-    def on_daq_list(self, daq_list, ts0, ts1, payload):
-        self.samples.append(list(payload))
 
 
 def _unwrap(counters: list[int]) -> list[int]:
@@ -114,7 +98,7 @@ def test_daq_over_the_daemon_on_its_own_xcp_bus_equals_its_estimate_frames(pyxcp
     assert xcp_on_main == []  # every XCP frame on the XCP bus, none on the ECU's
 
     col = {h[0]: k for k, h in enumerate(policy.daq_lists[0].headers)}  # pyxcp's packing order
-    daq = [{n: p[col[n]] for n in names} for p in policy.samples]
+    daq = [{n: p[col[n]] for n in names} for _, _, p in policy.samples]
     ticks = [s["tick"] for s in daq]
     assert len(daq) > 100 and all(b - a == 2 for a, b in zip(ticks, ticks[1:]))  # 1 ms list, none lost
     frames = [EST.decode(bytes(msg.data), decode_choices=False) for msg in est]

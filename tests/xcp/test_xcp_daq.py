@@ -1,38 +1,17 @@
 """DAQ with pyxcp as the master: a list of every demo measurement, sampled each tick."""
 from __future__ import annotations
 
-import logging
 import os
-import threading
 import time
 
 import can
 import pytest
 
 pytest.importorskip("pyxcp")
-from pyxcp.daq_stim import DaqList, DaqOnlinePolicy  # noqa: E402
+from pyxcp.daq_stim import DaqList  # noqa: E402
+from xcp_daq_policy import Collect  # noqa: E402
 
 from vehest_can.xcp.description import C_TYPES
-
-
-class Collect(DaqOnlinePolicy):
-    def __init__(self, lists):
-        super().__init__(lists, logger=logging.getLogger("xcp-test"))
-        self.pid_off = False
-        self.samples = []
-        self.done = threading.Event()
-        self.want = None
-
-    def initialize(self):
-        pass
-
-    def finalize(self):
-        pass
-
-    def on_daq_list(self, daq_list, ts0, ts1, payload):
-        self.samples.append((daq_list, ts1, list(payload)))
-        if self.want is not None and len(self.samples) >= self.want:
-            self.done.set()
 
 
 def expected(desc, name, tick):

@@ -213,6 +213,13 @@ def lockstep_factor(drive_factory, repeats: int = 3) -> float:
     return float(np.median(factors))
 
 
+def _tick_rows(res: dict, rows: tuple[tuple[str, str], ...], feature: str) -> list[str]:
+    """Tick medians and p99 of one C-loop run, each against the first row (the feature off)."""
+    base = res[rows[0][0]][0]
+    return [f"{name:<44}{res[key][0] / 1000:>9.2f} µs/tick   p99 {res[key][1] / 1000:.2f} µs, "
+            f"{res[key][0] / base:.2f}x the tick without {feature}" for key, name in rows]
+
+
 def table(res: dict, lockstep: dict[str, float] | None = None) -> str:
     lines = [f"{'benchmark':<44}{'median':>14}{'vs filterpy':>13}"]
     fp = res.get("filterpy_ns")
@@ -237,23 +244,17 @@ def table(res: dict, lockstep: dict[str, float] | None = None) -> str:
                      f"   p99 {c['ecu_tick_chassis'][1] / 1000:.2f} µs (target <= 10 µs)")
     x = res.get("ecu_xcp") or {}
     if "ecu_tick_no_xcp" in x:
-        base = x["ecu_tick_no_xcp"][0]
-        for key, name in (("ecu_tick_no_xcp", "ECU tick, XCP off (same run)"),
-                          ("ecu_tick_xcp_idle", "ECU tick, XCP on, connected, idle"),
-                          ("ecu_tick_xcp_daq", "ECU tick, XCP 20-signal DAQ at 1 ms")):
-            lines.append(f"{name:<44}{x[key][0] / 1000:>9.2f} µs/tick   p99 {x[key][1] / 1000:.2f} µs, "
-                         f"{x[key][0] / base:.2f}x the tick without XCP")
+        lines += _tick_rows(x, (("ecu_tick_no_xcp", "ECU tick, XCP off (same run)"),
+                                ("ecu_tick_xcp_idle", "ECU tick, XCP on, connected, idle"),
+                                ("ecu_tick_xcp_daq", "ECU tick, XCP 20-signal DAQ at 1 ms")), "XCP")
         if "xcp_daq_dtos" in x:  # "xcp_daq_dtos ticks dtos overruns": the DAQ ran within its budget
             lines.append(f"{'  XCP DAQ in that run':<44}{x['xcp_daq_dtos'][0]:>9.0f} DTOs, "
                          f"{x['xcp_daq_dtos'][1]:.0f} samples dropped")
     sc = res.get("ecu_secoc") or {}
     if "ecu_tick_secoc_off" in sc:
-        base = sc["ecu_tick_secoc_off"][0]
-        for key, name in (("ecu_tick_secoc_off", "ECU tick, every system, SecOC off (same run)"),
-                          ("ecu_tick_secoc_on", "ECU tick, every system, SecOC on"),
-                          ("ecu_tick_secoc_forged", "  on + a forged frame every tick")):
-            lines.append(f"{name:<44}{sc[key][0] / 1000:>9.2f} µs/tick   p99 {sc[key][1] / 1000:.2f} µs, "
-                         f"{sc[key][0] / base:.2f}x the tick without SecOC")
+        lines += _tick_rows(sc, (("ecu_tick_secoc_off", "ECU tick, every system, SecOC off (same run)"),
+                                 ("ecu_tick_secoc_on", "ECU tick, every system, SecOC on"),
+                                 ("ecu_tick_secoc_forged", "  on + a forged frame every tick")), "SecOC")
         if "secoc_counts" in sc:  # "secoc_counts ticks accepted rejected"
             lines.append(f"{'  SecOC in that run':<44}{sc['secoc_counts'][0]:>9.0f} frames verified, "
                          f"{sc['secoc_counts'][1]:.0f} rejected")
