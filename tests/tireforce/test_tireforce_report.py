@@ -105,7 +105,7 @@ def test_evaluate_axle_scale_fixed_vs_double_and_verdicts():
     assert verdict["fixed"]["verdict"] == "SHORT"
     assert verdict["SKFMEC"]["verdict"] == "pass"                  # SKFMEC 0 % < EKF on every tire
     text = tr.table({**m, "scenario": "constructed"})
-    assert "[SHORT] fixed vs double" in text and "[pass ] SKFMEC" in text
+    assert "[FAIL] fixed vs double" in text and "[PASS] SKFMEC" in text and "(!: a tyre over the" in text
 
 
 def test_evaluate_ay_band_keeps_only_samples_within_it():

@@ -22,7 +22,7 @@ import numpy as np
 
 from ...errors import ConfigError, ScenarioError
 from ...plotting import Figures, pyplot
-from ...sim.report import write_metrics
+from ...sim.report import verdict_word, write_metrics
 from . import api as tf
 from .adaptive import ADAPTIVE, AdaptiveConfig, AdaptiveRun, AdaptiveSkfmec
 
@@ -475,9 +475,10 @@ def table(metrics: dict, name: str | None = None) -> str:
         fd = metrics["fixed_vs_double"]
         lines.append(f"{'fixed - double':<22}" + "".join(f"{fd['rms_pct'][w]:>9.4f}" for w in WHEELS)
                      + " " * 18 + f"{fd['saturations']:>6d}")
+    lines.append(f"(!: a tyre over the {TARGET_TIRE_PCT:g} % target)")
     lines.append("acceptance:")
     for a in metrics["acceptance"]:
-        lines.append(f"  [{a['verdict']:<5}] {a['line']}: {a['detail']}")
+        lines.append(f"  [{verdict_word(a['verdict'])}] {a['line']}: {a['detail']}")
     return "\n".join(lines)
 
 
