@@ -76,6 +76,9 @@ def meta_header(db, name: str) -> str:
         lines.append(f"#define {pre}_SECOC_DATA_ID ({int(_attr(m, 'SecOCDataID', 0))}u)")
         # a cycle the tick cannot hit would run early or late every period: refuse to build
         lines.append(f"typedef char {pre.lower()}_cycle_is_whole_ticks[({pre}_CYCLE_TIME_US % VH_TICK_US) == 0u ? 1 : -1];")
+    ids = sorted(m.frame_id for m in db.messages if not m.is_extended_frame)
+    lines += ["", "/* a standard frame ID this bus's DBC knows */",
+              f"#define {up}_KNOWN_ID(id) (" + " || ".join(f"(id) == 0x{i:X}u" for i in ids) + ")"]
     lines += ["", f"#endif /* {up}_META_H */", ""]
     return "\n".join(lines)
 

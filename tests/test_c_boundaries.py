@@ -146,3 +146,10 @@ def test_bench_reaches_the_simulator_only_through_its_declared_path():
     for d in vehest_build.FIRMWARE_DIRS:
         for src in sorted(d.glob("*.[ch]")):
             assert not re.search(r'#include\s+"\.\.?/', src.read_text()), src
+
+
+def test_the_ecu_scheduler_stays_thin():
+    """vh_ecu.c is the scheduler only (dispatch, runnables, counters): under 200 lines, the rest
+    lives in the systems' folders and the SecOC hook."""
+    n = len((ROOT / "c_core" / "ecu" / "vh_ecu.c").read_text().splitlines())
+    assert n < 200, f"c_core/ecu/vh_ecu.c has {n} lines"

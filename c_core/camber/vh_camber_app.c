@@ -1,4 +1,5 @@
 /* vh_camber_app.c - the camber inspection ECU application, see vh_camber_app.h. */
+#include <math.h>
 #include <string.h>
 
 #include "vh_camber_app.h"
@@ -8,6 +9,12 @@
 #include "vh_pt_meta.h"
 
 #define CIS_TIMEOUT_TICKS (VH_PT_CIS_ACCEL_RX_TIMEOUT_CYCLES * (VH_PT_CIS_ACCEL_CYCLE_TIME_US / VH_TICK_US))
+
+int vh_cmb_app_check(const vh_camber_config_t *cfg, double still_ww)
+{
+    vh_camber_t probe; /* vh_camber_init's own checks, on a scratch instance */
+    return still_ww >= 0.0 && isfinite(still_ww) && vh_camber_init(&probe, cfg, NULL) == VH_OK ? VH_OK : VH_EINVAL;
+}
 
 void vh_cmb_app_reset(vh_ecu_cis_t *c, const vh_camber_config_t *cfg)
 {

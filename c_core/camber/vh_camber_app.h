@@ -25,6 +25,9 @@ typedef struct {
     uint8_t tx_counter;            /* E2E counter of VEHEST_Camber */
 } vh_ecu_cis_t;
 
+/* VH_OK, or VH_EINVAL for a configuration vh_camber_init refuses or a negative or non-finite
+ * still_ww (the wheel speed under which the car counts as standing, rad/s). */
+int vh_cmb_app_check(const vh_camber_config_t *cfg, double still_ww);
 /* Re-initialise every window from cfg; the devices' calibrations are data and survive. */
 void vh_cmb_app_reset(vh_ecu_cis_t *c, const vh_camber_config_t *cfg);
 /* Load one device's calibration; VH_EINVAL for a wheel >= 4 or an invalid calibration. */

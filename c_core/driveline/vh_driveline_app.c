@@ -14,14 +14,20 @@ enum { SIG_WO = 0, SIG_WWL, SIG_WWR, SIG_TO, SIG_WE, SIG_WT, N_SIG };
 /* RX timeout in ticks: RxTimeoutCycles of the DBC times the cycle time */
 #define DLS_TIMEOUT_TICKS (VH_PT_DLS_SENSORS_RX_TIMEOUT_CYCLES * (VH_PT_DLS_SENSORS_CYCLE_TIME_US / VH_TICK_US))
 
-int vh_drv_app_check(const double gear_ratio[VH_ECU_N_GEARS], double we_min)
+int vh_drv_app_check(const double gear_ratio[VH_ECU_N_GEARS], double we_min, const vh_dkf_config_t dkf[VH_ECU_N_DKF])
 {
     int i;
+    vh_dkf_t probe; /* vh_dkf_init's own checks, on a scratch instance */
     if (!(we_min > 0.0) || !isfinite(we_min)) {
         return VH_EINVAL;
     }
     for (i = 1; i < VH_ECU_N_GEARS; ++i) {
         if (!(gear_ratio[i] >= 0.0) || !isfinite(gear_ratio[i])) {
+            return VH_EINVAL;
+        }
+    }
+    for (i = 0; i < VH_ECU_N_DKF; ++i) {
+        if (vh_dkf_init(&probe, &dkf[i]) != VH_OK) {
             return VH_EINVAL;
         }
     }

@@ -45,8 +45,9 @@ typedef struct {
     vh_dkf_gear_model_t gears[VH_ECU_N_DKF][VH_ECU_N_GEARS];
 } vh_drv_app_t;
 
-/* VH_OK, or VH_EINVAL for a negative or non-finite ratio or a non-positive we_min. */
-int vh_drv_app_check(const double gear_ratio[VH_ECU_N_GEARS], double we_min);
+/* VH_OK, or VH_EINVAL for a negative or non-finite ratio, a non-positive we_min or a filter
+ * configuration vh_dkf_init refuses. */
+int vh_drv_app_check(const double gear_ratio[VH_ECU_N_GEARS], double we_min, const vh_dkf_config_t dkf[VH_ECU_N_DKF]);
 /* Restart; discretises each filter's model for every usable gear (cfg: the filters' configurations). */
 void vh_drv_app_reset(vh_drv_app_t *a, const vh_dkf_config_t cfg[VH_ECU_N_DKF], const double gear_ratio[VH_ECU_N_GEARS]);
 /* One received DLS_Sensors frame, checked and counted into cnt. */

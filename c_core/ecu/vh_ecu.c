@@ -1,5 +1,4 @@
 /* vh_ecu.c - the ECU scheduler: dispatch by frame ID, the runnable table, the counters. */
-#include <math.h>
 #include <string.h>
 
 #include "vh_ch.h"
@@ -16,19 +15,11 @@ typedef char vh_ecu_tx_room_check[(VH_ECU_MAX_TX >= 9 + 2 + VH_ECU_XCP_MAX_TX) ?
 int vh_ecu_init_params(vh_ecu_t *ecu, const vh_ecu_config_t *cfg, const vh_skfq_params_t *prm,
                        const vh_tfa_params_t *tprm)
 {
-    int i;
-    vh_dkf_t probe; /* the init functions' own checks, on scratch instances */
-    vh_camber_t cprobe;
-    vh_skfq_t qprobe;
-    if (vh_drv_app_check(cfg->gear_ratio, cfg->we_min) != VH_OK || !(cfg->camber_still_ww >= 0.0) ||
-        !isfinite(cfg->camber_still_ww) || vh_camber_init(&cprobe, &cfg->camber, NULL) != VH_OK ||
-        vh_skfq_init(&qprobe, prm) != VH_OK || !vh_tf_app_check(prm, tprm) || vh_roll_app_check(&cfg->roll) != VH_OK) {
+    vh_skfq_t qprobe; /* vh_skfq_init's own checks, on a scratch instance */
+    if (vh_drv_app_check(cfg->gear_ratio, cfg->we_min, cfg->dkf) != VH_OK ||
+        vh_cmb_app_check(&cfg->camber, cfg->camber_still_ww) != VH_OK || vh_skfq_init(&qprobe, prm) != VH_OK ||
+        !vh_tf_app_check(prm, tprm) || vh_roll_app_check(&cfg->roll) != VH_OK) {
         return VH_EINVAL;
-    }
-    for (i = 0; i < VH_ECU_N_DKF; ++i) {
-        if (vh_dkf_init(&probe, &cfg->dkf[i]) != VH_OK) {
-            return VH_EINVAL;
-        }
     }
     memset(ecu, 0, sizeof *ecu); /* SecOC off */
     ecu->cfg = *cfg;
@@ -70,7 +61,6 @@ static void rx_chs(vh_ecu_t *ecu, const vh_frame_t *f)
 }
 static void rx_roll(vh_ecu_t *ecu, const vh_frame_t *f) { vh_roll_app_rx(&ecu->roll, &ecu->cfg.roll, f); }
 static void rx_cis(vh_ecu_t *ecu, const vh_frame_t *f) { vh_cmb_app_rx(&ecu->cis, &ecu->cnt, f); }
-static void rx_none(vh_ecu_t *ecu, const vh_frame_t *f) { (void)ecu; (void)f; }
 
 static const struct {
     uint32_t id;
@@ -83,47 +73,30 @@ static const struct {
     {VH_CH_ROLL_YAW_RATE_FRAME_ID, rx_roll},
     {VH_CH_ROLL_ACTUATOR_STATUS_FRAME_ID, rx_roll},
     {VH_CH_ROLL_MODE_CMD_FRAME_ID, rx_roll},
-    /* known frames that are not the ECU's input: our own TX and the lockstep sync */
-    {VH_PT_VEHEST_DRIVELINE_EST_FRAME_ID, rx_none},
-    {VH_PT_VEHEST_STATUS_FRAME_ID, rx_none},
-    {VH_PT_SIM_SYNC_FRAME_ID, rx_none},
-    {VH_PT_VEHEST_SYNC_ACK_FRAME_ID, rx_none},
-    {VH_PT_VEHEST_CAMBER_FRAME_ID, rx_none},
-    {VH_CH_VEHEST_TIRE_FORCE_EST_FRAME_ID, rx_none},
-    {VH_CH_VEHEST_CHASSIS_STATUS_FRAME_ID, rx_none},
-    {VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_FRAME_ID, rx_none},
-    {VH_CH_VEHEST_ROLL_CMD_FRAME_ID, rx_none},
-    {VH_CH_VEHEST_ROLL_EST_FRAME_ID, rx_none},
-    /* SecOC sync frames: the SecOC hook's when it is on (vh_secoc_bus_rx), nobody's when it is off */
-    {VH_PT_VEHEST_SEC_OC_SYNC_PT_FRAME_ID, rx_none},
-    {VH_CH_VEHEST_SEC_OC_SYNC_CH_FRAME_ID, rx_none},
-    {VH_CH_ROLL_SEC_OC_SYNC_FRAME_ID, rx_none},
 };
 
 void vh_ecu_rx(vh_ecu_t *ecu, const vh_frame_t *frame)
 {
     size_t i;
     vh_frame_t verified;
-    /* SecOC before any application sees the frame */
-    switch (ecu->secoc != NULL ? vh_secoc_bus_rx(ecu->secoc, frame, &verified) : VH_SECOC_BUS_PASS) {
-    case VH_SECOC_BUS_PASS:
-        break;
-    case VH_SECOC_BUS_OK:
-        frame = &verified;
-        break;
-    case VH_SECOC_BUS_REJECTED:
+    /* SecOC before any application sees the frame: a rejected one is counted, a sync frame is its own */
+    const vh_secoc_bus_result_t sr = ecu->secoc != NULL ? vh_secoc_bus_rx(ecu->secoc, frame, &verified) : VH_SECOC_BUS_PASS;
+    if (sr == VH_SECOC_BUS_REJECTED) {
         vh_rx_count(&ecu->cnt.secoc_reject);
-        return;
-    default: /* a sync frame */
+    }
+    if (sr != VH_SECOC_BUS_PASS && sr != VH_SECOC_BUS_OK) {
         return;
     }
+    frame = sr == VH_SECOC_BUS_OK ? &verified : frame;
     for (i = 0; i < sizeof RX_TABLE / sizeof RX_TABLE[0]; ++i) {
         if (RX_TABLE[i].id == frame->id) {
             RX_TABLE[i].rx(ecu, frame);
             return;
         }
     }
-    if (!vh_ecu_xcp_rx(ecu, frame)) { /* the XCP CRO identifier is configuration, not in the DBC */
+    /* a known frame that is not the ECU's input (its own TX, the lockstep sync, SecOC sync frames
+     * when SecOC is off); the XCP CRO identifier is configuration, not in the DBC */
+    if (!VH_PT_KNOWN_ID(frame->id) && !VH_CH_KNOWN_ID(frame->id) && !vh_ecu_xcp_rx(ecu, frame)) {
         vh_rx_count(&ecu->cnt.unknown_id);
     }
 }
