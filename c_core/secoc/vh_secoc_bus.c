@@ -159,7 +159,7 @@ size_t vh_secoc_bus_tx(vh_secoc_bus_t *s, vh_frame_t *tx, size_t n, size_t cap)
                 count(&s->cnt.tx_dropped);
                 continue;
             }
-            count(&s->cnt.protected_);
+            count(&s->cnt.secured);
         }
         if (k != i) {
             tx[k] = tx[i];

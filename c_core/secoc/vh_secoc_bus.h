@@ -45,7 +45,7 @@ typedef struct {
     uint32_t no_key;    /* a secured frame of a sender whose key this node lacks */
     uint32_t rejected;
     uint32_t syncs;     /* sync frames accepted */
-    uint32_t protected_; /* own frames secured */
+    uint32_t secured;    /* own frames secured */
     uint32_t tx_dropped; /* own frames not sent: the FV reservation was used up (host did not extend it) */
     uint32_t sync_sent;
 } vh_secoc_bus_counters_t;

@@ -252,7 +252,7 @@ def cmac(key: bytes, msg: bytes) -> bytes:
 _NO_BOUND = 2**64 - 1
 #: what a node's hook counts (vh_secoc_bus_counters_t); "rejected" is the sum of the five reasons
 BUS_COUNTERS = ("accepted", "bad_mac", "replayed", "unsynced", "malformed", "no_key", "rejected",
-                "syncs", "protected_", "tx_dropped", "sync_sent")
+                "syncs", "secured", "tx_dropped", "sync_sent")
 
 
 def secured_messages() -> dict[int, tuple[str, int, int, bool]]:
