@@ -146,6 +146,7 @@ def seed_corpus(out: Path, frames_per_seed: int = 64) -> int:
 
 def run(seconds: int, work: Path, jobs: int = 1, seed: int = 1,
         defines: tuple[str, ...] = ()) -> subprocess.CompletedProcess:
+    work = work.resolve()  # libFuzzer runs in it: a relative path (the default) would not find the target
     work.mkdir(parents=True, exist_ok=True)
     exe = build(work, defines)
     corpus = work / "corpus"
