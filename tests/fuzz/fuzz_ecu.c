@@ -16,8 +16,8 @@
  * The camber calibration is loaded and the XCP slave enabled (as the daemon runs). After every step
  * the transmitted frames are checked: known IDs only, the DBC length, within the capacity (never
  * above VH_ECU_MAX_TX); XCP responses within MAX_CTO, DTOs within MAX_DTO; the driveline and roll
- * estimates stay finite. After every received frame: a frame SecOC rejected changed nothing but
- * the counters; a CRO frame changed nothing but the slave and the working calibration page; the
+ * estimates stay finite. After every received frame: a frame SecOC rejected is counted once in
+ * cnt.secoc_reject and changed nothing else; a CRO frame changed nothing but the slave and the working calibration page; the
  * reference page is never written. A violation is a crash (abort), like a sanitizer report.
  */
 #include <math.h>
@@ -185,6 +185,9 @@ static void rx(const vh_frame_t *f)
     }
     memcpy(&before, &ecu, sizeof ecu);
     vh_ecu_rx(&ecu, f);
+    if (ecu.cnt.secoc_reject != (uint16_t)(before.cnt.secoc_reject + (sec.cnt.rejected != rejected))) {
+        abort(); /* each rejection counted once (the 16-bit counter wraps), nothing else counted there */
+    }
     if (secoc_on && sec.cnt.rejected != rejected) { /* a rejected frame reaches no application */
         memcpy(&before.cnt, &ecu.cnt, sizeof ecu.cnt);
         if (memcmp(&before, &ecu, sizeof ecu) != 0) {
