@@ -35,13 +35,24 @@ def test_bounded_fuzz_run_finds_nothing(clang, tmp_path):
 
 def test_the_fuzzer_reaches_an_accepted_chassis_frame_and_reports_it(clang, tmp_path):
     """Positive control: a planted abort behind an accepted CHS_Sensors frame and a filter step
-    (-DVH_FUZZ_CANARY) is found from the seed corpus, so the harness does reach past E2E."""
-    r = run_fuzz.run(60, tmp_path, defines=("-DVH_FUZZ_CANARY",))
+    (-DVH_FUZZ_CANARY=1) is found from the seed corpus, so the harness does reach past E2E."""
+    r = run_fuzz.run(60, tmp_path, defines=("-DVH_FUZZ_CANARY=1",))
     assert r.returncode != 0
     assert "deadly signal" in r.stderr or "ERROR: libFuzzer" in r.stderr
     assert list(tmp_path.glob("crash-*"))
 
 
+@pytest.mark.parametrize("canary, what", [(2, "an XCP calibration write committed after seed & key"),
+                                          (3, "a roll UKF step on frames that passed SecOC")])
+def test_the_fuzzer_reaches_past_xcp_seed_and_key_and_secoc(clang, tmp_path, canary, what):
+    """Positive controls for the XCP and SecOC ops: a planted abort behind each is reached."""
+    r = run_fuzz.run(30, tmp_path, defines=(f"-DVH_FUZZ_CANARY={canary}",))
+    assert r.returncode != 0, what
+    assert list(tmp_path.glob("crash-*")), what
+
+
 def test_seed_corpus_is_made_of_real_frames(tmp_path):
     n = run_fuzz.seed_corpus(tmp_path)
-    assert n >= 10 and all(p.stat().st_size > 100 for p in tmp_path.iterdir())
+    assert n >= 10 and all(p.stat().st_size > 80 for p in tmp_path.iterdir())
+    names = {p.name.rstrip("0123456789_") for p in tmp_path.iterdir()}
+    assert {"chassis", "protected", "roll", "roll_secoc", "xcp_cal", "xcp_daq"} <= names

@@ -1,15 +1,24 @@
 /* fuzz_ecu.c - coverage-guided fuzz target (libFuzzer) for the ECU's RX + tick path.
  *
- * The input is a program of records, each starting with an op byte:
+ * The input is a mode byte, then a program of records, each starting with an op byte:
+ *   mode bit 0: SecOC on (a fixed test key, RFC 4493's: never a real key); bit 1: XCP MAX_CTO 64
  *   0  raw frame:        id selector, flags, len, payload  (anything, CRC almost never right)
  *   1  protected frame:  which RX message, counter step, payload; the E2E CRC and alive counter
  *                        are made right, so the fuzzer reaches the decode, the checks behind
  *                        E2E (SNA, qualifiers, ranges) and the filters
  *   2  ticks:            step the ECU 1..16 times with a fuzzed TX capacity
  *   3  deadline misses / reset
- * The camber calibration is loaded (as a daemon with --camber-cal runs). After every step the
- * transmitted frames are checked: known IDs only, the DBC length, within the capacity; the
- * driveline estimates stay finite. A violation is a crash (abort), like a sanitizer report.
+ *   4  XCP CRO frame:    len, payload on the slave's CRO identifier (anything)
+ *   5  XCP session:      CONNECT, then GET_SEED/UNLOCK with the right key for CAL/PAG and DAQ as
+ *                        selected, so the fuzzer reaches SET_MTA, DOWNLOAD, DAQ setup behind them
+ *   6  secured frame:    as op 1, then secured by a twin roll node (its sync frame first when
+ *                        due): with SecOC on it must verify (genuine traffic is never rejected)
+ * The camber calibration is loaded and the XCP slave enabled (as the daemon runs). After every step
+ * the transmitted frames are checked: known IDs only, the DBC length, within the capacity (never
+ * above VH_ECU_MAX_TX); XCP responses within MAX_CTO, DTOs within MAX_DTO; the driveline and roll
+ * estimates stay finite. After every received frame: a frame SecOC rejected is counted once in
+ * cnt.secoc_reject and changed nothing else; a CRO frame changed nothing but the slave and the working calibration page; the
+ * reference page is never written. A violation is a crash (abort), like a sanitizer report.
  */
 #include <math.h>
 #include <stdint.h>
@@ -22,6 +31,9 @@
 #include "vh_ecu.h"
 #include "vh_pt.h"
 #include "vh_pt_meta.h"
+#include "vh_secoc_bus.h"
+#include "vh_secoc_table.h"
+#include "vh_xcp.h"
 
 typedef struct {
     uint32_t id;
@@ -33,8 +45,14 @@ static const rx_msg_t RX[] = {
     {VH_PT_DLS_SENSORS_FRAME_ID, VH_PT_DLS_SENSORS_LENGTH, VH_PT_DLS_SENSORS_E2E_DATA_ID},
     {VH_PT_CIS_ACCEL_FRAME_ID, VH_PT_CIS_ACCEL_LENGTH, VH_PT_CIS_ACCEL_E2E_DATA_ID},
     {VH_CH_CHS_SENSORS_FRAME_ID, VH_CH_CHS_SENSORS_LENGTH, VH_CH_CHS_SENSORS_E2E_DATA_ID},
+    {VH_CH_ROLL_SENSORS_FRAME_ID, VH_CH_ROLL_SENSORS_LENGTH, VH_CH_ROLL_SENSORS_E2E_DATA_ID},
+    {VH_CH_ROLL_YAW_RATE_FRAME_ID, VH_CH_ROLL_YAW_RATE_LENGTH, VH_CH_ROLL_YAW_RATE_E2E_DATA_ID},
+    {VH_CH_ROLL_ACTUATOR_STATUS_FRAME_ID, VH_CH_ROLL_ACTUATOR_STATUS_LENGTH, VH_CH_ROLL_ACTUATOR_STATUS_E2E_DATA_ID},
+    {VH_CH_ROLL_MODE_CMD_FRAME_ID, VH_CH_ROLL_MODE_CMD_LENGTH, VH_CH_ROLL_MODE_CMD_E2E_DATA_ID},
 };
 #define N_RX (sizeof RX / sizeof RX[0])
+#define FIRST_ROLL_RX 3u /* RX[3..6]: the roll node's frames, the secured ones */
+#define N_ROLL_RX (N_RX - FIRST_ROLL_RX)
 
 static const struct {
     uint32_t id;
@@ -44,15 +62,35 @@ static const struct {
     {VH_PT_VEHEST_STATUS_FRAME_ID, VH_PT_VEHEST_STATUS_LENGTH},
     {VH_PT_VEHEST_CAMBER_FRAME_ID, VH_PT_VEHEST_CAMBER_LENGTH},
     {VH_PT_VEHEST_SYNC_ACK_FRAME_ID, VH_PT_VEHEST_SYNC_ACK_LENGTH},
+    {VH_PT_VEHEST_SEC_OC_SYNC_PT_FRAME_ID, VH_PT_VEHEST_SEC_OC_SYNC_PT_LENGTH},
     {VH_CH_VEHEST_TIRE_FORCE_EST_FRAME_ID, VH_CH_VEHEST_TIRE_FORCE_EST_LENGTH},
     {VH_CH_VEHEST_CHASSIS_STATUS_FRAME_ID, VH_CH_VEHEST_CHASSIS_STATUS_LENGTH},
     {VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_FRAME_ID, VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_LENGTH},
+    {VH_CH_VEHEST_ROLL_CMD_FRAME_ID, VH_CH_VEHEST_ROLL_CMD_LENGTH},
+    {VH_CH_VEHEST_ROLL_EST_FRAME_ID, VH_CH_VEHEST_ROLL_EST_LENGTH},
+    {VH_CH_VEHEST_SEC_OC_SYNC_CH_FRAME_ID, VH_CH_VEHEST_SEC_OC_SYNC_CH_LENGTH},
 };
+
+/* The XCP slave as vehest_can/xcp/ecu.toml describes it, and the bench's seed & key secret. */
+#define XCP_CRO 0x7E0u
+#define XCP_DTO 0x7E1u
+#define XCP_SECRET 0x5EC0DE42u
+#define XCP_WAIT_TICKS 256u /* a response may queue behind a full DTO queue (VH_XCP_TXQ) */
+
+/* RFC 4493's published AES-128 test key: a test vector, not a secret. */
+static const uint8_t TEST_KEY[16] = {0x2b, 0x7e, 0x15, 0x16, 0x28, 0xae, 0xd2, 0xa6,
+                                     0xab, 0xf7, 0x15, 0x88, 0x09, 0xcf, 0x4f, 0x3c};
 
 typedef struct {
     const uint8_t *p;
     size_t n;
 } input_t;
+
+/* fuzzing harness state (not firmware): re-initialised per input; static for their size */
+static vh_ecu_t ecu, before;
+static vh_ecu_cal_t ref;               /* the reference page as enabled: never written */
+static vh_secoc_bus_t sec, roll_node;  /* the ECU's SecOC (node VEHEST) and a genuine roll node's */
+static uint8_t secoc_on, max_cto;
 
 static int take(input_t *in, uint8_t *b)
 {
@@ -64,21 +102,36 @@ static int take(input_t *in, uint8_t *b)
     return 1;
 }
 
-static void check_tx(const vh_ecu_t *ecu, const vh_frame_t *tx, size_t n, size_t cap)
+static int fd_length(uint8_t len)
+{
+    return len <= 8u || len == 12u || len == 16u || len == 20u || len == 24u || len == 32u || len == 48u ||
+           len == 64u;
+}
+
+static void check_tx(const vh_frame_t *tx, size_t n, size_t cap)
 {
     size_t i, k;
     int known;
-    if (n > cap) {
+    if (n > cap || cap > VH_ECU_MAX_TX) {
         abort();
     }
     for (i = 0; i < n; ++i) {
+        if ((tx[i].flags & VH_FRAME_EXT) || !fd_length(tx[i].len)) {
+            abort();
+        }
         known = 0;
         for (k = 0; k < sizeof TX / sizeof TX[0]; ++k) {
             if (tx[i].id == TX[k].id) {
                 known = 1;
-                if (tx[i].len != TX[k].len || (tx[i].flags & VH_FRAME_EXT)) {
+                if (tx[i].len != TX[k].len) {
                     abort();
                 }
+            }
+        }
+        if (tx[i].id == XCP_DTO) { /* RES/ERR/EV/SERV (PID >= 0xFC) within MAX_CTO, a DTO within MAX_DTO */
+            known = 1;
+            if (tx[i].len == 0u || tx[i].len > (tx[i].data[0] >= 0xFCu ? max_cto : ecu.xcp.slave.cfg.max_dto)) {
+                abort();
             }
         }
         if (!known) {
@@ -86,13 +139,137 @@ static void check_tx(const vh_ecu_t *ecu, const vh_frame_t *tx, size_t n, size_t
         }
     }
     for (i = 0; i < VH_ECU_N_DKF; ++i) {
-        if (!isfinite(ecu->dkf[i].x[2])) {
+        if (!isfinite(ecu.dkf[i].x[2])) {
+            abort();
+        }
+    }
+    for (i = 0; i < VH_ROLL_NX; ++i) {
+        if (!isfinite(ecu.roll.ukf.x[i]) || !isfinite(ecu.roll.ukf.P[i * (VH_ROLL_NX + 1u)])) {
+            abort();
+        }
+    }
+    if (memcmp(&ecu.xcp.ref, &ref, sizeof ref) != 0) { /* page 1 is never written */
+        abort();
+    }
+}
+
+static size_t tick(vh_frame_t *tx, size_t cap)
+{
+    const size_t n = vh_ecu_step(&ecu, tx, cap);
+    check_tx(tx, n, cap);
+    return n;
+}
+
+static int secured(uint32_t id)
+{
+    size_t i;
+    for (i = 0; i < sizeof VH_SECOC_MSGS / sizeof VH_SECOC_MSGS[0]; ++i) {
+        if (VH_SECOC_MSGS[i].id == id) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
+/* One received frame, and what it may have changed (the snapshot only where there is a check:
+ * the ECU is 40 kB). */
+static void rx(const vh_frame_t *f)
+{
+    const uint32_t rejected = sec.cnt.rejected;
+    if (!(secoc_on && secured(f->id)) && f->id != XCP_CRO) {
+        vh_ecu_rx(&ecu, f);
+        if (secoc_on && sec.cnt.rejected != rejected) {
+            abort(); /* only a secured frame can fail SecOC */
+        }
+        return;
+    }
+    memcpy(&before, &ecu, sizeof ecu);
+    vh_ecu_rx(&ecu, f);
+    if (ecu.cnt.secoc_reject != (uint16_t)(before.cnt.secoc_reject + (sec.cnt.rejected != rejected))) {
+        abort(); /* each rejection counted once (the 16-bit counter wraps), nothing else counted there */
+    }
+    if (secoc_on && sec.cnt.rejected != rejected) { /* a rejected frame reaches no application */
+        memcpy(&before.cnt, &ecu.cnt, sizeof ecu.cnt);
+        if (memcmp(&before, &ecu, sizeof ecu) != 0) {
+            abort();
+        }
+    }
+    if (f->id == XCP_CRO && !(f->flags & VH_FRAME_EXT)) { /* the slave writes itself and page 0 only */
+        memcpy(&before.xcp.slave, &ecu.xcp.slave, sizeof ecu.xcp.slave);
+        memcpy(&before.xcp.work, &ecu.xcp.work, sizeof ecu.xcp.work);
+        if (memcmp(&before, &ecu, sizeof ecu) != 0) {
             abort();
         }
     }
 }
 
-static vh_ecu_t ecu; /* fuzzing harness state (not firmware): one instance, re-initialised per input */
+/* A CRO command; the response (RES or ERR) into res, 0 if none came. */
+static int xcp_cmd(const uint8_t *cmd, uint8_t len, uint8_t res[VH_XCP_FRAME_MAX])
+{
+    vh_frame_t f, tx[VH_ECU_MAX_TX];
+    size_t n, i;
+    unsigned k;
+    memset(&f, 0, sizeof f);
+    f.id = XCP_CRO;
+    f.flags = VH_FRAME_FD | VH_FRAME_BRS;
+    f.len = len;
+    memcpy(f.data, cmd, len);
+    rx(&f);
+    for (k = 0; k < XCP_WAIT_TICKS; ++k) {
+        n = tick(tx, VH_ECU_MAX_TX);
+        for (i = 0; i < n; ++i) {
+            if (tx[i].id == XCP_DTO && tx[i].data[0] >= 0xFEu) {
+                memcpy(res, tx[i].data, VH_XCP_FRAME_MAX);
+                return 1;
+            }
+        }
+    }
+    return 0;
+}
+
+/* CONNECT, then seed & key for the resources in `unlock` (VH_XCP_RES_CALPAG, VH_XCP_RES_DAQ). */
+static void xcp_session(uint8_t unlock)
+{
+    static const uint8_t resources[2] = {VH_XCP_RES_CALPAG, VH_XCP_RES_DAQ};
+    uint8_t cmd[8] = {0xFFu, 0x00u}, res[VH_XCP_FRAME_MAX];
+    uint32_t seed, key;
+    unsigned i;
+    if (!xcp_cmd(cmd, 2u, res) || res[0] != 0xFFu) {
+        abort(); /* a CONNECT is always answered */
+    }
+    for (i = 0; i < 2u; ++i) {
+        if (!(unlock & resources[i])) {
+            continue;
+        }
+        cmd[0] = 0xF8u; /* GET_SEED mode 0 */
+        cmd[1] = 0u;
+        cmd[2] = resources[i];
+        if (!xcp_cmd(cmd, 3u, res) || res[0] != 0xFFu || (res[1] != 4u && res[1] != 0u)) {
+            abort();
+        }
+        if (res[1] == 0u) {
+            continue; /* unlocked already */
+        }
+        seed = (uint32_t)res[2] | (uint32_t)res[3] << 8 | (uint32_t)res[4] << 16 | (uint32_t)res[5] << 24;
+        key = vh_xcp_key(seed, XCP_SECRET);
+        cmd[0] = 0xF7u; /* UNLOCK */
+        cmd[1] = 4u;
+        cmd[2] = (uint8_t)key;
+        cmd[3] = (uint8_t)(key >> 8);
+        cmd[4] = (uint8_t)(key >> 16);
+        cmd[5] = (uint8_t)(key >> 24);
+        if (!xcp_cmd(cmd, 6u, res) || res[0] != 0xFFu) {
+            abort(); /* the right key unlocks */
+        }
+    }
+}
+
+static int keyed(vh_secoc_bus_t *s, unsigned self)
+{
+    vh_secoc_bus_init(s, self);
+    return vh_secoc_bus_set_key(s, VH_SECOC_NODE_VEHEST, TEST_KEY) == VH_OK &&
+           vh_secoc_bus_set_key(s, VH_SECOC_NODE_ROLL, TEST_KEY) == VH_OK && vh_secoc_bus_start(s, 1u, UINT64_MAX) == VH_OK;
+}
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
@@ -100,13 +277,21 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     static const float x[3] = {1.0f, 0.0f, 0.0f}, z[3] = {0.0f, 0.0f, 1.0f}, lsb[3] = {0.004f, 0.004f, 0.004f};
     vh_ecu_config_t cfg;
+    vh_ecu_xcp_config_t xcfg;
     vh_camber_cal_t cal;
-    vh_frame_t f, tx[VH_ECU_MAX_TX];
-    uint8_t counter[N_RX] = {0u, 0u, 0u};
+    vh_frame_t f, tx[VH_ECU_MAX_TX], sf[3];
+    uint8_t counter[N_RX] = {0u};
     input_t in = {data, size};
-    uint8_t op, a, b, c;
+    uint8_t mode, op, a, b, c;
     unsigned w, k;
+    size_t n, i;
+    uint32_t accepted;
 
+    if (!take(&in, &mode)) {
+        return 0;
+    }
+    secoc_on = mode & 1u;
+    max_cto = (mode & 2u) ? 64u : 8u;
     vh_ecu_config_default(&cfg);
     if (vh_ecu_init(&ecu, &cfg) != VH_OK || vh_camber_cal_from_axes(&cal, x, z, lsb, 1e-3f) != VH_OK) {
         abort();
@@ -114,23 +299,45 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     for (w = 0; w < VH_ECU_N_WHEELS; ++w) {
         (void)vh_ecu_set_camber_calibration(&ecu, w, &cal);
     }
+    memset(&xcfg, 0, sizeof xcfg);
+    xcfg.cro_id = XCP_CRO;
+    xcfg.dto_id = XCP_DTO;
+    xcfg.max_cto = max_cto;
+    xcfg.max_dto = 48u;
+    xcfg.fd = 1u;
+    xcfg.secret = XCP_SECRET;
+    if (vh_ecu_xcp_enable(&ecu, &xcfg) != VH_OK) {
+        abort();
+    }
+    memcpy(&ref, &ecu.xcp.ref, sizeof ref);
+    vh_secoc_bus_init(&roll_node, VH_SECOC_NODE_ROLL); /* off: tails stay zero, no sync frames */
+    if (secoc_on) {
+        if (!keyed(&sec, VH_SECOC_NODE_VEHEST) || !keyed(&roll_node, VH_SECOC_NODE_ROLL)) {
+            abort();
+        }
+        vh_ecu_set_secoc(&ecu, &sec);
+    }
     while (take(&in, &op)) {
-        switch (op & 3u) {
+        switch (op & 7u) {
         case 0: /* raw frame */
             if (!take(&in, &a) || !take(&in, &b) || !take(&in, &c)) {
                 return 0;
             }
             memset(&f, 0, sizeof f);
-            f.id = (a < 2u * N_RX) ? RX[a % N_RX].id : ((uint32_t)a << 3 | (op >> 2)) & 0x7FFu;
+            f.id = (a < 2u * N_RX) ? RX[a % N_RX].id : ((uint32_t)a << 3 | (op >> 3)) & 0x7FFu;
             f.flags = b & 7u;
             f.len = (uint8_t)(c % 65u);
             for (k = 0; k < f.len && take(&in, &f.data[k]); ++k) {
             }
-            vh_ecu_rx(&ecu, &f);
+            rx(&f);
             break;
         case 1: /* a frame the E2E check accepts (or, with a counter step of 0 or > 1, flags) */
+        case 6: /* the same, secured by the roll node (a roll frame; SecOC off: as it sends without) */
             if (!take(&in, &a) || !take(&in, &b)) {
                 return 0;
+            }
+            if ((op & 7u) == 6u) {
+                a = (uint8_t)(FIRST_ROLL_RX + a % N_ROLL_RX);
             }
             memset(&f, 0, sizeof f);
             f.id = RX[a % N_RX].id;
@@ -138,20 +345,34 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             f.flags = VH_FRAME_FD | VH_FRAME_BRS;
             for (k = 2; k < f.len && take(&in, &f.data[k]); ++k) { /* bytes 0-1: CRC, counter */
             }
+            if ((op & 7u) == 6u) { /* the SecOC tail: zero under E2E, then the node's FV and MAC */
+                memset(&f.data[f.len - VH_SECOC_TAIL_BYTES], 0, VH_SECOC_TAIL_BYTES);
+            }
             counter[a % N_RX] = (uint8_t)(counter[a % N_RX] + (b & 3u) - 1u); /* protect adds 1 */
             vh_e2e_p01_protect(f.data, f.len, RX[a % N_RX].data_id, &counter[a % N_RX]);
-            vh_ecu_rx(&ecu, &f);
+            if ((op & 7u) == 1u) {
+                rx(&f);
+                break;
+            }
+            sf[0] = f;
+            n = vh_secoc_bus_tx(&roll_node, sf, 1u, 3u);
+            for (i = 0; i < n; ++i) {
+                accepted = sec.cnt.accepted + sec.cnt.syncs;
+                rx(&sf[i]);
+                if (secoc_on && sec.cnt.accepted + sec.cnt.syncs != accepted + 1u) {
+                    abort(); /* genuine traffic verifies */
+                }
+            }
             break;
         case 2: /* ticks */
             if (!take(&in, &a)) {
                 return 0;
             }
             for (k = 0; k <= (a & 15u); ++k) {
-                const size_t cap = (size_t)((a >> 4) % (VH_ECU_MAX_TX + 1u));
-                check_tx(&ecu, tx, vh_ecu_step(&ecu, tx, cap), cap);
+                (void)tick(tx, (size_t)((a >> 4) % (VH_ECU_MAX_TX + 1u)));
             }
             break;
-        default: /* deadline misses, now and then a reset */
+        case 3: /* deadline misses, now and then a reset */
             if (!take(&in, &a)) {
                 return 0;
             }
@@ -161,13 +382,32 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
                 vh_ecu_note_deadline_miss(&ecu, a);
             }
             break;
+        case 4: /* a CRO frame, any content */
+            if (!take(&in, &a)) {
+                return 0;
+            }
+            memset(&f, 0, sizeof f);
+            f.id = XCP_CRO;
+            f.flags = (op & 8u) ? 0u : (VH_FRAME_FD | VH_FRAME_BRS);
+            f.len = (uint8_t)(a % 65u);
+            for (k = 0; k < f.len && take(&in, &f.data[k]); ++k) {
+            }
+            rx(&f);
+            break;
+        default: /* 5, 7: an XCP session (CONNECT, seed & key) */
+            xcp_session((uint8_t)(op >> 3));
+            break;
         }
     }
-    check_tx(&ecu, tx, vh_ecu_step(&ecu, tx, VH_ECU_MAX_TX), VH_ECU_MAX_TX);
+    (void)tick(tx, VH_ECU_MAX_TX);
 #ifdef VH_FUZZ_CANARY
-    /* The suite's positive control: a "bug" behind an accepted chassis frame and a filter step.
-     * The fuzzer must get there (and report it) from its seeds, or the harness reaches too little. */
-    if (ecu.chs.heard && ecu.chs.skf.steps > 0u) {
+    /* The suite's positive controls: a "bug" the fuzzer must get to (and report) from its seeds, or
+     * the harness reaches too little. 1: behind an accepted chassis frame and a filter step;
+     * 2: behind an XCP calibration write committed (after seed & key); 3: behind a roll UKF step
+     * on frames that passed SecOC. */
+    if ((VH_FUZZ_CANARY == 1 && ecu.chs.heard && ecu.chs.skf.steps > 0u) ||
+        (VH_FUZZ_CANARY == 2 && ecu.xcp.slave.n.cal_commits > 0u) ||
+        (VH_FUZZ_CANARY == 3 && secoc_on && sec.cnt.accepted > 0u && ecu.roll.stepped)) {
         abort();
     }
 #endif

@@ -5,7 +5,9 @@
 
 Built with clang: -fsanitize=fuzzer,address,undefined plus float-cast-overflow (which GCC's
 `undefined` leaves out), no recovery: any report is a crash. The seed corpus is made from the
-golden chassis log and a clean driveline run (good frames, real CRCs and counters, ticks between);
+golden chassis log, the roll golden scenario's sensor frames (roll_paper_72kph_active, in-process),
+a clean driveline run (good frames, real CRCs and counters, ticks between), the same roll frames
+secured (SecOC mode) and XCP sessions (CONNECT, seed & key, calibration writes, a DAQ list);
 every input in tests/fuzz/regressions/ (crashes found earlier) is replayed first. A new crash is
 written to the work folder; copy it into regressions/ with its fix.
 """
@@ -25,7 +27,14 @@ import vehest_build  # noqa: E402
 
 SAN = ["-fsanitize=fuzzer,address,undefined,float-cast-overflow", "-fno-sanitize-recover=all",
        "-fno-omit-frame-pointer", "-g", "-O1"]
-RX_INDEX = {0x100: 0, 0x200: 1, 0x110: 2}  # the harness's RX table: DLS_Sensors, CIS_Accel, CHS_Sensors
+# the harness's RX table: DLS_Sensors, CIS_Accel, CHS_Sensors, ROLL_Sensors/_YawRate/_ActuatorStatus/_ModeCmd
+RX_INDEX = {0x100: 0, 0x200: 1, 0x110: 2, 0x120: 3, 0x121: 4, 0x122: 5, 0x123: 6}
+FIRST_ROLL = 3
+# the first byte of an input: bit 0 SecOC on, bit 1 XCP MAX_CTO 64
+PLAIN, SECOC, CTO64 = 0, 1, 2
+TICKS = bytes([2, 0x60])       # op 2: one tick at capacity 6
+FULL_TICKS = bytes([2, 0xCF])  # 16 ticks at capacity 12 (VH_ECU_MAX_TX)
+SECOC_TAIL = 4
 
 
 def build(work: Path, defines: tuple[str, ...] = ()) -> Path:
@@ -50,8 +59,58 @@ def _raw(frame_id: int, data: bytes, fd: bool = True) -> bytes:
     return bytes([0, RX_INDEX[frame_id], 6 if fd else 0, len(data)]) + data
 
 
+def _cro(*data: int) -> bytes:
+    """op 4: one CRO frame."""
+    return bytes([4, len(data), *data])
+
+
+def _xcp_session(unlock: int = 0x05) -> bytes:
+    """op 5: CONNECT, then seed & key for CAL/PAG (1) and DAQ (4)."""
+    return bytes([5 | unlock << 3])
+
+
+def _roll_frames(duration_s: float = 0.4) -> list[tuple[int, bytes]]:
+    """The roll golden scenario's sensor-node frames as the ECU receives them (in-process run)."""
+    from vehest_can.sim.session import run_inprocess
+    from vehest_can.systems.ecu import Ecu
+    from vehest_can.systems.roll.scenario import RollCar, load_roll_scenario
+
+    s = run_inprocess(RollCar(load_roll_scenario("roll_paper_72kph_active"), duration_s), Ecu())
+    return [(m.arbitration_id, bytes(m.data)) for m in s.messages() if m.arbitration_id in RX_INDEX]
+
+
+def _xcp_programs() -> dict[str, bytes]:
+    """XCP sessions that reach the commands behind seed & key: a calibration write of the first
+    characteristic (its reference value, in range), uploads, page switching, a DAQ list started."""
+    import struct
+
+    from vehest_can.native import ffi
+    from vehest_can.systems.ecu import Ecu
+    from vehest_can.xcp import ecu as xcp_ecu
+
+    ecu = Ecu()
+    desc = xcp_ecu.enable(ecu)
+    item = desc.characteristics[0]
+    off = item.address - desc.calibration_address
+    raw = bytes(ffi.buffer(ffi.addressof(ecu.c.xcp, "ref"), ffi.sizeof("vh_ecu_cal_t"))[off:off + item.size])
+    meas = desc.measurements[0]
+    cal = _xcp_session() + _cro(0xFD) + _cro(0xFA, 0) + _cro(0xFB) + _cro(0xF6, 0, 0, 0, *struct.pack("<I", item.address))
+    for i in range(0, len(raw), 6):
+        cal += _cro(0xF0, len(raw[i:i + 6]), *raw[i:i + 6])
+    cal += (_cro(0xF4, 4, 0, 0, *struct.pack("<I", meas.address)) + _cro(0xF5, 4) + _cro(0xEB, 0x83, 0, 1)
+            + _cro(0xEB, 0x83, 0, 0) + FULL_TICKS)
+    daq = (_xcp_session() + _cro(0xD6) + _cro(0xD5, 0, 1, 0) + _cro(0xD4, 0, 0, 0, 1) + _cro(0xD3, 0, 0, 0, 0, 2)
+           + _cro(0xE2, 0, 0, 0, 0, 0) + _cro(0xE1, 0xFF, 4, 0, *struct.pack("<I", meas.address))
+           + _cro(0xE1, 0xFF, 8, 0, *struct.pack("<I", meas.address + 8))
+           + _cro(0xE0, 0x10, 0, 0, 0, 0, 1, 0) + _cro(0xDE, 2, 0, 0) + _cro(0xDD, 1) + FULL_TICKS * 4
+           + _cro(0xDD, 0) + FULL_TICKS)
+    return {"xcp_cal": bytes([PLAIN]) + cal, "xcp_daq": bytes([PLAIN]) + daq,
+            "xcp_cal_cto64": bytes([CTO64]) + cal, "xcp_locked": bytes([PLAIN]) + _xcp_session(0) + cal[1:]}
+
+
 def seed_corpus(out: Path, frames_per_seed: int = 64) -> int:
-    """Seeds from the golden chassis log (CHS_Sensors with real E2E) and a synthetic DLS run."""
+    """Seeds from the golden chassis log (CHS_Sensors with real E2E), the roll golden scenario's
+    frames (plain and secured), a synthetic DLS run and XCP sessions."""
     out.mkdir(parents=True, exist_ok=True)
     line = re.compile(r"\(\S+\) \S+ ([0-9A-Fa-f]+)##\d([0-9A-Fa-f]*)")
     frames = []
@@ -61,20 +120,33 @@ def seed_corpus(out: Path, frames_per_seed: int = 64) -> int:
             frames.append((int(m[1], 16), bytes.fromhex(m[2])))
     n = 0
     for start in range(0, min(len(frames), 16 * frames_per_seed), frames_per_seed):
-        prog = b"".join(_raw(i, d) + bytes([2, 0x60]) for i, d in frames[start:start + frames_per_seed])
-        (out / f"chassis_{n:03d}").write_bytes(prog)
+        prog = b"".join(_raw(i, d) + TICKS for i, d in frames[start:start + frames_per_seed])
+        (out / f"chassis_{n:03d}").write_bytes(bytes([PLAIN]) + prog)
         n += 1
     # protected DLS / CIS frames (op 1) with mid-range payloads, ticks between
     for which in (0, 1):
         prog = b"".join(bytes([1, which, 1]) + bytes([0x10, 0x27, 0xF6, 0x09] * 8)[:30] + bytes([2, 0x61])
                         for _ in range(frames_per_seed))
-        (out / f"protected_{which}").write_bytes(prog)
+        (out / f"protected_{which}").write_bytes(bytes([PLAIN]) + prog)
+        n += 1
+    # the roll node's frames as sent (raw, real E2E), and secured by the harness's roll node (op 6)
+    roll = _roll_frames()
+    for k, start in enumerate(range(0, min(len(roll), 4 * frames_per_seed), frames_per_seed)):
+        part = roll[start:start + frames_per_seed]
+        (out / f"roll_{k:03d}").write_bytes(bytes([PLAIN]) + b"".join(_raw(i, d) + TICKS for i, d in part))
+        secured = b"".join(((bytes([6, RX_INDEX[i] - FIRST_ROLL, 1]) + d[2:]) if RX_INDEX[i] >= FIRST_ROLL
+                            else _raw(i, d)) + TICKS for i, d in part)
+        (out / f"roll_secoc_{k:03d}").write_bytes(bytes([SECOC]) + secured)
+        n += 2
+    for name, prog in _xcp_programs().items():
+        (out / name).write_bytes(prog)
         n += 1
     return n
 
 
 def run(seconds: int, work: Path, jobs: int = 1, seed: int = 1,
         defines: tuple[str, ...] = ()) -> subprocess.CompletedProcess:
+    work = work.resolve()  # libFuzzer runs in it: a relative path (the default) would not find the target
     work.mkdir(parents=True, exist_ok=True)
     exe = build(work, defines)
     corpus = work / "corpus"
