@@ -29,7 +29,7 @@ pytestmark = pytest.mark.multicast
 pyxcp = pytest.importorskip("pyxcp")
 from pyxcp import types  # noqa: E402
 from pyxcp.daq_stim import DaqList  # noqa: E402
-from xcp_daq_policy import Collect  # noqa: E402
+from xcp_daq_policy import Collect, one_offset  # noqa: E402
 
 ERR_ACCESS_LOCKED, ERR_OUT_OF_RANGE = 0x25, 0x22
 
@@ -323,26 +323,14 @@ def test_roll_daq_over_the_daemon_equals_its_roll_estimate_frames(pyxcp_master):
     mid = daq[len(daq) // 2]
     offsets = {mid["tick"] - k for k, e in frames.items() if e["RES_Counter"] == (mid["roll.tx_counter[1]"] - 1) % 15}
 
-    def compare(off: int) -> tuple[int, int]:
-        """(samples compared, 1 at the first that differs, else 0)."""
-        n = 0
-        for s in daq:
-            e = frames.get(s["tick"] - off)
-            if e is None:
-                continue
-            n += 1
-            if (e["RES_Counter"] != (s["roll.tx_counter[1]"] - 1) % 15 or e["RollUkf_Health"] != s["roll.ukf.health"]
-                    or e["RollSmc_Health"] != s["roll.smc.health"] & 0x7F
-                    or any(abs(s[name] - e[sig]) > tol + 1e-9 for name, (sig, tol) in signals.items())):
-                return n, 1
-        return n, 0
-    results = {off: compare(off) for off in offsets}
-    good = [off for off, (n, bad) in results.items() if bad == 0]
-    assert len(good) == 1, results
-    n = results[good[0]][0]
+    def same(s: dict, e: dict) -> bool:
+        return (e["RES_Counter"] == (s["roll.tx_counter[1]"] - 1) % 15 and e["RollUkf_Health"] == s["roll.ukf.health"]
+                and e["RollSmc_Health"] == s["roll.smc.health"] & 0x7F
+                and all(abs(s[name] - e[sig]) <= tol + 1e-9 for name, (sig, tol) in signals.items()))
+    off, n = one_offset(daq, frames, offsets, same)
     roll = np.array([s["roll.ukf.x[4]"] for s in daq])
     print(f"roll DAQ over the daemon: {len(daq)} samples on the 10 ms event (ECU ticks {ticks[0]}..{ticks[-1]}), "
-          f"{n} equal to their VEHEST_RollEst (tick offset {good[0]}); roll {np.degrees(roll.min()):.2f}.."
+          f"{n} equal to their VEHEST_RollEst (tick offset {off}); roll {np.degrees(roll.min()):.2f}.."
           f"{np.degrees(roll.max()):.2f} deg")
     assert n >= len(daq) - 2
     assert np.ptp(roll) > 0.01  # the turn rolls the body: not a comparison of zeros

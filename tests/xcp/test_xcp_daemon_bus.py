@@ -27,7 +27,7 @@ from vehest_can.xcp.description import C_TYPES
 pytestmark = pytest.mark.multicast
 pytest.importorskip("pyxcp")
 from pyxcp.daq_stim import DaqList  # noqa: E402
-from xcp_daq_policy import Collect  # noqa: E402
+from xcp_daq_policy import Collect, one_offset  # noqa: E402
 
 EST = database("pt").get_message_by_name("VEHEST_DrivelineEst")
 #: DAQ measurement -> its signal in VEHEST_DrivelineEst
@@ -109,22 +109,10 @@ def test_daq_over_the_daemon_on_its_own_xcp_bus_equals_its_estimate_frames(pyxcp
     mid = daq[len(daq) // 2]
     candidates = {mid["tick"] - i for i, f in by_idx.items() if f["DLE_Counter"] == (mid["drv.tx_counter[0]"] - 1) % N_COUNTER}
 
-    def compare(off: int) -> tuple[int, int]:
-        """(samples compared, 1 at the first that differs, else 0)."""
-        n = 0
-        for s in daq:
-            f = by_idx.get(s["tick"] - off)
-            if f is None:
-                continue
-            n += 1
-            if (f["DLE_Counter"] != (s["drv.tx_counter[0]"] - 1) % N_COUNTER or
-                    any(abs(s[name] - f[sig]) > (0 if "health" in name else 0.125 + 1e-9) for name, sig in SIGNALS.items())):
-                return n, 1
-        return n, 0
-    results = {off: compare(off) for off in candidates}
-    good = [off for off, (n, bad) in results.items() if bad == 0]
-    assert len(good) == 1, results
-    n, _ = results[good[0]]
+    def same(s: dict, f: dict) -> bool:
+        return f["DLE_Counter"] == (s["drv.tx_counter[0]"] - 1) % N_COUNTER and all(
+            abs(s[name] - f[sig]) <= (0 if "health" in name else 0.125 + 1e-9) for name, sig in SIGNALS.items())
+    _, n = one_offset(daq, by_idx, candidates, same)
     torque = np.array([s["dkf[0].x[2]"] for s in daq])
     print(f"DAQ over the daemon's XCP bus: {len(daq)} samples (ECU ticks {ticks[0]}..{ticks[-1]}), {n} matched to "
           f"VEHEST_DrivelineEst by tick and alive counter ({len(est)} frames heard, {idx[-1] + 1 - len(est)} "
