@@ -59,9 +59,10 @@ def test_garbage_datagrams_between_good_frames_are_counted_and_do_not_stall_the_
     assert len(sent) - 3 <= session.stats["rx_undecodable"] <= len(sent)
     est = decode(session, "VEHEST_DrivelineEst")
     valid = np.asarray(est["DkfT_Valid"], dtype=float)
-    # Before: each garbage datagram stopped receiving for 50 ms, 20/s took validity to ~0.
-    # Functional, not timing: a loaded 2-core machine still keeps the estimate valid most of the time.
-    assert np.nanmean(valid[len(valid) // 3:]) > 0.8
+    # Before: each garbage datagram stopped receiving for 50 ms; at 20/s the receive path was
+    # stalled all the time and validity was 0.001. Functional, not timing: the bound sits far above
+    # that and far below what a loaded machine gives (0.999 quiet, 0.67 once on a busy 2-core CI).
+    assert np.nanmean(valid[len(valid) // 3:]) > 0.3
 
 
 def test_durations_are_held_in_fixed_memory_and_agree_with_numpy():
