@@ -30,11 +30,10 @@ def ablation(sc) -> dict:
     for label, opts in ABLATIONS.items():
         runs[label] = (tf.estimator(tf.SKFMEC).run(u, dec.mask) if opts is None
                        else AdaptiveSkfmec().with_options(**opts).run(u, dec.mask))
-    m = evaluate(truth, runs)
     true = tf.SkfConfig.default().m + sc.mass_delta_kg
+    m = evaluate(truth, runs, true_mass_kg=true)
     mass = m["variants"]["SKFMEC-A"]["mass"]
-    return {"scenario": sc.name, "true_mass_kg": true, "mass_error_pct": 100 * (mass["final_kg"] / true - 1),
-            **m}
+    return {"scenario": sc.name, "mass_error_pct": 100 * (mass["final_kg"] / true - 1), **m}
 
 
 def ablation_table(m: dict) -> str:

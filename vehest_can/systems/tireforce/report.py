@@ -31,6 +31,7 @@ AXLES = ("front", "rear")
 SETTLE_S = 0.2
 TARGET_TIRE_PCT = 10.0        # acceptance: per-tire RMS error <= 10 % of the tire's peak |Fy|
 TARGET_FIXED_PCT = 0.5        # acceptance: fixed vs double <= 0.5 % of peak per tire, no saturation
+TARGET_MASS_PCT = 5.0         # acceptance: SKFMEC-A's final mass estimate within 5 % of the truth
 AY_BAND_G = (0.1, 0.5)        # the paper: the relations hold below ~0.5 g; below 0.1 g the ratios are noise
 G = 9.81
 
@@ -295,7 +296,7 @@ def _pct_errors(est: np.ndarray, ref: np.ndarray | float, peak: np.ndarray, name
 
 
 def evaluate(truth, runs: dict[str, tf.TireForceRun], settle_s: float = SETTLE_S,
-             max_ay_g: float | None = None) -> dict:
+             max_ay_g: float | None = None, true_mass_kg: float | None = None) -> dict:
     """Per-tire and per-axle RMS errors of each run against the truth, the fixed-vs-double
     difference, the oracle decomposition and a verdict per acceptance line.
 
@@ -303,7 +304,8 @@ def evaluate(truth, runs: dict[str, tf.TireForceRun], settle_s: float = SETTLE_S
     each run's rows are the truth's ticks. RMS is over t >= t[0] + settle_s; percentages are of the
     tire's (axle's) peak |F_y| over the whole run. ``max_ay_g`` keeps only the samples with the
     truth's |a_y| at or below it (needs ``ay``; the paper's relations hold below ~0.5 g), peaks
-    then taken over those samples too. Axle estimates are the means of the two per-tire
+    then taken over those samples too. ``true_mass_kg`` (the plant's mass) adds the mass estimate's
+    acceptance line. Axle estimates are the means of the two per-tire
     estimates, compared with the true axle means (F_yf, F_yr of the paper: average tire force).
     """
     t = np.asarray(truth["t"], dtype=np.float64)
@@ -323,7 +325,7 @@ def evaluate(truth, runs: dict[str, tf.TireForceRun], settle_s: float = SETTLE_S
     if np.any(peak <= 0) or np.any(peak_axle <= 0):
         raise ConfigError("a tire without lateral force: percentages of peak |Fy| are undefined")
     dt = t[1] - t[0] if n > 1 else 0.0
-    out: dict = {"settle_s": settle_s, "max_ay_g": max_ay_g, "samples": int(s.sum()),
+    out: dict = {"settle_s": settle_s, "max_ay_g": max_ay_g, "samples": int(s.sum()), "true_mass_kg": true_mass_kg,
                  "duration_s": float(t[-1] - t[0] + dt),
                  "peak_fy_N": _per(WHEELS + AXLES, np.r_[peak, peak_axle]), "variants": {}}
     for name, run in runs.items():
@@ -372,7 +374,7 @@ def acceptance(m: dict) -> list[dict]:
     lines = []
     v = m["variants"]
     split = m["oracle"]["split_pct"]
-    for name in (tf.FIXED, tf.SKFMEC):
+    for name in (tf.FIXED, tf.SKFMEC, ADAPTIVE):
         if name not in v:
             continue
         pct = v[name]["rms_pct"]
@@ -387,6 +389,13 @@ def acceptance(m: dict) -> list[dict]:
             detail = f"worst {max(pct[w] for w in WHEELS):.2f} %"
         lines.append({"line": f"per-tire RMS <= {TARGET_TIRE_PCT:g} % of peak |Fy| ({name})",
                       "verdict": "SHORT" if over else "pass", "detail": detail})
+    if "mass" in v.get(ADAPTIVE, {}) and m.get("true_mass_kg") is not None:
+        mm, true = v[ADAPTIVE]["mass"], m["true_mass_kg"]
+        err = 100 * (mm["final_kg"] / true - 1)
+        conv = f"converged at {mm['converged_s']:.2f} s" if mm["converged_s"] is not None else "not converged"
+        lines.append({"line": f"mass estimate within {TARGET_MASS_PCT:g} % of the truth ({ADAPTIVE})",
+                      "verdict": "pass" if abs(err) <= TARGET_MASS_PCT and mm["converged_s"] is not None else "SHORT",
+                      "detail": f"{mm['final_kg']:.0f} kg, truth {true:.0f} kg ({err:+.1f} %), {conv}"})
     if "fixed_vs_double" in m:
         fd = m["fixed_vs_double"]
         worst = max(fd["rms_pct"].values())
@@ -623,7 +632,7 @@ def _true_mass(sc) -> float:
 def report(sc, out_dir: Path | None = None, progress=None, max_ay_g: float | None = None) -> dict:
     """One scenario: simulate, evaluate, relations, plots (when out_dir). Returns the metrics."""
     truth, dec, runs = simulate(sc, progress=progress)
-    m = evaluate(truth, runs, max_ay_g=max_ay_g)
+    m = evaluate(truth, runs, max_ay_g=max_ay_g, true_mass_kg=_true_mass(sc))
     m = {"scenario": sc.name, "description": sc.description, "mass_delta_kg": sc.mass_delta_kg,
          "e2e_rejected": dec.e2e_rejected, "invalid_samples": dec.invalid, **m,
          "relations": relations(truth)}
