@@ -3,7 +3,7 @@
  * The code follows vh_skf.c step by step (same names); every line says which format it produces
  * when that is not the destination's. KM(k, v, fin, fout) multiplies by an off-line constant.
  */
-#include "vh_health.h"
+#include "vh_kf.h"
 #include "vh_skfq.h"
 #include "vh_tf_types.h"
 #include "vh_types.h"
@@ -122,9 +122,7 @@ static void restart(vh_skfq_t *f)
         f->p[i * NX + i] = f->prm.p0[i];
     }
     f->nu_ay = 0;
-    f->steps = 0u;
-    f->x_init = 0u;
-    f->health = VH_HEALTH_INIT;
+    vh_kf_restart(&f->steps, &f->x_init, &f->health);
 }
 
 void vh_skfq_reset(vh_skfq_t *f)
@@ -235,6 +233,12 @@ static int sane(const vh_skfq_t *f)
         }
     }
     return 1;
+}
+
+/* sat += sat_step, saturating: a diverged step's saturations count as well */
+static void add_step_saturations(vh_skfq_t *f)
+{
+    f->sat = (UINT32_MAX - f->sat < f->sat_step) ? UINT32_MAX : f->sat + f->sat_step;
 }
 
 int vh_skfq_step(vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask)
@@ -434,23 +438,15 @@ int vh_skfq_step(vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask)
     sums(k, &ctx, f->x, &sm, sat);
     copy32(f->fz, sm.fz, (int)(sizeof f->fz / sizeof f->fz[0]));
     copy32(f->fy, sm.fy, (int)(sizeof f->fy / sizeof f->fy[0]));
-    if (f->steps < UINT32_MAX) {
-        ++f->steps;
-    }
-    if ((mask & VH_SKF_ALL_VALID) != VH_SKF_ALL_VALID || f->sat_step != 0u) {
-        f->health = VH_HEALTH_DEGRADED;
-    } else {
-        f->health = f->steps >= INIT_STEPS ? VH_HEALTH_OK : VH_HEALTH_INIT;
-    }
-    f->sat = (UINT32_MAX - f->sat < f->sat_step) ? UINT32_MAX : f->sat + f->sat_step;
+    f->health = vh_kf_step_health(&f->steps, (mask & VH_SKF_ALL_VALID) != VH_SKF_ALL_VALID || f->sat_step != 0u,
+                                  INIT_STEPS);
+    add_step_saturations(f);
     return 0;
 
 diverged:
     restart(f);
-    ++f->resets;
-    f->health = VH_HEALTH_FAULT;
-    f->sat = (UINT32_MAX - f->sat < f->sat_step) ? UINT32_MAX : f->sat + f->sat_step;
-    return 1;
+    add_step_saturations(f);
+    return vh_kf_fault(&f->resets, &f->health);
 }
 
 uint32_t vh_skfq_run(vh_skfq_t *f, size_t n, const int32_t *u, const uint8_t *mask, int32_t *x_out,
