@@ -35,7 +35,7 @@
 /* Every guarded dot product here is at most NX long: within vh_fix_dot's precondition. */
 typedef char dot_length_check[(NX <= VH_FIX_DOT_MAX) ? 1 : -1];
 
-/* vh_skfq_run passes rows of 13 int32 as vh_skfq_input_t: no padding allowed. */
+/* vh_skfq_input_row passes rows of 13 int32 as vh_skfq_input_t: no padding allowed. */
 typedef char input_layout_check[(sizeof(vh_skfq_input_t) == VH_SKFQ_NU * sizeof(int32_t)) ? 1 : -1];
 
 /* No <string.h>: the integer-only check builds this file with a bare cross compiler. */
@@ -455,19 +455,7 @@ uint32_t vh_skfq_run(vh_skfq_t *f, size_t n, const int32_t *u, const uint8_t *ma
     size_t t;
     uint32_t resets = 0u;
     for (t = 0; t < n; ++t) {
-        const int32_t *row = u + t * VH_SKFQ_NU;
-        vh_skfq_input_t in;
-        int i;
-        in.ax = row[0];
-        in.ay = row[1];
-        in.r = row[2];
-        in.p = row[3];
-        in.delta = row[4];
-        for (i = 0; i < 4; ++i) {
-            in.omega[i] = row[5 + i];
-            in.torque[i] = row[9 + i];
-        }
-        resets += (uint32_t)vh_skfq_step(f, &in, mask ? mask[t] : VH_SKF_ALL_VALID);
+        resets += (uint32_t)vh_skfq_step(f, vh_skfq_input_row(u, t), mask ? mask[t] : VH_SKF_ALL_VALID);
         copy32(x_out + t * NX, f->x, NX);
         copy32(fy_out + t * 4, f->fy, 4);
         copy32(fz_out + t * 4, f->fz, 4);

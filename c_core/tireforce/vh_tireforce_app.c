@@ -92,7 +92,7 @@ void vh_tf_app_step(vh_ecu_chs_t *c, unsigned burst_limit)
         if (usable) {
             mask = (c->valid & 0xFu) | ((c->valid & CHS_ALL_INPUTS) == CHS_ALL_INPUTS ? VH_SKF_U_VALID : 0u);
         }
-        const vh_skfq_input_t *in = (const vh_skfq_input_t *)(const void *)c->u; /* same layout (vh_skfq.c) */
+        const vh_skfq_input_t *in = vh_skfq_input_row(c->u, 0); /* the one row of this step */
         const uint32_t tsat0 = c->tfa.sat;
         if (vh_skfq_step(f, in, mask)) {
             vh_rx_count(&c->cnt.filter_reset);
