@@ -395,8 +395,7 @@ int vh_skf_step(vh_skf_t *f, const vh_skf_input_t *in, unsigned mask)
         mask = 0u; /* nothing of this sample is usable: predict only with held inputs */
     }
     if (!f->x_init) {
-        if ((mask & (VH_SKF_U_VALID | VH_SKF_Y_AY | VH_SKF_Y_R | VH_SKF_Y_P)) !=
-            (VH_SKF_U_VALID | VH_SKF_Y_AY | VH_SKF_Y_R | VH_SKF_Y_P)) {
+        if ((mask & VH_SKF_SEED_VALID) != VH_SKF_SEED_VALID) {
             return 0; /* wait for a usable first sample */
         }
         seed_state(f, in);

@@ -259,9 +259,8 @@ int vh_skfq_step(vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask)
     z[VH_SKF_YR] = KM(k->k_sr, in->r, FW, FX);
     z[VH_SKF_YP] = KM(k->k_sp, in->p, FW, FX);
     if (!f->x_init) {
-        if ((mask & (VH_SKF_U_VALID | VH_SKF_Y_AY | VH_SKF_Y_R | VH_SKF_Y_P)) !=
-            (VH_SKF_U_VALID | VH_SKF_Y_AY | VH_SKF_Y_R | VH_SKF_Y_P)) {
-            return 0;
+        if ((mask & VH_SKF_SEED_VALID) != VH_SKF_SEED_VALID) {
+            return 0; /* wait for a usable first sample */
         }
         seed_state(f, in, z, sat);
     }
