@@ -81,20 +81,9 @@ int main(int argc, char **argv)
         return 1;
     }
     for (i = 0; i < n; ++i) {
-        vh_skfq_input_t in;
-        const int32_t *row = qinputs + i * VH_SKFQ_NU;
-        int w;
-        in.ax = row[0];
-        in.ay = row[1];
-        in.r = row[2];
-        in.p = row[3];
-        in.delta = row[4];
-        for (w = 0; w < 4; ++w) {
-            in.omega[w] = row[5 + w];
-            in.torque[w] = row[9 + w];
-        }
+        const vh_skfq_input_t *in = vh_skfq_input_row(qinputs, (size_t)i);
         t0 = vh_bench_now_ns();
-        sink += vh_skfq_step(&kq, &in, VH_SKF_ALL_VALID);
+        sink += vh_skfq_step(&kq, in, VH_SKF_ALL_VALID);
         samples[i] = vh_bench_now_ns() - t0;
     }
     vh_bench_report("skfmec_fixed_step", samples, n, clock_ns);
@@ -105,7 +94,7 @@ int main(int argc, char **argv)
         return 1;
     }
     for (i = 0; i < n; ++i) {
-        const vh_skfq_input_t *in = (const vh_skfq_input_t *)(const void *)(qinputs + i * VH_SKFQ_NU); /* same layout */
+        const vh_skfq_input_t *in = vh_skfq_input_row(qinputs, (size_t)i);
         t0 = vh_bench_now_ns();
         sink += vh_skfq_step(&kq2, in, VH_SKF_ALL_VALID);
         vh_tfa_step(&ka, &kq2, in, VH_SKF_ALL_VALID);

@@ -3,6 +3,7 @@
 #include <string.h>
 
 #include "vh_dkf.h"
+#include "vh_kf.h"
 #include "vh_mat.h"
 #include "vh_tc.h"
 
@@ -136,9 +137,7 @@ static void restart(vh_dkf_t *f)
     for (i = 0; i < NX; ++i) {
         f->p[i * NX + i] = f->cfg.p0[i];
     }
-    f->steps = 0u;
-    f->x_init = 0u;
-    f->health = VH_HEALTH_INIT;
+    vh_kf_restart(&f->steps, &f->x_init, &f->health);
 }
 
 void vh_dkf_reset(vh_dkf_t *f)
@@ -292,21 +291,13 @@ int vh_dkf_step(vh_dkf_t *f, double u, const double z[VH_DKF_NZ], unsigned mask)
     if (!sane(f)) {
         goto diverged;
     }
-    if (f->steps < UINT32_MAX) {
-        ++f->steps;
-    }
-    if ((mask & needed) != needed) {
-        f->health = VH_HEALTH_DEGRADED;
-    } else {
-        f->health = (f->steps >= 2u * (f->cfg.meas == VH_DKF_SPEEDS ? 1000u : 20u)) ? VH_HEALTH_OK : VH_HEALTH_INIT;
-    }
+    f->health = vh_kf_step_health(&f->steps, (mask & needed) != needed,
+                                  2u * (f->cfg.meas == VH_DKF_SPEEDS ? 1000u : 20u));
     return 0;
 
 diverged:
     restart(f);
-    ++f->resets;
-    f->health = VH_HEALTH_FAULT;
-    return 1;
+    return vh_kf_fault(&f->resets, &f->health);
 }
 
 int vh_dkf_set_ratio(vh_dkf_t *f, double ri)

@@ -2,6 +2,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "vh_kf.h"
 #include "vh_mat.h"
 #include "vh_skf.h"
 
@@ -153,9 +154,7 @@ static void restart(vh_skf_t *f)
         f->p[i * NX + i] = f->cfg.p0[i] / f->w[i];
     }
     f->nu_ay = 0.0;
-    f->steps = 0u;
-    f->x_init = 0u;
-    f->health = VH_HEALTH_INIT;
+    vh_kf_restart(&f->steps, &f->x_init, &f->health);
 }
 
 void vh_skf_reset(vh_skf_t *f)
@@ -396,8 +395,7 @@ int vh_skf_step(vh_skf_t *f, const vh_skf_input_t *in, unsigned mask)
         mask = 0u; /* nothing of this sample is usable: predict only with held inputs */
     }
     if (!f->x_init) {
-        if ((mask & (VH_SKF_U_VALID | VH_SKF_Y_AY | VH_SKF_Y_R | VH_SKF_Y_P)) !=
-            (VH_SKF_U_VALID | VH_SKF_Y_AY | VH_SKF_Y_R | VH_SKF_Y_P)) {
+        if ((mask & VH_SKF_SEED_VALID) != VH_SKF_SEED_VALID) {
             return 0; /* wait for a usable first sample */
         }
         seed_state(f, in);
@@ -540,21 +538,12 @@ int vh_skf_step(vh_skf_t *f, const vh_skf_input_t *in, unsigned mask)
         f->fy[2] = x[VH_SKF_FYR] * f->fz[2] / fzr;
         f->fy[3] = x[VH_SKF_FYR] * f->fz[3] / fzr;
     }
-    if (f->steps < UINT32_MAX) {
-        ++f->steps;
-    }
-    if ((mask & VH_SKF_ALL_VALID) != VH_SKF_ALL_VALID) {
-        f->health = VH_HEALTH_DEGRADED;
-    } else {
-        f->health = f->steps >= INIT_STEPS ? VH_HEALTH_OK : VH_HEALTH_INIT;
-    }
+    f->health = vh_kf_step_health(&f->steps, (mask & VH_SKF_ALL_VALID) != VH_SKF_ALL_VALID, INIT_STEPS);
     return 0;
 
 diverged:
     restart(f);
-    ++f->resets;
-    f->health = VH_HEALTH_FAULT;
-    return 1;
+    return vh_kf_fault(&f->resets, &f->health);
 }
 
 uint32_t vh_skf_run(vh_skf_t *f, size_t n, const double *u, const uint8_t *mask, double *x_out,

@@ -3,7 +3,7 @@
  * The code follows vh_skf.c step by step (same names); every line says which format it produces
  * when that is not the destination's. KM(k, v, fin, fout) multiplies by an off-line constant.
  */
-#include "vh_health.h"
+#include "vh_kf.h"
 #include "vh_skfq.h"
 #include "vh_tf_types.h"
 #include "vh_types.h"
@@ -35,7 +35,7 @@
 /* Every guarded dot product here is at most NX long: within vh_fix_dot's precondition. */
 typedef char dot_length_check[(NX <= VH_FIX_DOT_MAX) ? 1 : -1];
 
-/* vh_skfq_run passes rows of 13 int32 as vh_skfq_input_t: no padding allowed. */
+/* vh_skfq_input_row passes rows of 13 int32 as vh_skfq_input_t: no padding allowed. */
 typedef char input_layout_check[(sizeof(vh_skfq_input_t) == VH_SKFQ_NU * sizeof(int32_t)) ? 1 : -1];
 
 /* No <string.h>: the integer-only check builds this file with a bare cross compiler. */
@@ -122,9 +122,7 @@ static void restart(vh_skfq_t *f)
         f->p[i * NX + i] = f->prm.p0[i];
     }
     f->nu_ay = 0;
-    f->steps = 0u;
-    f->x_init = 0u;
-    f->health = VH_HEALTH_INIT;
+    vh_kf_restart(&f->steps, &f->x_init, &f->health);
 }
 
 void vh_skfq_reset(vh_skfq_t *f)
@@ -237,6 +235,12 @@ static int sane(const vh_skfq_t *f)
     return 1;
 }
 
+/* sat += sat_step, saturating: a diverged step's saturations count as well */
+static void add_step_saturations(vh_skfq_t *f)
+{
+    f->sat = (UINT32_MAX - f->sat < f->sat_step) ? UINT32_MAX : f->sat + f->sat_step;
+}
+
 int vh_skfq_step(vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask)
 {
     const vh_skfq_params_t *k = &f->prm;
@@ -255,9 +259,8 @@ int vh_skfq_step(vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask)
     z[VH_SKF_YR] = KM(k->k_sr, in->r, FW, FX);
     z[VH_SKF_YP] = KM(k->k_sp, in->p, FW, FX);
     if (!f->x_init) {
-        if ((mask & (VH_SKF_U_VALID | VH_SKF_Y_AY | VH_SKF_Y_R | VH_SKF_Y_P)) !=
-            (VH_SKF_U_VALID | VH_SKF_Y_AY | VH_SKF_Y_R | VH_SKF_Y_P)) {
-            return 0;
+        if ((mask & VH_SKF_SEED_VALID) != VH_SKF_SEED_VALID) {
+            return 0; /* wait for a usable first sample */
         }
         seed_state(f, in, z, sat);
     }
@@ -434,23 +437,15 @@ int vh_skfq_step(vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask)
     sums(k, &ctx, f->x, &sm, sat);
     copy32(f->fz, sm.fz, (int)(sizeof f->fz / sizeof f->fz[0]));
     copy32(f->fy, sm.fy, (int)(sizeof f->fy / sizeof f->fy[0]));
-    if (f->steps < UINT32_MAX) {
-        ++f->steps;
-    }
-    if ((mask & VH_SKF_ALL_VALID) != VH_SKF_ALL_VALID || f->sat_step != 0u) {
-        f->health = VH_HEALTH_DEGRADED;
-    } else {
-        f->health = f->steps >= INIT_STEPS ? VH_HEALTH_OK : VH_HEALTH_INIT;
-    }
-    f->sat = (UINT32_MAX - f->sat < f->sat_step) ? UINT32_MAX : f->sat + f->sat_step;
+    f->health = vh_kf_step_health(&f->steps, (mask & VH_SKF_ALL_VALID) != VH_SKF_ALL_VALID || f->sat_step != 0u,
+                                  INIT_STEPS);
+    add_step_saturations(f);
     return 0;
 
 diverged:
     restart(f);
-    ++f->resets;
-    f->health = VH_HEALTH_FAULT;
-    f->sat = (UINT32_MAX - f->sat < f->sat_step) ? UINT32_MAX : f->sat + f->sat_step;
-    return 1;
+    add_step_saturations(f);
+    return vh_kf_fault(&f->resets, &f->health);
 }
 
 uint32_t vh_skfq_run(vh_skfq_t *f, size_t n, const int32_t *u, const uint8_t *mask, int32_t *x_out,
@@ -459,19 +454,7 @@ uint32_t vh_skfq_run(vh_skfq_t *f, size_t n, const int32_t *u, const uint8_t *ma
     size_t t;
     uint32_t resets = 0u;
     for (t = 0; t < n; ++t) {
-        const int32_t *row = u + t * VH_SKFQ_NU;
-        vh_skfq_input_t in;
-        int i;
-        in.ax = row[0];
-        in.ay = row[1];
-        in.r = row[2];
-        in.p = row[3];
-        in.delta = row[4];
-        for (i = 0; i < 4; ++i) {
-            in.omega[i] = row[5 + i];
-            in.torque[i] = row[9 + i];
-        }
-        resets += (uint32_t)vh_skfq_step(f, &in, mask ? mask[t] : VH_SKF_ALL_VALID);
+        resets += (uint32_t)vh_skfq_step(f, vh_skfq_input_row(u, t), mask ? mask[t] : VH_SKF_ALL_VALID);
         copy32(x_out + t * NX, f->x, NX);
         copy32(fy_out + t * 4, f->fy, 4);
         copy32(fz_out + t * 4, f->fz, 4);

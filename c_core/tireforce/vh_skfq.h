@@ -51,6 +51,13 @@ typedef struct {
 } vh_skfq_input_t;
 #define VH_SKFQ_NU 13
 
+/* Row t of an array of VH_SKFQ_NU int32 per step (vh_skfq_run's u) as one step's inputs: the same
+ * layout, no padding (checked at compile time in vh_skfq.c). */
+static inline const vh_skfq_input_t *vh_skfq_input_row(const int32_t *u, size_t t)
+{
+    return (const vh_skfq_input_t *)(const void *)(u + t * VH_SKFQ_NU);
+}
+
 /* Integer constants of the filter; each vh_fix_k_t documents the physical formula it holds. */
 typedef struct vh_skfq_params_s {
     /* state increments per step, g [N or Nm] -> x* (C = Ts S E^-1) */

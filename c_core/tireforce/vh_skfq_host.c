@@ -10,8 +10,7 @@
 
 #define NX VH_SKF_NX
 
-/* value = m 2^-e with |m| in [2^30, 2^31), rounded half up; 0 stays 0. */
-static vh_fix_k_t kconst(double v, int *ok)
+vh_fix_k_t vh_skfq_kconst(double v, int *ok)
 {
     vh_fix_k_t k = {0, 0};
     int ex;
@@ -37,8 +36,7 @@ static vh_fix_k_t kconst(double v, int *ok)
     return k;
 }
 
-/* round_half_up(v 2^frac) as int32; out of range: *ok = 0. */
-static int32_t qconst(double v, int frac, int *ok)
+int32_t vh_skfq_qconst(double v, int frac, int *ok)
 {
     const double r = floor(ldexp(v, frac) + 0.5);
     if (!isfinite(r) || r > 2147483647.0 || r < -2147483648.0) {
@@ -89,67 +87,68 @@ int vh_skfq_params_from_config(const vh_skf_config_t *c, vh_skfq_params_t *k)
         return VH_EINVAL;
     }
     memset(&z, 0, sizeof z);
-    z.c_vx0 = kconst(ts * s[VH_SKF_VX] / c->m, &ok);
-    z.c_vy1 = kconst(ts * s[VH_SKF_VY] * ixx / det, &ok);
-    z.c_vy4 = kconst(ts * s[VH_SKF_VY] * mse / det, &ok);
-    z.c_r2 = kconst(ts * s[VH_SKF_R] / c->iz, &ok);
-    z.c_p1 = kconst(ts * s[VH_SKF_P] * mse / det, &ok);
-    z.c_p4 = kconst(ts * s[VH_SKF_P] * c->m / det, &ok);
-    z.c_phi_p = kconst(ts * s[VH_SKF_PHI] / s[VH_SKF_P], &ok);
-    z.phi_row[0] = qconst(ts * s[VH_SKF_PHI] / s[VH_SKF_P], VH_SKFQ_FPHI, &ok);
+    z.c_vx0 = vh_skfq_kconst(ts * s[VH_SKF_VX] / c->m, &ok);
+    z.c_vy1 = vh_skfq_kconst(ts * s[VH_SKF_VY] * ixx / det, &ok);
+    z.c_vy4 = vh_skfq_kconst(ts * s[VH_SKF_VY] * mse / det, &ok);
+    z.c_r2 = vh_skfq_kconst(ts * s[VH_SKF_R] / c->iz, &ok);
+    z.c_p1 = vh_skfq_kconst(ts * s[VH_SKF_P] * mse / det, &ok);
+    z.c_p4 = vh_skfq_kconst(ts * s[VH_SKF_P] * c->m / det, &ok);
+    z.c_phi_p = vh_skfq_kconst(ts * s[VH_SKF_PHI] / s[VH_SKF_P], &ok);
+    z.phi_row[0] = vh_skfq_qconst(ts * s[VH_SKF_PHI] / s[VH_SKF_P], VH_SKFQ_FPHI, &ok);
     for (i = 0; i < 2; ++i) {
         const double v = ts * s[VH_SKF_FYF + i] * zeta[i] / s[VH_SKF_P];
-        z.c_fy_p[i] = kconst(v, &ok);
-        z.phi_row[1 + i] = qconst(v, VH_SKFQ_FPHI, &ok);
-        z.fz0[i] = qconst(fzs[i], VH_SKFQ_FN, &ok);
-        z.k_lat_ay[i] = kconst(c->lt_gain * kk[i] * c->m * c->h / (4.0 * tt[i]), &ok);
-        z.k_lat_phi[i] = kconst(c->lt_gain * kk[i] * c->g * c->ms * c->e / (4.0 * tt[i]), &ok);
-        z.k_gy[i] = kconst(c->mec ? c->gy[i] : 0.0, &ok);
-        z.k_inv_fz[i] = kconst(1.0 / fzs[i], &ok);
-        z.k_drho[i] = kconst(c->lt_gain * kk[i] * c->g * c->ms * c->e / (4.0 * tt[i]) / (fzs[i] * s[VH_SKF_PHI]), &ok);
-        z.k_inv_sf[i] = kconst(1.0 / s[VH_SKF_FYF + i], &ok);
+        z.c_fy_p[i] = vh_skfq_kconst(v, &ok);
+        z.phi_row[1 + i] = vh_skfq_qconst(v, VH_SKFQ_FPHI, &ok);
+        z.fz0[i] = vh_skfq_qconst(fzs[i], VH_SKFQ_FN, &ok);
+        z.k_lat_ay[i] = vh_skfq_kconst(c->lt_gain * kk[i] * c->m * c->h / (4.0 * tt[i]), &ok);
+        z.k_lat_phi[i] = vh_skfq_kconst(c->lt_gain * kk[i] * c->g * c->ms * c->e / (4.0 * tt[i]), &ok);
+        z.k_gy[i] = vh_skfq_kconst(c->mec ? c->gy[i] : 0.0, &ok);
+        z.k_inv_fz[i] = vh_skfq_kconst(1.0 / fzs[i], &ok);
+        z.k_drho[i] = vh_skfq_kconst(c->lt_gain * kk[i] * c->g * c->ms * c->e / (4.0 * tt[i]) / (fzs[i] * s[VH_SKF_PHI]),
+                                     &ok);
+        z.k_inv_sf[i] = vh_skfq_kconst(1.0 / s[VH_SKF_FYF + i], &ok);
     }
-    z.k_m_rvy = kconst(c->m / (s[VH_SKF_R] * s[VH_SKF_VY]), &ok);
-    z.k_m_rvx = kconst(c->m / (s[VH_SKF_R] * s[VH_SKF_VX]), &ok);
-    z.k_mse_pr = kconst(mse / (s[VH_SKF_P] * s[VH_SKF_R]), &ok);
-    z.k_mse_rvx = kconst(mse / (s[VH_SKF_R] * s[VH_SKF_VX]), &ok);
-    z.k_kphi = kconst((c->kphif + c->kphir) / s[VH_SKF_PHI], &ok);
-    z.k_cphi = kconst((c->cphif + c->cphir) / s[VH_SKF_P], &ok);
-    z.k_lf = kconst(c->lf, &ok);
-    z.k_lr = kconst(c->lr, &ok);
-    z.k_tf = kconst(c->tf, &ok);
-    z.k_tr = kconst(c->tr, &ok);
-    z.k_hf = kconst(c->hf, &ok);
-    z.k_hr = kconst(c->hr, &ok);
-    z.k_fz_ax = kconst(c->m * c->h / (2.0 * l), &ok);
-    z.k_phi = kconst(1.0 / s[VH_SKF_PHI], &ok);
-    z.k_inv_ts = kconst(1.0 / ts, &ok);
-    z.k_alpha = kconst(ts / (c->tau_wdot + ts), &ok);
-    z.k_inv_rw = kconst(1.0 / c->rw, &ok);
-    z.k_iw_rw = kconst(c->iw / c->rw, &ok);
-    z.k_sr = kconst(s[VH_SKF_R], &ok);
-    z.k_sp = kconst(s[VH_SKF_P], &ok);
-    z.k_inv_m = kconst(1.0 / c->m, &ok);
-    z.k_mse_pr_m = kconst(mse / (c->m * s[VH_SKF_P] * s[VH_SKF_R]), &ok);
-    z.k_ixx_det = kconst(ixx / det, &ok);
-    z.k_mse_det = kconst(mse / det, &ok);
+    z.k_m_rvy = vh_skfq_kconst(c->m / (s[VH_SKF_R] * s[VH_SKF_VY]), &ok);
+    z.k_m_rvx = vh_skfq_kconst(c->m / (s[VH_SKF_R] * s[VH_SKF_VX]), &ok);
+    z.k_mse_pr = vh_skfq_kconst(mse / (s[VH_SKF_P] * s[VH_SKF_R]), &ok);
+    z.k_mse_rvx = vh_skfq_kconst(mse / (s[VH_SKF_R] * s[VH_SKF_VX]), &ok);
+    z.k_kphi = vh_skfq_kconst((c->kphif + c->kphir) / s[VH_SKF_PHI], &ok);
+    z.k_cphi = vh_skfq_kconst((c->cphif + c->cphir) / s[VH_SKF_P], &ok);
+    z.k_lf = vh_skfq_kconst(c->lf, &ok);
+    z.k_lr = vh_skfq_kconst(c->lr, &ok);
+    z.k_tf = vh_skfq_kconst(c->tf, &ok);
+    z.k_tr = vh_skfq_kconst(c->tr, &ok);
+    z.k_hf = vh_skfq_kconst(c->hf, &ok);
+    z.k_hr = vh_skfq_kconst(c->hr, &ok);
+    z.k_fz_ax = vh_skfq_kconst(c->m * c->h / (2.0 * l), &ok);
+    z.k_phi = vh_skfq_kconst(1.0 / s[VH_SKF_PHI], &ok);
+    z.k_inv_ts = vh_skfq_kconst(1.0 / ts, &ok);
+    z.k_alpha = vh_skfq_kconst(ts / (c->tau_wdot + ts), &ok);
+    z.k_inv_rw = vh_skfq_kconst(1.0 / c->rw, &ok);
+    z.k_iw_rw = vh_skfq_kconst(c->iw / c->rw, &ok);
+    z.k_sr = vh_skfq_kconst(s[VH_SKF_R], &ok);
+    z.k_sp = vh_skfq_kconst(s[VH_SKF_P], &ok);
+    z.k_inv_m = vh_skfq_kconst(1.0 / c->m, &ok);
+    z.k_mse_pr_m = vh_skfq_kconst(mse / (c->m * s[VH_SKF_P] * s[VH_SKF_R]), &ok);
+    z.k_ixx_det = vh_skfq_kconst(ixx / det, &ok);
+    z.k_mse_det = vh_skfq_kconst(mse / det, &ok);
     for (i = 0; i < NX; ++i) {
-        z.k_gp[i] = kconst(c->mec ? ts * c->gp[i] / s[VH_SKF_R] : 0.0, &ok);
-        z.q[i] = qconst(c->q[i], VH_SKFQ_FP, &ok);
-        z.p0[i] = qconst(c->p0[i], VH_SKFQ_FP, &ok);
+        z.k_gp[i] = vh_skfq_kconst(c->mec ? ts * c->gp[i] / s[VH_SKF_R] : 0.0, &ok);
+        z.q[i] = vh_skfq_qconst(c->q[i], VH_SKFQ_FP, &ok);
+        z.p0[i] = vh_skfq_qconst(c->p0[i], VH_SKFQ_FP, &ok);
     }
-    z.r[VH_SKF_AX] = qconst(c->r[VH_SKF_AX], VH_SKFQ_FU, &ok); /* R* = T^2 R */
-    z.r[VH_SKF_AY] = qconst(c->r[VH_SKF_AY], VH_SKFQ_FU, &ok);
-    z.r[VH_SKF_YR] = qconst(c->r[VH_SKF_YR] * s[VH_SKF_R] * s[VH_SKF_R], VH_SKFQ_FU, &ok);
-    z.r[VH_SKF_YP] = qconst(c->r[VH_SKF_YP] * s[VH_SKF_P] * s[VH_SKF_P], VH_SKFQ_FU, &ok);
-    z.p_cap = qconst(c->p_cap, VH_SKFQ_FP, &ok);
-    z.p_max = qconst(c->p_max < 30.0 ? c->p_max : 30.0, VH_SKFQ_FP, &ok); /* the format's range */
-    z.x_max = qconst(c->x_max < 1000.0 ? c->x_max : 1000.0, VH_SKFQ_FX, &ok);
+    z.r[VH_SKF_AX] = vh_skfq_qconst(c->r[VH_SKF_AX], VH_SKFQ_FU, &ok); /* R* = T^2 R */
+    z.r[VH_SKF_AY] = vh_skfq_qconst(c->r[VH_SKF_AY], VH_SKFQ_FU, &ok);
+    z.r[VH_SKF_YR] = vh_skfq_qconst(c->r[VH_SKF_YR] * s[VH_SKF_R] * s[VH_SKF_R], VH_SKFQ_FU, &ok);
+    z.r[VH_SKF_YP] = vh_skfq_qconst(c->r[VH_SKF_YP] * s[VH_SKF_P] * s[VH_SKF_P], VH_SKFQ_FU, &ok);
+    z.p_cap = vh_skfq_qconst(c->p_cap, VH_SKFQ_FP, &ok);
+    z.p_max = vh_skfq_qconst(c->p_max < 30.0 ? c->p_max : 30.0, VH_SKFQ_FP, &ok); /* the format's range */
+    z.x_max = vh_skfq_qconst(c->x_max < 1000.0 ? c->x_max : 1000.0, VH_SKFQ_FX, &ok);
     z.mec = c->mec;
-    z.k_seed_vx = kconst(s[VH_SKF_VX] * c->rw / 4.0, &ok);
-    z.k_seed_fy[0] = kconst(s[VH_SKF_FYF] * c->m * c->lr / (2.0 * l), &ok);
-    z.k_seed_fy[1] = kconst(s[VH_SKF_FYR] * c->m * c->lf / (2.0 * l), &ok);
-    z.k_seed_phi = kconst(s[VH_SKF_PHI] * c->m * c->lr / (2.0 * l * c->zeta1), &ok);
+    z.k_seed_vx = vh_skfq_kconst(s[VH_SKF_VX] * c->rw / 4.0, &ok);
+    z.k_seed_fy[0] = vh_skfq_kconst(s[VH_SKF_FYF] * c->m * c->lr / (2.0 * l), &ok);
+    z.k_seed_fy[1] = vh_skfq_kconst(s[VH_SKF_FYR] * c->m * c->lf / (2.0 * l), &ok);
+    z.k_seed_phi = vh_skfq_kconst(s[VH_SKF_PHI] * c->m * c->lr / (2.0 * l * c->zeta1), &ok);
     for (i = 0; i < NX; ++i) {
         exact_fraction(s[i], &z.s_num[i], &z.s_den[i], &ok);
     }

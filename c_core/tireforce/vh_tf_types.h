@@ -20,5 +20,8 @@ enum {
     VH_SKF_Y_AX = 1u, VH_SKF_Y_AY = 2u, VH_SKF_Y_R = 4u, VH_SKF_Y_P = 8u, VH_SKF_Y_ALL = 15u,
     VH_SKF_U_VALID = 16u, VH_SKF_ALL_VALID = 31u
 };
+/* What the first usable sample needs, to seed the state (vx from the wheel speeds, the axle
+ * forces and roll angle from a_y, r and p): the step waits without them. */
+enum { VH_SKF_SEED_VALID = VH_SKF_U_VALID | VH_SKF_Y_AY | VH_SKF_Y_R | VH_SKF_Y_P };
 
 #endif /* VH_TF_TYPES_H */

@@ -386,13 +386,18 @@ void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uns
     }
 }
 
+int32_t vh_tfa_mass_std(const vh_tfa_t *a)
+{
+    return isqrt64(a->p);
+}
+
 void vh_tfa_run(vh_tfa_t *a, vh_skfq_t *f, size_t n, const int32_t *u, const uint8_t *mask, int32_t *fy_out,
                 int32_t *fz_out, int32_t *k_out, int32_t *p_out, uint8_t *health_out)
 {
     size_t t;
     int i;
     for (t = 0; t < n; ++t) {
-        const vh_skfq_input_t *in = (const vh_skfq_input_t *)(const void *)(u + t * VH_SKFQ_NU); /* same layout */
+        const vh_skfq_input_t *in = vh_skfq_input_row(u, t);
         const unsigned m = mask ? mask[t] : (unsigned)VH_SKF_ALL_VALID;
         (void)vh_skfq_step(f, in, m);
         vh_tfa_step(a, f, in, m);

@@ -90,6 +90,8 @@ int vh_tfa_init(vh_tfa_t *a, const vh_tfa_params_t *prm);
 void vh_tfa_reset(vh_tfa_t *a);
 /* One step after vh_skfq_step(f, in, mask) on the same inputs and mask. */
 void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask);
+/* The mass ratio's standard deviation sqrt(P), rounded down, in Q(VH_TFA_FP / 2). */
+int32_t vh_tfa_mass_std(const vh_tfa_t *a);
 /* The array API: n steps of both filters from their current state, inputs as vh_skfq_run. Per step:
  * fy, fz (4 each, FN), k, p, health. */
 void vh_tfa_run(vh_tfa_t *a, vh_skfq_t *f, size_t n, const int32_t *u, const uint8_t *mask, int32_t *fy_out,

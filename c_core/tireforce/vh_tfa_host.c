@@ -2,6 +2,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "vh_skfq_host.h"
 #include "vh_tfa_host.h"
 
 void vh_tfa_config_default(vh_tfa_config_t *c)
@@ -97,36 +98,6 @@ double vh_tfa_lateral_force(const vh_tfa_config_t *c, double alpha_deg, double f
     return sc * d * sin(a[0] * atan(bx - e * (bx - atan(bx))));
 }
 
-/* m 2^-e with |m| in [2^30, 2^31), rounded half up (as vh_skfq_host.c) */
-static vh_fix_k_t kconst(double v, int *ok)
-{
-    vh_fix_k_t k = {0, 0};
-    int ex;
-    double mm;
-    if (!isfinite(v) || v == 0.0) {
-        *ok = *ok && isfinite(v);
-        return k;
-    }
-    mm = floor(ldexp(frexp(v, &ex), 31) + 0.5);
-    k.e = 31 - ex;
-    if (fabs(mm) >= 2147483648.0) {
-        mm = floor(ldexp(frexp(v, &ex), 30) + 0.5);
-        k.e -= 1;
-    }
-    k.m = (int32_t)mm;
-    return k;
-}
-
-static int32_t q(double v, int frac, int *ok)
-{
-    const double r = floor(ldexp(v, frac) + 0.5);
-    if (!isfinite(r) || r > 2147483647.0 || r < -2147483648.0) {
-        *ok = 0;
-        return 0;
-    }
-    return (int32_t)r;
-}
-
 int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t *c, vh_tfa_params_t *p)
 {
     vh_tfa_params_t z;
@@ -144,25 +115,25 @@ int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t 
     memset(&z, 0, sizeof z);
     for (i = 1; i < VH_TFA_NZ; ++i) { /* row 0 (no load) stays 0 */
         for (j = 0; j < VH_TFA_NA; ++j) {
-            z.table[i * VH_TFA_NA + j] = q(vh_tfa_lateral_force(c, 0.25 * j, 500.0 * i), VH_SKFQ_FN, &ok);
+            z.table[i * VH_TFA_NA + j] = vh_skfq_qconst(vh_tfa_lateral_force(c, 0.25 * j, 500.0 * i), VH_SKFQ_FN, &ok);
         }
     }
-    z.k_inv_fz_step = kconst(1.0 / 500.0, &ok);
-    z.k_phi = kconst(skf->m / c->sigma_y, &ok);
-    z.k_y = kconst(1.0 / c->sigma_y, &ok);
-    z.k_drag = kconst(0.5 * c->rho * c->cda / (s_vx * s_vx), &ok);
-    z.alpha_lp = q(skf->ts / (c->tau_lp + skf->ts), 30, &ok);
-    z.ax_gate = q(c->ax_gate, VH_SKFQ_FA, &ok);
-    z.ay_gate = q(c->ay_gate, VH_SKFQ_FA, &ok);
-    z.vx_gate = q(c->vx_gate * s_vx, VH_SKFQ_FX, &ok);
+    z.k_inv_fz_step = vh_skfq_kconst(1.0 / 500.0, &ok);
+    z.k_phi = vh_skfq_kconst(skf->m / c->sigma_y, &ok);
+    z.k_y = vh_skfq_kconst(1.0 / c->sigma_y, &ok);
+    z.k_drag = vh_skfq_kconst(0.5 * c->rho * c->cda / (s_vx * s_vx), &ok);
+    z.alpha_lp = vh_skfq_qconst(skf->ts / (c->tau_lp + skf->ts), 30, &ok);
+    z.ax_gate = vh_skfq_qconst(c->ax_gate, VH_SKFQ_FA, &ok);
+    z.ay_gate = vh_skfq_qconst(c->ay_gate, VH_SKFQ_FA, &ok);
+    z.vx_gate = vh_skfq_qconst(c->vx_gate * s_vx, VH_SKFQ_FX, &ok);
     z.valid_min = (uint32_t)floor(5.0 * c->tau_lp / skf->ts + 0.5);
     z.decim = (uint32_t)c->decim;
-    z.inv_forget = q(1.0 / c->forget, 30, &ok);
-    z.p0 = q(c->mass_sigma0 * c->mass_sigma0, VH_TFA_FP, &ok);
-    z.p_floor = q(c->mass_sigma_floor * c->mass_sigma_floor, VH_TFA_FP, &ok);
-    z.p_ok = q(c->mass_sigma_ok * c->mass_sigma_ok, VH_TFA_FP, &ok);
-    z.k_lo = q(c->mass_lo, VH_TFA_FK, &ok);
-    z.k_hi = q(c->mass_hi, VH_TFA_FK, &ok);
+    z.inv_forget = vh_skfq_qconst(1.0 / c->forget, 30, &ok);
+    z.p0 = vh_skfq_qconst(c->mass_sigma0 * c->mass_sigma0, VH_TFA_FP, &ok);
+    z.p_floor = vh_skfq_qconst(c->mass_sigma_floor * c->mass_sigma_floor, VH_TFA_FP, &ok);
+    z.p_ok = vh_skfq_qconst(c->mass_sigma_ok * c->mass_sigma_ok, VH_TFA_FP, &ok);
+    z.k_lo = vh_skfq_qconst(c->mass_lo, VH_TFA_FK, &ok);
+    z.k_hi = vh_skfq_qconst(c->mass_hi, VH_TFA_FK, &ok);
     z.m_num = 0;
     z.m_den = 0;
     {   /* the model mass as an exact fraction m_num / m_den (the TX of the mass estimate, integer only) */
@@ -183,29 +154,31 @@ int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t 
         const double fz = 500.0 * (i > 0 ? i : 1), f = fz * 1e-3 / c->tyre_fz_scale;
         const double c_pct = c->tyre_fz_scale * bcd_x(c, f); /* N per % */
         const double km = peak(c, 1, fz, 40.0), am = peak(c, 0, fz, 30.0);
-        z.compliance[i] = q(1.0 / (100.0 * c_pct), VH_TFA_FC, &ok);
-        z.dx[i] = q(vh_tfa_longitudinal_force(c, km, fz), VH_SKFQ_FN, &ok);
-        z.inv_kappa_m[i] = q(100.0 / km, VH_TFA_FG, &ok);
-        z.inv_alpha_m[i] = q((0.25 * 3.14159265358979323846 / 180.0) / (am * 3.14159265358979323846 / 180.0), 30, &ok);
-        z.secant[i * VH_TFA_NS] = q(1.0, 30, &ok);
+        z.compliance[i] = vh_skfq_qconst(1.0 / (100.0 * c_pct), VH_TFA_FC, &ok);
+        z.dx[i] = vh_skfq_qconst(vh_tfa_longitudinal_force(c, km, fz), VH_SKFQ_FN, &ok);
+        z.inv_kappa_m[i] = vh_skfq_qconst(100.0 / km, VH_TFA_FG, &ok);
+        z.inv_alpha_m[i] = vh_skfq_qconst((0.25 * 3.14159265358979323846 / 180.0) / (am * 3.14159265358979323846 / 180.0),
+                                          30, &ok);
+        z.secant[i * VH_TFA_NS] = vh_skfq_qconst(1.0, 30, &ok);
         for (j = 1; j < VH_TFA_NS; ++j) {
             const double sj = 0.05 * j;
-            z.secant[i * VH_TFA_NS + j] = q(vh_tfa_longitudinal_force(c, sj * km, fz) / (c_pct * sj * km), 30, &ok);
+            z.secant[i * VH_TFA_NS + j] =
+                vh_skfq_qconst(vh_tfa_longitudinal_force(c, sj * km, fz) / (c_pct * sj * km), 30, &ok);
         }
     }
-    z.k_rw = kconst(skf->rw, &ok);
-    z.k_inv_svx = kconst(1.0 / s_vx, &ok);
-    z.k_half[0] = kconst(skf->tf, &ok);
-    z.k_half[1] = kconst(skf->tr, &ok);
-    z.alpha_slip = q(skf->ts / (c->tau_slip + skf->ts), 30, &ok);
-    z.fx_gate = q(c->fx_gate, VH_SKFQ_FN, &ok);
-    z.q_gate = q(c->q_gate, 30, &ok);
-    z.g_obs = q(c->decim * skf->ts / c->tau_mu, 30, &ok);
-    z.g_forget = q(c->decim * skf->ts / c->tau_mu_forget, 30, &ok);
-    z.mu_nom = q(c->mu, VH_TFA_FS, &ok);
-    z.mu_floor = q(c->mu_floor, VH_TFA_FS, &ok);
-    z.s_step = q(0.05, 30, &ok);
-    z.ellipse_floor2 = q(c->ellipse_floor * c->ellipse_floor, 30, &ok);
+    z.k_rw = vh_skfq_kconst(skf->rw, &ok);
+    z.k_inv_svx = vh_skfq_kconst(1.0 / s_vx, &ok);
+    z.k_half[0] = vh_skfq_kconst(skf->tf, &ok);
+    z.k_half[1] = vh_skfq_kconst(skf->tr, &ok);
+    z.alpha_slip = vh_skfq_qconst(skf->ts / (c->tau_slip + skf->ts), 30, &ok);
+    z.fx_gate = vh_skfq_qconst(c->fx_gate, VH_SKFQ_FN, &ok);
+    z.q_gate = vh_skfq_qconst(c->q_gate, 30, &ok);
+    z.g_obs = vh_skfq_qconst(c->decim * skf->ts / c->tau_mu, 30, &ok);
+    z.g_forget = vh_skfq_qconst(c->decim * skf->ts / c->tau_mu_forget, 30, &ok);
+    z.mu_nom = vh_skfq_qconst(c->mu, VH_TFA_FS, &ok);
+    z.mu_floor = vh_skfq_qconst(c->mu_floor, VH_TFA_FS, &ok);
+    z.s_step = vh_skfq_qconst(0.05, 30, &ok);
+    z.ellipse_floor2 = vh_skfq_qconst(c->ellipse_floor * c->ellipse_floor, 30, &ok);
     if (!ok) {
         return VH_EINVAL;
     }

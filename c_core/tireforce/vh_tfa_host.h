@@ -32,9 +32,9 @@ typedef struct {
 void vh_tfa_config_default(vh_tfa_config_t *c);
 /* The tyre's pure-slip lateral force [N] at alpha [deg] >= 0 and load fz [N] (adaptive.lateral_force). */
 double vh_tfa_lateral_force(const vh_tfa_config_t *c, double alpha_deg, double fz);
-/* VH_OK, or VH_EINVAL if the configuration is invalid or a constant does not fit its format. */
 /* The pure-slip longitudinal force [N] at kappa [%] >= 0 (adaptive.longitudinal_force). */
 double vh_tfa_longitudinal_force(const vh_tfa_config_t *c, double kappa_pct, double fz);
+/* VH_OK, or VH_EINVAL if the configuration is invalid or a constant does not fit its format. */
 int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t *c, vh_tfa_params_t *p);
 
 #endif /* VH_TFA_HOST_H */

@@ -92,7 +92,7 @@ void vh_tf_app_step(vh_ecu_chs_t *c, unsigned burst_limit)
         if (usable) {
             mask = (c->valid & 0xFu) | ((c->valid & CHS_ALL_INPUTS) == CHS_ALL_INPUTS ? VH_SKF_U_VALID : 0u);
         }
-        const vh_skfq_input_t *in = (const vh_skfq_input_t *)(const void *)c->u; /* same layout (vh_skfq.c) */
+        const vh_skfq_input_t *in = vh_skfq_input_row(c->u, 0); /* the one row of this step */
         const uint32_t tsat0 = c->tfa.sat;
         if (vh_skfq_step(f, in, mask)) {
             vh_rx_count(&c->cnt.filter_reset);
@@ -118,107 +118,95 @@ int vh_tf_app_check(const vh_skfq_params_t *prm, const vh_tfa_params_t *tprm)
            vh_ch_vehest_tire_force_adaptive_est_mass_std_qs_ok(tprm->m_den, tprm->m_num) STATES(QS_OK);
 }
 
+/* Every frame: none before the first CHS_Sensors frame (0), else m zeroed to be filled (1). */
+static int begin(const vh_ecu_chs_t *c, void *m, size_t size)
+{
+    if (!c->heard) {
+        return 0;
+    }
+    memset(m, 0, size);
+    return 1;
+}
+
+/* An estimate frame's filter: its health, its valid flag (OK while CHS_Sensors has not timed out);
+ * returns whether its estimates go out (not timed out, OK or DEGRADED; else their SNA). */
+static int report(const vh_ecu_chs_t *c, uint8_t health, uint8_t *health_sig, uint8_t *valid_sig)
+{
+    *health_sig = health;
+    *valid_sig = (uint8_t)(!c->rx.timed_out && health == VH_HEALTH_OK);
+    return !c->rx.timed_out && (health == VH_HEALTH_OK || health == VH_HEALTH_DEGRADED);
+}
+
+/* Pack m as message msg and protect it (E2E profile 1, the message's own counter i). */
+#define SEND(msg, MSG, i)                                                                        \
+    (void)vh_ch_##msg##_pack(data, &m, VH_CH_##MSG##_LENGTH);                                    \
+    vh_e2e_p01_protect(data, VH_CH_##MSG##_LENGTH, VH_CH_##MSG##_E2E_DATA_ID, &c->tx_counter[i])
+
 /* An estimate while the filter is usable, else the signal's SNA. */
 #define EST(sig, SIG, i)                                                                                  \
     m.sig = ok ? vh_ch_vehest_tire_force_est_##sig##_encode_qs(f->x[i], VH_SKFQ_FX, f->prm.s_num[i], \
                                                                f->prm.s_den[i])                   \
                : VH_CH_VEHEST_TIRE_FORCE_EST_##SIG##_SNA_CHOICE;
-#define FY(k, sig, SIG) \
-    m.sig = ok ? vh_ch_vehest_tire_force_est_##sig##_encode_q(f->fy[k], VH_SKFQ_FN) : VH_CH_VEHEST_TIRE_FORCE_EST_##SIG##_SNA_CHOICE
+/* A tyre force (Q.FN -> raw, exact) the same way; the four tyres of Fy1..4 and of FyA1..4. */
+#define TYRE(msg, MSG, sig, SIG, v) \
+    m.sig = ok ? vh_ch_##msg##_##sig##_encode_q((v), VH_SKFQ_FN) : VH_CH_##MSG##_##SIG##_SNA_CHOICE;
+#define TYRES(X) X(0, 1) X(1, 2) X(2, 3) X(3, 4)
+#define FY(k, n) TYRE(vehest_tire_force_est, VEHEST_TIRE_FORCE_EST, fy##n, FY##n, f->fy[k])
+#define FYA(k, n) TYRE(vehest_tire_force_adaptive, VEHEST_TIRE_FORCE_ADAPTIVE, fy_a##n, FY_A##n, a->fy[k])
 
 int vh_tf_app_fill_est(vh_ecu_chs_t *c, uint8_t *data)
 {
     struct vh_ch_vehest_tire_force_est_t m;
     const vh_skfq_t *f = &c->skf;
-    const int ok = !c->rx.timed_out && (f->health == VH_HEALTH_OK || f->health == VH_HEALTH_DEGRADED);
-    if (!c->heard) {
+    int ok;
+    if (!begin(c, &m, sizeof m)) {
         return 0;
     }
-    memset(&m, 0, sizeof m);
-    m.skfmec_q_health = f->health;
-    m.skfmec_q_valid = !c->rx.timed_out && f->health == VH_HEALTH_OK;
+    ok = report(c, f->health, &m.skfmec_q_health, &m.skfmec_q_valid);
     /* Q.FN -> raw and x* -> raw: exact integer scalings, the DBC's fraction (times S for the states) */
-    FY(0, fy1, FY1);
-    FY(1, fy2, FY2);
-    FY(2, fy3, FY3);
-    FY(3, fy4, FY4);
+    TYRES(FY)
     STATES(EST)
-    (void)vh_ch_vehest_tire_force_est_pack(data, &m, VH_CH_VEHEST_TIRE_FORCE_EST_LENGTH);
-    vh_e2e_p01_protect(data, VH_CH_VEHEST_TIRE_FORCE_EST_LENGTH, VH_CH_VEHEST_TIRE_FORCE_EST_E2E_DATA_ID,
-                       &c->tx_counter[0]);
+    SEND(vehest_tire_force_est, VEHEST_TIRE_FORCE_EST, 0);
     return 1;
 }
 
 int vh_tf_app_fill_status(vh_ecu_chs_t *c, uint8_t *data)
 {
-    struct vh_ch_vehest_chassis_status_t st;
+    struct vh_ch_vehest_chassis_status_t m;
     /* the sum of two wrapping counters wraps the same way: differences stay exact */
     const uint16_t cnt_err = (uint16_t)(c->cnt.counter_repeat + c->cnt.counter_skip);
-    if (!c->heard) {
+    if (!begin(c, &m, sizeof m)) {
         return 0;
     }
-    memset(&st, 0, sizeof st);
-    st.skfmec_q_health_sts = c->skf.health;
-    st.cnt_rx_crc_error = c->cnt.crc_error;
-    st.cnt_rx_counter_error = cnt_err;
-    st.cnt_rx_timeout = c->cnt.timeout;
-    st.cnt_signal_invalid = c->cnt.signal_invalid;
-    st.cnt_saturation = c->cnt.saturation;
-    st.cnt_filter_reset = c->cnt.filter_reset;
-    st.rx_fault_active = (uint8_t)((c->rx.timed_out || c->rx.resync ? 1u : 0u) |
-                                   ((c->valid & 0x1FFFu) != 0x1FFFu ? 2u : 0u));
-    (void)vh_ch_vehest_chassis_status_pack(data, &st, VH_CH_VEHEST_CHASSIS_STATUS_LENGTH);
-    vh_e2e_p01_protect(data, VH_CH_VEHEST_CHASSIS_STATUS_LENGTH, VH_CH_VEHEST_CHASSIS_STATUS_E2E_DATA_ID,
-                       &c->tx_counter[1]);
+    m.skfmec_q_health_sts = c->skf.health;
+    m.cnt_rx_crc_error = c->cnt.crc_error;
+    m.cnt_rx_counter_error = cnt_err;
+    m.cnt_rx_timeout = c->cnt.timeout;
+    m.cnt_signal_invalid = c->cnt.signal_invalid;
+    m.cnt_saturation = c->cnt.saturation;
+    m.cnt_filter_reset = c->cnt.filter_reset;
+    m.rx_fault_active = (uint8_t)((c->rx.timed_out || c->rx.resync ? 1u : 0u) |
+                                  ((c->valid & 0x1FFFu) != 0x1FFFu ? 2u : 0u));
+    SEND(vehest_chassis_status, VEHEST_CHASSIS_STATUS, 1);
     return 1;
 }
-
-/* floor(sqrt(v)) of a non-negative int32 (bit by bit): the std of the mass ratio from its variance */
-static int32_t isqrt32(int32_t v)
-{
-    uint32_t x = v > 0 ? (uint32_t)v : 0u, r = 0u, bit = 1u << 30;
-    while (bit > x) {
-        bit >>= 2;
-    }
-    while (bit != 0u) {
-        if (x >= r + bit) {
-            x -= r + bit;
-            r = (r >> 1) + bit;
-        } else {
-            r >>= 1;
-        }
-        bit >>= 2;
-    }
-    return (int32_t)r;
-}
-
-#define FYA(k, sig, SIG)                                                                                 \
-    m.sig = ok ? vh_ch_vehest_tire_force_adaptive_##sig##_encode_q(a->fy[k], VH_SKFQ_FN)               \
-               : VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_##SIG##_SNA_CHOICE
 
 int vh_tf_app_fill_adaptive(vh_ecu_chs_t *c, uint8_t *data)
 {
     struct vh_ch_vehest_tire_force_adaptive_t m;
     const vh_tfa_t *a = &c->tfa;
-    const int ok = !c->rx.timed_out && (a->health == VH_HEALTH_OK || a->health == VH_HEALTH_DEGRADED);
-    if (!c->heard) {
+    int ok;
+    if (!begin(c, &m, sizeof m)) {
         return 0;
     }
-    memset(&m, 0, sizeof m);
-    m.skfmec_a_health = a->health;
-    m.skfmec_a_valid = !c->rx.timed_out && a->health == VH_HEALTH_OK;
-    FYA(0, fy_a1, FY_A1);
-    FYA(1, fy_a2, FY_A2);
-    FYA(2, fy_a3, FY_A3);
-    FYA(3, fy_a4, FY_A4);
+    ok = report(c, a->health, &m.skfmec_a_health, &m.skfmec_a_valid);
+    TYRES(FYA)
     /* the mass ratio k (Q.FK) and its std sqrt(P) (Q.FP/2) times m = m_num / m_den: exact, integer */
     m.est_mass = ok ? vh_ch_vehest_tire_force_adaptive_est_mass_encode_qs(a->k, VH_TFA_FK, a->prm.m_den, a->prm.m_num)
                     : VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_EST_MASS_SNA_CHOICE;
-    m.est_mass_std = ok ? vh_ch_vehest_tire_force_adaptive_est_mass_std_encode_qs(isqrt32(a->p), VH_TFA_FP / 2,
+    m.est_mass_std = ok ? vh_ch_vehest_tire_force_adaptive_est_mass_std_encode_qs(vh_tfa_mass_std(a), VH_TFA_FP / 2,
                                                                                   a->prm.m_den, a->prm.m_num)
                         : VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_EST_MASS_STD_SNA_CHOICE;
-    (void)vh_ch_vehest_tire_force_adaptive_pack(data, &m, VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_LENGTH);
-    vh_e2e_p01_protect(data, VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_LENGTH, VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_E2E_DATA_ID,
-                       &c->tx_counter[2]);
+    SEND(vehest_tire_force_adaptive, VEHEST_TIRE_FORCE_ADAPTIVE, 2);
     return 1;
 }
