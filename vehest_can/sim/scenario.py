@@ -8,15 +8,16 @@ ready-to-step instances (``make_plant``, ``make_node``).
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 
 from ..errors import ScenarioError
 from ..paths import ShippedSet
-from ..schema import Checker, Num, read_toml
+from ..schema import Checker, Num, read_toml, type_name
 
 #: Plant and sensor-node step [s]: one ECU tick (VH_TICK_US).
 DT = 0.0005
@@ -82,6 +83,66 @@ _CAMBER = {
 }
 
 
+def derived_seed(seed: int, salt: int) -> int:
+    """A node's own random stream from the scenario's seed (odd multiplier: a bijection; `salt` keeps the
+    streams of different nodes apart)."""
+    return (seed * 0x9E3779B97F4A7C15 + salt) % 2**64
+
+
+class ScenarioBase:
+    """What every system's scenario dataclass does alike (its fields name, duration_s, seed, path): steps,
+    the sensor node's seed and instance, the plant-alone run. A subclass names its C types and supplies
+    ``make_plant``, ``node_config`` and ``_run`` (the plant's own run call)."""
+
+    name: str
+    duration_s: float
+    seed: int
+    path: Path | None
+    #: the sensor node's C prefix (``<_NODE>_t``, ``<_NODE>_init``), the plant's truth struct, the node seed's salt
+    _NODE: ClassVar[str]
+    _TRUTH: ClassVar[str]
+    _SEED_SALT: ClassVar[int]
+
+    @property
+    def n_steps(self) -> int:
+        """Plant steps of DT in duration_s."""
+        return int(round(self.duration_s / DT))
+
+    @property
+    def node_seed(self) -> int:
+        """Seed of the sensor node's random stream, derived from ``seed``."""
+        return derived_seed(self.seed, self._SEED_SALT)
+
+    def make_plant(self, ffi, lib) -> Any:
+        raise NotImplementedError
+
+    def node_config(self, ffi, lib) -> Any:
+        raise NotImplementedError
+
+    def _run(self, ffi, lib, plant, n: int, out) -> None:
+        raise NotImplementedError
+
+    def make_node(self, ffi, lib):
+        """An initialised sensor node (``<_NODE>_t *``) of ``node_config``."""
+        n = ffi.new(f"{self._NODE}_t *")
+        if getattr(lib, f"{self._NODE}_init")(n, self.node_config(ffi, lib)) != lib.VH_OK:
+            raise ScenarioError(f"{self._where()}: sensors: the sensor node refuses this configuration")
+        return n
+
+    def run_truth(self, ffi, lib) -> np.ndarray:
+        """The plant alone over the whole scenario: the truth of every step as a numpy record array."""
+        from ..native import struct_array
+
+        p = self.make_plant(ffi, lib)
+        n = self.n_steps
+        out = ffi.new(f"{self._TRUTH}[]", n)
+        self._run(ffi, lib, p, n, out)
+        return struct_array(self._TRUTH, out, n)
+
+    def _where(self) -> str:
+        return str(self.path) if self.path is not None else f"scenario {self.name!r}"
+
+
 @dataclass(frozen=True)
 class Camber:
     theta_deg: tuple[float, float, float, float]
@@ -93,8 +154,12 @@ class Camber:
 
 
 @dataclass(frozen=True)
-class Scenario:
+class Scenario(ScenarioBase):
     """One validated scenario. Times in s, speeds in rad/s unless the name says otherwise."""
+
+    _NODE: ClassVar[str] = "vh_dls"
+    _TRUTH: ClassVar[str] = "vh_dlp_truth_t"
+    _SEED_SALT: ClassVar[int] = 0x444C53
 
     name: str
     description: str
@@ -110,11 +175,6 @@ class Scenario:
     camber: Camber | None = None  # [camber]: inspection devices clamped on
     path: Path | None = None
 
-    @property
-    def n_steps(self) -> int:
-        """Plant steps of DT in duration_s."""
-        return int(round(self.duration_s / DT))
-
     def times(self) -> np.ndarray:
         """Time after each plant step: DT, 2 DT, ..., n_steps DT."""
         return (np.arange(self.n_steps) + 1) * DT
@@ -124,11 +184,6 @@ class Scenario:
         ts = np.array([p[0] for p in self.throttle], dtype=float)
         vs = np.array([p[1] for p in self.throttle], dtype=float)
         return np.interp(np.asarray(t, dtype=float), ts, vs)
-
-    @property
-    def node_seed(self) -> int:
-        """Seed of the sensor node's own random stream, derived from ``seed`` (odd multiplier: a bijection)."""
-        return (self.seed * 0x9E3779B97F4A7C15 + 0x444C53) % 2**64
 
     def plant_params(self, ffi, lib):
         """A ``vh_dlp_params_t *``: the plant's defaults with this scenario's road and vehicle."""
@@ -179,24 +234,9 @@ class Scenario:
             lib.vh_dlp_set_rolling(p, self.initial_speed_kmh / 3.6, self.gear)
         return p
 
-    def make_node(self, ffi, lib):
-        """An initialised ``vh_dls_t *``."""
-        n = ffi.new("vh_dls_t *")
-        if lib.vh_dls_init(n, self.node_config(ffi, lib)) != lib.VH_OK:
-            raise ScenarioError(f"{self._where()}: sensors: the sensor node refuses this configuration")
-        return n
-
-    def run_truth(self, ffi, lib) -> np.ndarray:
-        """Run the plant alone over the whole scenario; the truth of every step as a numpy record array."""
-        p = self.make_plant(ffi, lib)
-        n = self.n_steps
+    def _run(self, ffi, lib, plant, n: int, out) -> None:
         thr = np.ascontiguousarray(self.throttle_at(self.times()))
-        out = ffi.new("vh_dlp_truth_t[]", n)
-        lib.vh_dlp_run(p, n, ffi.cast("double *", ffi.from_buffer(thr)), self.gear, out)
-        return truth_to_numpy(ffi, out, n)
-
-    def _where(self) -> str:
-        return str(self.path) if self.path is not None else f"scenario {self.name!r}"
+        lib.vh_dlp_run(plant, n, ffi.cast("double *", ffi.from_buffer(thr)), self.gear, out)
 
 
 def truth_dtype(ffi) -> np.dtype:
@@ -237,10 +277,31 @@ def scenario_top(c: Checker, doc: dict, top: dict[str, Any], tables: tuple[str, 
                                           SCENARIO_TOP["initial_speed_kmh"])}
 
 
+_S = TypeVar("_S")
+
+
+def load_shipped(shipped: ShippedSet, name_or_path: str | Path, from_dict: Callable[[dict, Path], _S]) -> _S:
+    """A scenario file (a path, or the name of one of `shipped`) read and validated by `from_dict`."""
+    path = shipped.path(name_or_path)
+    return from_dict(read_toml(path), path)
+
+
+def kind_checker(doc, path: str | Path, kinds: tuple[str, ...], expected: str, missing: str = "") -> Checker:
+    """The Checker of a scenario document that must be a table whose ``kind`` is one of `kinds`:
+    ``kind: missing`` when it has none and `missing` is given, else ``kind: must be <expected>, not ...``."""
+    c = Checker(Path(path))
+    if not isinstance(doc, dict):
+        c.fail("", f"must be a TOML document (a table), not {type_name(doc)}")
+    if doc.get("kind") not in kinds:
+        if missing and "kind" not in doc:
+            c.fail("kind", missing)
+        c.fail("kind", f"must be {expected}, not {doc.get('kind')!r}")
+    return c
+
+
 def load_scenario(path: str | Path) -> Scenario:
     """Load and validate one scenario file (a path, or the name of a shipped scenario)."""
-    path = scenario_path(path)
-    return scenario_from_dict(read_toml(path), path)
+    return load_shipped(SCENARIOS, path, scenario_from_dict)
 
 
 def scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> Scenario:
