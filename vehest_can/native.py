@@ -124,4 +124,16 @@ def config_class(ctype: str, name: str, *, defaults: Callable[[Any], object] | N
     return cls
 
 
-__all__ = ["ffi", "lib", "check", "struct_dtype", "struct_array", "config_class"]
+def with_overrides(cfg, overrides: Mapping[str, Any], what: str,
+                   convert: Callable[[str, Any], Any] = lambda key, value: value):
+    """A configuration dataclass with `overrides` (field: value, each through ``convert(field, value)``)
+    set on it, in order; a name that is not a field is ConfigError ``unknown <what> 'name'``."""
+    names = {f.name for f in dataclasses.fields(cfg)}
+    for key, value in overrides.items():
+        if key not in names:
+            raise ConfigError(f"unknown {what} {key!r}")
+        setattr(cfg, key, convert(key, value))
+    return cfg
+
+
+__all__ = ["ffi", "lib", "check", "struct_dtype", "struct_array", "config_class", "with_overrides"]

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import ConfigError
-from ...native import check, config_class, ffi, lib
+from ...native import check, config_class, ffi, lib, with_overrides
 
 SKFMEC = "skfmec"
 EKF = "ekf"
@@ -40,13 +40,8 @@ class SkfConfig(_C_CONFIG):
             raise ConfigError(f"estimator {variant!r}: expected one of {list(VARIANTS)}")
         c = ffi.new("vh_skf_config_t *")
         lib.vh_skf_config_default(c, _VARIANT_C[variant])
-        cfg = cls.from_c(c)
-        names = {f.name for f in fields(cls)}
-        for key, value in overrides.items():
-            if key not in names:
-                raise ConfigError(f"unknown estimator setting {key!r}")
-            setattr(cfg, key, tuple(float(v) for v in value) if key in _VEC else value)
-        return cfg
+        return with_overrides(cls.from_c(c), overrides, "estimator setting",
+                              lambda k, v: tuple(float(x) for x in v) if k in _VEC else v)
 
 
 @dataclass
