@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, ClassVar, TypeVar
+from typing import TYPE_CHECKING, Any, ClassVar, TypeVar
 
 import numpy as np
 
@@ -64,13 +64,13 @@ _VEHICLE = {
     "idle_speed_rad_s": ("w_idle", Num(40.0, 150.0)),
 }
 _GEAR_RATIO = Num(0.2, 3.0)  # each of vehicle.gear_ratios, w_o = R_i w_t
-# [sensors] noise standard deviations: TOML key -> (vh_dls_config_t noise_std indices, range)
+# [sensors] noise standard deviations: TOML key -> (vh_dls_config_t array, channel indices, range)
 _SENSORS = {
-    "out_shaft_speed_std_rad_s": ((0,), Num(0.0, 100.0)),
-    "wheel_speed_std_rad_s": ((1, 2), Num(0.0, 100.0)),
-    "shaft_torque_std_nm": ((3,), Num(0.0, 1000.0)),
-    "engine_speed_std_rad_s": ((4,), Num(0.0, 100.0)),
-    "turbine_speed_std_rad_s": ((5,), Num(0.0, 100.0)),
+    "out_shaft_speed_std_rad_s": ("noise_std", (0,), Num(0.0, 100.0)),
+    "wheel_speed_std_rad_s": ("noise_std", (1, 2), Num(0.0, 100.0)),
+    "shaft_torque_std_nm": ("noise_std", (3,), Num(0.0, 1000.0)),
+    "engine_speed_std_rad_s": ("noise_std", (4,), Num(0.0, 100.0)),
+    "turbine_speed_std_rad_s": ("noise_std", (5,), Num(0.0, 100.0)),
 }
 # [camber]: the four wheel-mounted inspection devices of seed 002 (FL, FR, RL, RR)
 _CAMBER_POSES = {"wheel": 0, "x_down": 1, "z_down": 2}
@@ -89,19 +89,31 @@ def derived_seed(seed: int, salt: int) -> int:
     return (seed * 0x9E3779B97F4A7C15 + salt) % 2**64
 
 
+@dataclass(frozen=True)
 class ScenarioBase:
-    """What every system's scenario dataclass does alike (its fields name, duration_s, seed, path): steps,
-    the sensor node's seed and instance, the plant-alone run. A subclass names its C types and supplies
-    ``make_plant``, ``node_config`` and ``_run`` (the plant's own run call)."""
+    """What every system's scenario dataclass has alike: the fields of SCENARIO_TOP (first, in its
+    order), steps, the sensor node's seed and instance, the plant-alone run. A subclass adds its fields
+    (``path``, the file, last), names its C types and supplies ``make_plant``, ``node_config`` and ``_run`` (the
+    plant's own run call)."""
 
     name: str
+    description: str
     duration_s: float
     seed: int
-    path: Path | None
+    initial_speed_kmh: float
     #: the sensor node's C prefix (``<_NODE>_t``, ``<_NODE>_init``), the plant's truth struct, the node seed's salt
     _NODE: ClassVar[str]
     _TRUTH: ClassVar[str]
     _SEED_SALT: ClassVar[int]
+    #: its [sensors] table: TOML key -> (config array, channels, range)
+    _SENSORS: ClassVar[dict[str, tuple]]
+
+    if TYPE_CHECKING:  # fields of each subclass, after its own (they have defaults, the fields above none)
+        @property
+        def sensors(self) -> tuple[tuple[str, float], ...]: ...  # [sensors] (key, value) pairs
+
+        @property
+        def path(self) -> Path | None: ...  # the file
 
     @property
     def n_steps(self) -> int:
@@ -116,8 +128,13 @@ class ScenarioBase:
     def make_plant(self, ffi, lib) -> Any:
         raise NotImplementedError
 
-    def node_config(self, ffi, lib) -> Any:
-        raise NotImplementedError
+    def node_config(self, ffi, lib):
+        """A ``<_NODE>_config_t *``: the sensor node's defaults with this scenario's sensors and seed."""
+        cfg = ffi.new(f"{self._NODE}_config_t *")
+        getattr(lib, f"{self._NODE}_config_default")(cfg)
+        set_channels(cfg, self.sensors, self._SENSORS)
+        cfg.seed = self.node_seed
+        return cfg
 
     def _run(self, ffi, lib, plant, n: int, out) -> None:
         raise NotImplementedError
@@ -138,6 +155,13 @@ class ScenarioBase:
         out = ffi.new(f"{self._TRUTH}[]", n)
         self._run(ffi, lib, p, n, out)
         return struct_array(self._TRUTH, out, n)
+
+    def car_steps(self, duration_s: float | None = None) -> int:
+        """The steps a car runs: the whole scenario, or duration_s worth (not more than the whole)."""
+        n = self.n_steps if duration_s is None else int(round(duration_s / DT))
+        if not 0 < n <= self.n_steps:
+            raise ScenarioError(f"{self._where()}: duration must be in (0, {self.duration_s}] s")
+        return n
 
     def _where(self) -> str:
         return str(self.path) if self.path is not None else f"scenario {self.name!r}"
@@ -160,12 +184,8 @@ class Scenario(ScenarioBase):
     _NODE: ClassVar[str] = "vh_dls"
     _TRUTH: ClassVar[str] = "vh_dlp_truth_t"
     _SEED_SALT: ClassVar[int] = 0x444C53
+    _SENSORS: ClassVar[dict[str, tuple]] = _SENSORS
 
-    name: str
-    description: str
-    duration_s: float
-    seed: int
-    initial_speed_kmh: float
     gear: int
     throttle: tuple[tuple[float, float], ...]  # (t, value) points, t strictly increasing
     road_std_nm: float
@@ -198,16 +218,6 @@ class Scenario(ScenarioBase):
             else:
                 setattr(prm, _VEHICLE[key][0], value)
         return prm
-
-    def node_config(self, ffi, lib):
-        """A ``vh_dls_config_t *``: the sensor node's defaults with this scenario's noise and seed."""
-        cfg = ffi.new("vh_dls_config_t *")
-        lib.vh_dls_config_default(cfg)
-        for key, value in self.sensors:
-            for ch in _SENSORS[key][0]:
-                cfg.noise_std[ch] = value
-        cfg.seed = self.node_seed
-        return cfg
 
     def camber_configs(self, ffi, lib):
         """(``vh_cambernode_config_t[4]``, pose) for the inspection devices, or None."""
@@ -286,6 +296,15 @@ def load_shipped(shipped: ShippedSet, name_or_path: str | Path, from_dict: Calla
     return from_dict(read_toml(path), path)
 
 
+def set_channels(cfg, values, table: dict[str, tuple]) -> None:
+    """A sensor node's per-channel settings: each (key, value) of `values` into the channels of the
+    cfg array that ``table[key]`` names, ``(array, channels, range)``."""
+    for key, value in values:
+        array, chans, _ = table[key]
+        for ch in chans:
+            getattr(cfg, array)[ch] = value
+
+
 def kind_checker(doc, path: str | Path, kinds: tuple[str, ...], expected: str, missing: str = "") -> Checker:
     """The Checker of a scenario document that must be a table whose ``kind`` is one of `kinds`:
     ``kind: missing`` when it has none and `missing` is given, else ``kind: must be <expected>, not ...``."""
@@ -340,7 +359,7 @@ def scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> Scenario:
     lib.vh_dls_config_default(cfg)
     sensors_doc = c.table(doc.get("sensors", {}), "sensors", _SENSORS)
     sensors = tuple((k, c.number(sensors_doc[k], f"sensors.{k}", spec) if k in sensors_doc
-                     else cfg.noise_std[chans[0]]) for k, (chans, spec) in _SENSORS.items())
+                     else getattr(cfg, array)[chans[0]]) for k, (array, chans, spec) in _SENSORS.items())
 
     camber = _camber(c, doc["camber"]) if "camber" in doc else None
 

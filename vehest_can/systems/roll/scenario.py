@@ -25,7 +25,7 @@ import numpy as np
 from ...errors import ScenarioError
 from ...paths import ShippedSet
 from ...schema import Num
-from ...sim.scenario import DT, _native, derived_seed, kind_checker, load_shipped
+from ...sim.scenario import DT, _native, derived_seed, kind_checker, load_shipped, set_channels
 from ..tireforce.scenario import TireForceScenario, tireforce_scenario_from_dict, truth_dtype
 
 KINDS = ("roll",)
@@ -120,10 +120,7 @@ class RollScenario:
     def node_config(self, ffi, lib):
         cfg = ffi.new("vh_rln_config_t *")
         lib.vh_rln_config_default(cfg)
-        for key, value in self.roll_sensors:
-            array, chans, _ = _ROLL_SENSORS[key]
-            for ch in chans:
-                getattr(cfg, array)[ch] = value
+        set_channels(cfg, self.roll_sensors, _ROLL_SENSORS)
         cfg.seed = self.node_seed
         cfg.mode_active = int(self.active_at(0.0))
         return cfg
@@ -153,9 +150,7 @@ class RollCar:
         self._ffi, self._lib = ffi, lib
         self.scenario = sc
         self.name = sc.name
-        self.n = sc.n_steps if duration_s is None else int(round(duration_s / DT))
-        if not 0 < self.n <= sc.n_steps:
-            raise ScenarioError(f"{sc.plant._where()}: duration must be in (0, {sc.duration_s}] s")
+        self.n = sc.plant.car_steps(duration_s)
         self.truth_dtype = roll_truth_dtype()
         self._base_names = _names(truth_dtype(None))
         self._inputs = sc.plant.inputs(ffi)

@@ -114,12 +114,8 @@ class TireForceScenario(ScenarioBase):
     _NODE: ClassVar[str] = "vh_chs"
     _TRUTH: ClassVar[str] = "vh_v14_truth_t"
     _SEED_SALT: ClassVar[int] = 0x434853
+    _SENSORS: ClassVar[dict[str, tuple]] = _SENSORS
 
-    name: str
-    description: str
-    duration_s: float
-    seed: int
-    initial_speed_kmh: float
     steer_deg: tuple[tuple[float, float], ...]
     drive_nm: tuple[tuple[float, ...], ...]      # (t, FL, FR, RL, RR)
     brake_nm: tuple[tuple[float, ...], ...]
@@ -193,13 +189,7 @@ class TireForceScenario(ScenarioBase):
         return prm
 
     def node_config(self, ffi, lib):
-        cfg = ffi.new("vh_chs_config_t *")
-        lib.vh_chs_config_default(cfg)
-        for key, value in self.sensors:
-            array, chans, _ = _SENSORS[key]
-            for ch in chans:
-                getattr(cfg, array)[ch] = value
-        cfg.seed = self.node_seed
+        cfg = super().node_config(ffi, lib)
         cfg.accel_gravity = int(self.accel_gravity)
         return cfg
 
@@ -243,9 +233,7 @@ class ChassisCar:
         self._ffi, self._lib = ffi, lib
         self.scenario = sc
         self.name = sc.name
-        self.n = sc.n_steps if duration_s is None else int(round(duration_s / DT))
-        if not 0 < self.n <= sc.n_steps:
-            raise ScenarioError(f"{sc._where()}: duration must be in (0, {sc.duration_s}] s")
+        self.n = sc.car_steps(duration_s)
         self.truth_dtype = truth_dtype(ffi)
         self._inputs = sc.inputs(ffi)
         self._out = ffi.new("vh_frame_t[1]")
