@@ -124,10 +124,14 @@ def config_class(ctype: str, name: str, *, defaults: Callable[[Any], object] | N
     return cls
 
 
-def with_overrides(cfg, overrides: Mapping[str, Any], what: str,
+def from_c_default(cls, fill: Callable[[Any], object], overrides: Mapping[str, Any], what: str,
                    convert: Callable[[str, Any], Any] = lambda key, value: value):
-    """A configuration dataclass with `overrides` (field: value, each through ``convert(field, value)``)
-    set on it, in order; a name that is not a field is ConfigError ``unknown <what> 'name'``."""
+    """A :func:`config_class` dataclass from a fresh C struct that ``fill(c)`` (a C defaults function)
+    wrote, with `overrides` (field: value, each through ``convert(field, value)``) set on it in order;
+    a name that is not a field is ConfigError ``unknown <what> 'name'``."""
+    c = ffi.new(f"{cls.C_TYPE} *")
+    fill(c)
+    cfg = cls.from_c(c)
     names = {f.name for f in dataclasses.fields(cfg)}
     for key, value in overrides.items():
         if key not in names:
@@ -136,4 +140,4 @@ def with_overrides(cfg, overrides: Mapping[str, Any], what: str,
     return cfg
 
 
-__all__ = ["ffi", "lib", "check", "struct_dtype", "struct_array", "config_class", "with_overrides"]
+__all__ = ["ffi", "lib", "check", "struct_dtype", "struct_array", "config_class", "from_c_default"]

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import ConfigError
-from ...native import check, config_class, ffi, lib, with_overrides
+from ...native import check, config_class, ffi, from_c_default, lib
 
 SPEEDS_TORQUE = "speeds+torque"
 SPEEDS = "speeds"
@@ -33,9 +33,7 @@ class DkfConfig(_C_CONFIG):
     def default(cls, meas: str = SPEEDS_TORQUE, **overrides) -> DkfConfig:
         if meas not in _MEAS:
             raise ConfigError(f"measurement set {meas!r}: expected one of {sorted(_MEAS)}")
-        c = ffi.new("vh_dkf_config_t *")
-        lib.vh_dkf_config_default(c, _MEAS[meas])
-        return with_overrides(cls.from_c(c), overrides, "filter setting",
+        return from_c_default(cls, lambda c: lib.vh_dkf_config_default(c, _MEAS[meas]), overrides, "filter setting",
                               lambda _, v: tuple(v) if isinstance(v, (list, tuple, np.ndarray)) else v)
 
 

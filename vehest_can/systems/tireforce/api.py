@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import ConfigError
-from ...native import check, config_class, ffi, lib, with_overrides
+from ...native import check, config_class, ffi, from_c_default, lib
 
 SKFMEC = "skfmec"
 EKF = "ekf"
@@ -38,10 +38,8 @@ class SkfConfig(_C_CONFIG):
     def default(cls, variant: str = SKFMEC, **overrides) -> SkfConfig:
         if variant not in _VARIANT_C:
             raise ConfigError(f"estimator {variant!r}: expected one of {list(VARIANTS)}")
-        c = ffi.new("vh_skf_config_t *")
-        lib.vh_skf_config_default(c, _VARIANT_C[variant])
-        return with_overrides(cls.from_c(c), overrides, "estimator setting",
-                              lambda k, v: tuple(float(x) for x in v) if k in _VEC else v)
+        return from_c_default(cls, lambda c: lib.vh_skf_config_default(c, _VARIANT_C[variant]), overrides,
+                              "estimator setting", lambda k, v: tuple(float(x) for x in v) if k in _VEC else v)
 
 
 @dataclass
