@@ -92,9 +92,9 @@ def derived_seed(seed: int, salt: int) -> int:
 @dataclass(frozen=True)
 class ScenarioBase:
     """What every system's scenario dataclass has alike: the fields of SCENARIO_TOP (first, in its
-    order), steps, the sensor node's seed and instance, the plant-alone run. A subclass adds its fields
-    (``path``, the file, last), names its C types and supplies ``make_plant``, ``node_config`` and ``_run`` (the
-    plant's own run call)."""
+    order), steps, the sensor node's seed, configuration and instance, the plant-alone run. A subclass
+    adds its fields (``sensors`` and ``path`` among them), names its C types and [sensors] table, and
+    supplies ``make_plant`` and ``_run`` (the plant's own run call)."""
 
     name: str
     description: str

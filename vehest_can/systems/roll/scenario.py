@@ -80,7 +80,7 @@ class RollScenario:
     actuators: tuple[tuple[str, float], ...] = ()  # only the keys written
     roll_sensors: tuple[tuple[str, float], ...] = ()
 
-    # the run's own figures are the plant's
+    # name, description, length and file: the plant scenario's
     name = _plant_attr("name")
     description = _plant_attr("description")
     duration_s = _plant_attr("duration_s")
