@@ -124,4 +124,20 @@ def config_class(ctype: str, name: str, *, defaults: Callable[[Any], object] | N
     return cls
 
 
-__all__ = ["ffi", "lib", "check", "struct_dtype", "struct_array", "config_class"]
+def from_c_default(cls, fill: Callable[[Any], object], overrides: Mapping[str, Any], what: str,
+                   convert: Callable[[str, Any], Any] = lambda key, value: value):
+    """A :func:`config_class` dataclass from a fresh C struct that ``fill(c)`` (a C defaults function)
+    wrote, with `overrides` (field: value, each through ``convert(field, value)``) set on it in order;
+    a name that is not a field is ConfigError ``unknown <what> 'name'``."""
+    c = ffi.new(f"{cls.C_TYPE} *")
+    fill(c)
+    cfg = cls.from_c(c)
+    names = {f.name for f in dataclasses.fields(cfg)}
+    for key, value in overrides.items():
+        if key not in names:
+            raise ConfigError(f"unknown {what} {key!r}")
+        setattr(cfg, key, convert(key, value))
+    return cfg
+
+
+__all__ = ["ffi", "lib", "check", "struct_dtype", "struct_array", "config_class", "from_c_default"]

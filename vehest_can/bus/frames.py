@@ -44,12 +44,22 @@ def sent_by(nodes: AbstractSet[str], bus: str | None = None) -> frozenset[int]:
 
 def message(name: str):
     """A message of either bus's DBC by name (names, like IDs, are unique across the buses)."""
+    return _on_either_bus("get_message_by_name", name)
+
+
+def message_by_id(frame_id: int):
+    """The message of either bus with this standard ID (IDs are unique across the buses)."""
+    return _on_either_bus("get_message_by_frame_id", frame_id)
+
+
+def _on_either_bus(lookup: str, key):
+    """``database(bus).<lookup>(key)`` of the first bus that has it; KeyError(key) when none does."""
     for bus in BUSES:
         try:
-            return database(bus).get_message_by_name(name)
+            return getattr(database(bus), lookup)(key)
         except KeyError:
             continue
-    raise KeyError(name)
+    raise KeyError(key)
 
 
 def is_own(msg: can.Message, own: frozenset[int]) -> bool:

@@ -18,6 +18,7 @@ from ..bus import bus as busmod
 from ..bus.log import FORMATS, SessionLog
 from ..errors import VehestError
 from ..progress import Progress
+from ..service.daemon import stop_process
 from ..sim.report import FAIL, checks_of, checks_text, realtime_summary, write_junit, write_metrics
 from ..sim.session import SimMaster, run_inprocess
 from ..systems import Setup, System, load_any_scenario, registered, shipped_scenarios
@@ -51,17 +52,6 @@ def add_subparser(subparsers) -> None:
 
 def _daemon_cmd(config: dict, mode: str, extra: list[str]) -> list[str]:
     return [sys.executable, "-m", "vehest_can.cli", "daemon", "--mode", mode, *extra, *busmod.cli_args(config)]
-
-
-def _stop(proc: subprocess.Popen) -> str:
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGTERM)
-    try:
-        _, err = proc.communicate(timeout=10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        _, err = proc.communicate()
-    return err
 
 
 def run(args, systems: list[System] | None = None) -> int:
@@ -136,7 +126,7 @@ def _run(args, systems, runs, out: Path, config: dict, setups: dict, daemon_args
         finally:
             bus.shutdown()
     finally:
-        err = _stop(ecu_proc)
+        err = stop_process(ecu_proc, timeout=10)
     print("ECU daemon: " + " | ".join(line for line in err.strip().splitlines()[-4:]))
 
     all_metrics = [m for _, m in results]
@@ -182,7 +172,7 @@ def _realtime(args, config, car, name: str, out: Path, extra: list[str]) -> dict
         progress.done()
     finally:
         bus.shutdown()
-        err = _stop(ecu_proc)
+        err = stop_process(ecu_proc, timeout=10)
     if ecu_proc.returncode not in (0, -signal.SIGTERM):
         raise VehestError(f"real-time ECU daemon failed: {err}")
     if not stats_file.exists():

@@ -14,6 +14,7 @@ import fnmatch
 import math
 import shutil
 import sys
+from contextlib import contextmanager
 
 from ..bus import bus as busmod
 from ..errors import ConfigError
@@ -108,6 +109,24 @@ def _master(args):
     return Master(busmod.open_bus(config), desc, timeout=args.timeout), desc
 
 
+@contextmanager
+def _connected(args, unlock: bool = False):
+    """A master connected to the daemon of the bus flags (seed & key done when `unlock`, for writes);
+    disconnected after the body, its bus shut down in any case."""
+    m, _ = _master(args)
+    try:
+        if unlock:
+            from ..xcp import ecu as xcp_ecu
+
+            m.connect(key_for=lambda seed: xcp_ecu.key_for(seed))
+        else:
+            m.connect()
+        yield m
+        m.disconnect()
+    finally:
+        m.bus.shutdown()
+
+
 def _show(item, values) -> str:
     text = ", ".join(f"{v:g}" for v in values)
     return f"{item.name} = {'[' + text + ']' if item.shape else text} {item.unit}".rstrip()
@@ -116,19 +135,13 @@ def _show(item, values) -> str:
 def run_get(args) -> int:
     desc = _description()
     items = [_item(desc, n) for n in args.names]
-    m, _ = _master(args)
-    try:
-        m.connect()
+    with _connected(args) as m:
         for it in items:
             print(_show(it, m.read(it)))
-        m.disconnect()
-    finally:
-        m.bus.shutdown()
     return 0
 
 
 def run_set(args) -> int:
-    from ..xcp import ecu as xcp_ecu
     from ..xcp.master import XcpError
 
     desc = _description()
@@ -141,9 +154,7 @@ def run_set(args) -> int:
         raise ConfigError(f"values must be numbers, got {' '.join(args.values)}") from None
     if not 0 <= args.index or args.index + len(values) > it.count:
         raise ConfigError(f"{it.name} has {it.count} element(s): {len(values)} value(s) from --index {args.index} do not fit")
-    m, _ = _master(args)
-    try:
-        m.connect(key_for=lambda seed: xcp_ecu.key_for(seed))
+    with _connected(args, unlock=True) as m:
         try:
             m.write(it, values, args.index)
         except XcpError as exc:
@@ -152,9 +163,6 @@ def run_set(args) -> int:
                 raise XcpError(f"{exc}: {it.name} takes [{lo:g}, {hi:g}] {it.unit}".rstrip() + "; nothing written") from None
             raise
         print(_show(it, m.read(it)))
-        m.disconnect()
-    finally:
-        m.bus.shutdown()
     return 0
 
 
@@ -162,13 +170,8 @@ def run_save(args) -> int:
     from ..xcp import calfile
 
     desc = _description()
-    m, _ = _master(args)
-    try:
-        m.connect()
+    with _connected(args) as m:
         raw = {it.name: m.read_raw(it) for it in desc.characteristics}
-        m.disconnect()
-    finally:
-        m.bus.shutdown()
     calfile.save_values(desc, calfile.values_of(desc, lambda n: raw[n] if desc.item(n).shape else raw[n][0]), args.file)
     print(f"wrote {args.file}: {len(raw)} characteristics of {desc.name}", file=sys.stderr)
     return 0
@@ -176,21 +179,15 @@ def run_save(args) -> int:
 
 def run_load(args) -> int:
     from ..xcp import calfile
-    from ..xcp import ecu as xcp_ecu
 
     desc = _description()
     try:  # every check of the file before anything goes on the bus
         _, vals = calfile.load_image(desc, args.file, bytes(desc.calibration_size))
     except calfile.CalFileError as exc:
         raise ConfigError(str(exc)) from None
-    m, _ = _master(args)
-    try:
-        m.connect(key_for=lambda seed: xcp_ecu.key_for(seed))
+    with _connected(args, unlock=True) as m:
         for it in desc.characteristics:
             v = vals[it.name]
             m.write(it, [x for row in v for x in (row if isinstance(row, list) else [row])] if it.shape else [v])
-        m.disconnect()
-    finally:
-        m.bus.shutdown()
     print(f"loaded {args.file}: {len(vals)} characteristics into the running ECU", file=sys.stderr)
     return 0

@@ -10,9 +10,9 @@ import can
 import numpy as np
 
 from ..bus.busload import FD_LENGTHS
-from ..bus.frames import database, e2e_data_id, message
+from ..bus.frames import database, e2e_data_id, message, message_by_id
 from ..native import ffi, lib
-from .spec import _SYNC, FaultConfig, FaultSpec, _by_id, _target_ids
+from .spec import _SYNC, FaultConfig, FaultSpec, _target_ids
 
 
 class Injected(NamedTuple):
@@ -85,7 +85,7 @@ class FaultInjector:
         data_id = self._data_ids.get(msg.arbitration_id)
         if data_id is None:
             try:
-                data_id = e2e_data_id(_by_id(msg.arbitration_id))
+                data_id = e2e_data_id(message_by_id(msg.arbitration_id))
             except KeyError:
                 data_id = 0
             self._data_ids[msg.arbitration_id] = data_id

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import cast
 
 from ..bus.busload import FD_LENGTHS
-from ..bus.frames import BUSES, database, e2e_data_id, message
+from ..bus.frames import BUSES, database, e2e_data_id, message, message_by_id
 from ..errors import ConfigError
 from ..schema import Checker, read_toml
 
@@ -185,18 +185,8 @@ def _validate(spec: FaultSpec, where: str, bus: str = "pt") -> None:
         fail("signal", f"only sna and stuck faults take a signal, not {spec.kind}")
     if spec.kind == "skip_counter" and spec.target != "*":
         ids = _target_ids(cast(str, spec.target), bus)   # _validate: every kind but flood has one
-        if not any(e2e_data_id(_by_id(i)) for i in ids):
+        if not any(e2e_data_id(message_by_id(i)) for i in ids):
             fail("target", f"{spec.target} sends no E2E-protected frame: there is no counter to skip")
-
-
-def _by_id(frame_id: int):
-    """The message of either bus with this standard ID (IDs are unique across the buses)."""
-    for b in BUSES:
-        try:
-            return database(b).get_message_by_frame_id(frame_id)
-        except KeyError:
-            continue
-    raise KeyError(frame_id)
 
 
 def _target_ids(target: str, bus: str = "pt") -> frozenset[int]:

@@ -22,6 +22,8 @@ from __future__ import annotations
 import collections
 import logging
 import queue
+import signal
+import subprocess
 import threading
 import time
 from dataclasses import dataclass, field
@@ -95,6 +97,19 @@ class DaemonStats:
                        f"(no {' or '.join(inputs)} since start)")
         out.append("health: " + health)
         return out
+
+
+def stop_process(proc: subprocess.Popen, timeout: float) -> str:
+    """Stop an ECU daemon run as its own process (text pipes): SIGTERM (its clean shutdown), killed if it
+    has not exited within `timeout` s; what it wrote to stderr."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGTERM)
+    try:
+        _, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        _, err = proc.communicate()
+    return err
 
 
 def _fmt(p: dict) -> str:

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import json
 import os
-import signal
 import socket
 import subprocess
 import sys
@@ -34,6 +33,7 @@ from ..bus.rt import Ticker
 from ..errors import VehestError
 from ..sim.session import Car, drive_from_scenario
 from ..systems import load_any_scenario
+from .daemon import stop_process
 
 #: what the hostile sender sends, per cycle of 10: (kind, count); kinds and the counter each raises
 HOSTILE_MIX = (("crc", 6), ("unknown_id", 2), ("dlc", 1), ("undecodable", 1))
@@ -167,13 +167,7 @@ class Soak:
                 self.stop_event.set()
                 for t in threads:
                     t.join(10.0)
-                if proc.poll() is None:
-                    proc.send_signal(signal.SIGTERM)
-                try:
-                    _, err = proc.communicate(timeout=30)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
-                    _, err = proc.communicate()
+                err = stop_process(proc, timeout=30)
                 notify.close()
             if proc.returncode != 0:
                 raise VehestError(f"the ECU daemon failed (exit {proc.returncode}): {err[-2000:]}")

@@ -8,15 +8,16 @@ ready-to-step instances (``make_plant``, ``make_node``).
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, ClassVar, TypeVar
 
 import numpy as np
 
 from ..errors import ScenarioError
 from ..paths import ShippedSet
-from ..schema import Checker, Num, read_toml
+from ..schema import Checker, Num, read_toml, type_name
 
 #: Plant and sensor-node step [s]: one ECU tick (VH_TICK_US).
 DT = 0.0005
@@ -63,13 +64,13 @@ _VEHICLE = {
     "idle_speed_rad_s": ("w_idle", Num(40.0, 150.0)),
 }
 _GEAR_RATIO = Num(0.2, 3.0)  # each of vehicle.gear_ratios, w_o = R_i w_t
-# [sensors] noise standard deviations: TOML key -> (vh_dls_config_t noise_std indices, range)
+# [sensors] noise standard deviations: TOML key -> (vh_dls_config_t array, channel indices, range)
 _SENSORS = {
-    "out_shaft_speed_std_rad_s": ((0,), Num(0.0, 100.0)),
-    "wheel_speed_std_rad_s": ((1, 2), Num(0.0, 100.0)),
-    "shaft_torque_std_nm": ((3,), Num(0.0, 1000.0)),
-    "engine_speed_std_rad_s": ((4,), Num(0.0, 100.0)),
-    "turbine_speed_std_rad_s": ((5,), Num(0.0, 100.0)),
+    "out_shaft_speed_std_rad_s": ("noise_std", (0,), Num(0.0, 100.0)),
+    "wheel_speed_std_rad_s": ("noise_std", (1, 2), Num(0.0, 100.0)),
+    "shaft_torque_std_nm": ("noise_std", (3,), Num(0.0, 1000.0)),
+    "engine_speed_std_rad_s": ("noise_std", (4,), Num(0.0, 100.0)),
+    "turbine_speed_std_rad_s": ("noise_std", (5,), Num(0.0, 100.0)),
 }
 # [camber]: the four wheel-mounted inspection devices of seed 002 (FL, FR, RL, RR)
 _CAMBER_POSES = {"wheel": 0, "x_down": 1, "z_down": 2}
@@ -80,6 +81,90 @@ _CAMBER = {
     "lsb_mg": Num(0.1, 100.0, lo_open=False),
     "noise_mg": Num(0.0, 100.0),
 }
+
+
+def derived_seed(seed: int, salt: int) -> int:
+    """A node's own random stream from the scenario's seed (odd multiplier: a bijection; `salt` keeps the
+    streams of different nodes apart)."""
+    return (seed * 0x9E3779B97F4A7C15 + salt) % 2**64
+
+
+@dataclass(frozen=True)
+class ScenarioBase:
+    """What every system's scenario dataclass has alike: the fields of SCENARIO_TOP (first, in its
+    order), steps, the sensor node's seed, configuration and instance, the plant-alone run. A subclass
+    adds its fields (``sensors`` and ``path`` among them), names its C types and [sensors] table, and
+    supplies ``make_plant`` and ``_run`` (the plant's own run call)."""
+
+    name: str
+    description: str
+    duration_s: float
+    seed: int
+    initial_speed_kmh: float
+    #: the sensor node's C prefix (``<_NODE>_t``, ``<_NODE>_init``), the plant's truth struct, the node seed's salt
+    _NODE: ClassVar[str]
+    _TRUTH: ClassVar[str]
+    _SEED_SALT: ClassVar[int]
+    #: its [sensors] table: TOML key -> (config array, channels, range)
+    _SENSORS: ClassVar[dict[str, tuple]]
+
+    if TYPE_CHECKING:  # fields of each subclass, after its own (they have defaults, the fields above none)
+        @property
+        def sensors(self) -> tuple[tuple[str, float], ...]: ...  # [sensors] (key, value) pairs
+
+        @property
+        def path(self) -> Path | None: ...  # the file
+
+    @property
+    def n_steps(self) -> int:
+        """Plant steps of DT in duration_s."""
+        return int(round(self.duration_s / DT))
+
+    @property
+    def node_seed(self) -> int:
+        """Seed of the sensor node's random stream, derived from ``seed``."""
+        return derived_seed(self.seed, self._SEED_SALT)
+
+    def make_plant(self, ffi, lib) -> Any:
+        raise NotImplementedError
+
+    def node_config(self, ffi, lib):
+        """A ``<_NODE>_config_t *``: the sensor node's defaults with this scenario's sensors and seed."""
+        cfg = ffi.new(f"{self._NODE}_config_t *")
+        getattr(lib, f"{self._NODE}_config_default")(cfg)
+        set_channels(cfg, self.sensors, self._SENSORS)
+        cfg.seed = self.node_seed
+        return cfg
+
+    def _run(self, ffi, lib, plant, n: int, out) -> None:
+        raise NotImplementedError
+
+    def make_node(self, ffi, lib):
+        """An initialised sensor node (``<_NODE>_t *``) of ``node_config``."""
+        n = ffi.new(f"{self._NODE}_t *")
+        if getattr(lib, f"{self._NODE}_init")(n, self.node_config(ffi, lib)) != lib.VH_OK:
+            raise ScenarioError(f"{self._where()}: sensors: the sensor node refuses this configuration")
+        return n
+
+    def run_truth(self, ffi, lib) -> np.ndarray:
+        """The plant alone over the whole scenario: the truth of every step as a numpy record array."""
+        from ..native import struct_array
+
+        p = self.make_plant(ffi, lib)
+        n = self.n_steps
+        out = ffi.new(f"{self._TRUTH}[]", n)
+        self._run(ffi, lib, p, n, out)
+        return struct_array(self._TRUTH, out, n)
+
+    def car_steps(self, duration_s: float | None = None) -> int:
+        """The steps a car runs: the whole scenario, or duration_s worth (not more than the whole)."""
+        n = self.n_steps if duration_s is None else int(round(duration_s / DT))
+        if not 0 < n <= self.n_steps:
+            raise ScenarioError(f"{self._where()}: duration must be in (0, {self.duration_s}] s")
+        return n
+
+    def _where(self) -> str:
+        return str(self.path) if self.path is not None else f"scenario {self.name!r}"
 
 
 @dataclass(frozen=True)
@@ -93,14 +178,14 @@ class Camber:
 
 
 @dataclass(frozen=True)
-class Scenario:
+class Scenario(ScenarioBase):
     """One validated scenario. Times in s, speeds in rad/s unless the name says otherwise."""
 
-    name: str
-    description: str
-    duration_s: float
-    seed: int
-    initial_speed_kmh: float
+    _NODE: ClassVar[str] = "vh_dls"
+    _TRUTH: ClassVar[str] = "vh_dlp_truth_t"
+    _SEED_SALT: ClassVar[int] = 0x444C53
+    _SENSORS: ClassVar[dict[str, tuple]] = _SENSORS
+
     gear: int
     throttle: tuple[tuple[float, float], ...]  # (t, value) points, t strictly increasing
     road_std_nm: float
@@ -109,11 +194,6 @@ class Scenario:
     sensors: tuple[tuple[str, float], ...] = ()  # every [sensors] key, defaults filled in
     camber: Camber | None = None  # [camber]: inspection devices clamped on
     path: Path | None = None
-
-    @property
-    def n_steps(self) -> int:
-        """Plant steps of DT in duration_s."""
-        return int(round(self.duration_s / DT))
 
     def times(self) -> np.ndarray:
         """Time after each plant step: DT, 2 DT, ..., n_steps DT."""
@@ -124,11 +204,6 @@ class Scenario:
         ts = np.array([p[0] for p in self.throttle], dtype=float)
         vs = np.array([p[1] for p in self.throttle], dtype=float)
         return np.interp(np.asarray(t, dtype=float), ts, vs)
-
-    @property
-    def node_seed(self) -> int:
-        """Seed of the sensor node's own random stream, derived from ``seed`` (odd multiplier: a bijection)."""
-        return (self.seed * 0x9E3779B97F4A7C15 + 0x444C53) % 2**64
 
     def plant_params(self, ffi, lib):
         """A ``vh_dlp_params_t *``: the plant's defaults with this scenario's road and vehicle."""
@@ -143,16 +218,6 @@ class Scenario:
             else:
                 setattr(prm, _VEHICLE[key][0], value)
         return prm
-
-    def node_config(self, ffi, lib):
-        """A ``vh_dls_config_t *``: the sensor node's defaults with this scenario's noise and seed."""
-        cfg = ffi.new("vh_dls_config_t *")
-        lib.vh_dls_config_default(cfg)
-        for key, value in self.sensors:
-            for ch in _SENSORS[key][0]:
-                cfg.noise_std[ch] = value
-        cfg.seed = self.node_seed
-        return cfg
 
     def camber_configs(self, ffi, lib):
         """(``vh_cambernode_config_t[4]``, pose) for the inspection devices, or None."""
@@ -179,24 +244,9 @@ class Scenario:
             lib.vh_dlp_set_rolling(p, self.initial_speed_kmh / 3.6, self.gear)
         return p
 
-    def make_node(self, ffi, lib):
-        """An initialised ``vh_dls_t *``."""
-        n = ffi.new("vh_dls_t *")
-        if lib.vh_dls_init(n, self.node_config(ffi, lib)) != lib.VH_OK:
-            raise ScenarioError(f"{self._where()}: sensors: the sensor node refuses this configuration")
-        return n
-
-    def run_truth(self, ffi, lib) -> np.ndarray:
-        """Run the plant alone over the whole scenario; the truth of every step as a numpy record array."""
-        p = self.make_plant(ffi, lib)
-        n = self.n_steps
+    def _run(self, ffi, lib, plant, n: int, out) -> None:
         thr = np.ascontiguousarray(self.throttle_at(self.times()))
-        out = ffi.new("vh_dlp_truth_t[]", n)
-        lib.vh_dlp_run(p, n, ffi.cast("double *", ffi.from_buffer(thr)), self.gear, out)
-        return truth_to_numpy(ffi, out, n)
-
-    def _where(self) -> str:
-        return str(self.path) if self.path is not None else f"scenario {self.name!r}"
+        lib.vh_dlp_run(plant, n, ffi.cast("double *", ffi.from_buffer(thr)), self.gear, out)
 
 
 def truth_dtype(ffi) -> np.dtype:
@@ -237,10 +287,40 @@ def scenario_top(c: Checker, doc: dict, top: dict[str, Any], tables: tuple[str, 
                                           SCENARIO_TOP["initial_speed_kmh"])}
 
 
+_S = TypeVar("_S")
+
+
+def load_shipped(shipped: ShippedSet, name_or_path: str | Path, from_dict: Callable[[dict, Path], _S]) -> _S:
+    """A scenario file (a path, or the name of one of `shipped`) read and validated by `from_dict`."""
+    path = shipped.path(name_or_path)
+    return from_dict(read_toml(path), path)
+
+
+def set_channels(cfg, values, table: dict[str, tuple]) -> None:
+    """A sensor node's per-channel settings: each (key, value) of `values` into the channels of the
+    cfg array that ``table[key]`` names, ``(array, channels, range)``."""
+    for key, value in values:
+        array, chans, _ = table[key]
+        for ch in chans:
+            getattr(cfg, array)[ch] = value
+
+
+def kind_checker(doc, path: str | Path, kinds: tuple[str, ...], expected: str, missing: str = "") -> Checker:
+    """The Checker of a scenario document that must be a table whose ``kind`` is one of `kinds`:
+    ``kind: missing`` when it has none and `missing` is given, else ``kind: must be <expected>, not ...``."""
+    c = Checker(Path(path))
+    if not isinstance(doc, dict):
+        c.fail("", f"must be a TOML document (a table), not {type_name(doc)}")
+    if doc.get("kind") not in kinds:
+        if missing and "kind" not in doc:
+            c.fail("kind", missing)
+        c.fail("kind", f"must be {expected}, not {doc.get('kind')!r}")
+    return c
+
+
 def load_scenario(path: str | Path) -> Scenario:
     """Load and validate one scenario file (a path, or the name of a shipped scenario)."""
-    path = scenario_path(path)
-    return scenario_from_dict(read_toml(path), path)
+    return load_shipped(SCENARIOS, path, scenario_from_dict)
 
 
 def scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> Scenario:
@@ -279,7 +359,7 @@ def scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> Scenario:
     lib.vh_dls_config_default(cfg)
     sensors_doc = c.table(doc.get("sensors", {}), "sensors", _SENSORS)
     sensors = tuple((k, c.number(sensors_doc[k], f"sensors.{k}", spec) if k in sensors_doc
-                     else cfg.noise_std[chans[0]]) for k, (chans, spec) in _SENSORS.items())
+                     else getattr(cfg, array)[chans[0]]) for k, (array, chans, spec) in _SENSORS.items())
 
     camber = _camber(c, doc["camber"]) if "camber" in doc else None
 

@@ -113,6 +113,20 @@ class System(Protocol):
         ...
 
 
+class Registration:
+    """What the systems' registrations have alike; a system subclasses it and names its own scenario
+    folder, loader and car as ``scenario_dir = staticmethod(...)``, ``load``, ``car``. By default it
+    claims the scenario files whose ``kind`` is one of its kinds and asks nothing of the ECU."""
+
+    kinds: tuple[str, ...] = ()
+
+    def claims(self, doc: dict) -> bool:
+        return doc.get("kind") in self.kinds
+
+    def setup(self, scenarios: list, out: Path) -> Setup:
+        return Setup()
+
+
 _extra: list[System] = []
 
 

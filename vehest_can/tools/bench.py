@@ -220,6 +220,22 @@ def _tick_rows(res: dict, rows: tuple[tuple[str, str], ...], feature: str) -> li
             f"{res[key][0] / base:.2f}x the tick without {feature}" for key, name in rows]
 
 
+#: the C-loop runs that time the ECU tick with a feature off, then on: (result key, feature, rows against
+#: the first, (the run's counts: key, label, what its two numbers count))
+_FEATURE_RUNS = (
+    ("ecu_xcp", "XCP", (("ecu_tick_no_xcp", "ECU tick, XCP off (same run)"),
+                        ("ecu_tick_xcp_idle", "ECU tick, XCP on, connected, idle"),
+                        ("ecu_tick_xcp_daq", "ECU tick, XCP 20-signal DAQ at 1 ms")),
+     # "xcp_daq_dtos ticks dtos overruns": the DAQ ran within its budget
+     ("xcp_daq_dtos", "  XCP DAQ in that run", "DTOs", "samples dropped")),
+    ("ecu_secoc", "SecOC", (("ecu_tick_secoc_off", "ECU tick, every system, SecOC off (same run)"),
+                            ("ecu_tick_secoc_on", "ECU tick, every system, SecOC on"),
+                            ("ecu_tick_secoc_forged", "  on + a forged frame every tick")),
+     # "secoc_counts ticks accepted rejected"
+     ("secoc_counts", "  SecOC in that run", "frames verified", "rejected")),
+)
+
+
 def table(res: dict, lockstep: dict[str, float] | None = None) -> str:
     lines = [f"{'benchmark':<44}{'median':>14}{'vs filterpy':>13}"]
     fp = res.get("filterpy_ns")
@@ -242,22 +258,12 @@ def table(res: dict, lockstep: dict[str, float] | None = None) -> str:
     if "ecu_tick_chassis" in c:
         lines.append(f"{'ECU tick + CHS frame + SKFMEC, SKFMEC-A':<44}{c['ecu_tick_chassis'][0] / 1000:>9.2f} µs/tick"
                      f"   p99 {c['ecu_tick_chassis'][1] / 1000:.2f} µs (target <= 10 µs)")
-    x = res.get("ecu_xcp") or {}
-    if "ecu_tick_no_xcp" in x:
-        lines += _tick_rows(x, (("ecu_tick_no_xcp", "ECU tick, XCP off (same run)"),
-                                ("ecu_tick_xcp_idle", "ECU tick, XCP on, connected, idle"),
-                                ("ecu_tick_xcp_daq", "ECU tick, XCP 20-signal DAQ at 1 ms")), "XCP")
-        if "xcp_daq_dtos" in x:  # "xcp_daq_dtos ticks dtos overruns": the DAQ ran within its budget
-            lines.append(f"{'  XCP DAQ in that run':<44}{x['xcp_daq_dtos'][0]:>9.0f} DTOs, "
-                         f"{x['xcp_daq_dtos'][1]:.0f} samples dropped")
-    sc = res.get("ecu_secoc") or {}
-    if "ecu_tick_secoc_off" in sc:
-        lines += _tick_rows(sc, (("ecu_tick_secoc_off", "ECU tick, every system, SecOC off (same run)"),
-                                 ("ecu_tick_secoc_on", "ECU tick, every system, SecOC on"),
-                                 ("ecu_tick_secoc_forged", "  on + a forged frame every tick")), "SecOC")
-        if "secoc_counts" in sc:  # "secoc_counts ticks accepted rejected"
-            lines.append(f"{'  SecOC in that run':<44}{sc['secoc_counts'][0]:>9.0f} frames verified, "
-                         f"{sc['secoc_counts'][1]:.0f} rejected")
+    for run, feature, rows, (count_key, label, first, second) in _FEATURE_RUNS:
+        got = res.get(run) or {}
+        if rows[0][0] in got:
+            lines += _tick_rows(got, rows, feature)
+            if count_key in got:
+                lines.append(f"{label:<44}{got[count_key][0]:>9.0f} {first}, {got[count_key][1]:.0f} {second}")
     for key, value in (res.get("secoc") or {}).items():
         if key != "clock":
             lines.append(f"{'SecOC ' + key:<44}{value[0]:>9.0f} ns   p99 {value[1]:.0f} ns")

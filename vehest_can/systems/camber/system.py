@@ -7,32 +7,26 @@ from pathlib import Path
 from ...bus.log import SessionLog, read_log
 from ...sim.scenario import load_scenario, scenario_dir
 from ...sim.session import drive_from_scenario, run_inprocess
-from .. import Setup
+from .. import Registration, Setup
 from ..ecu import Ecu
 from . import inspection
 from .api import WHEELS, Calibration, load_calibrations, save_calibrations
 from .campaign import CAMPAIGN
 
 
-class Camber:
+class Camber(Registration):
     name = "camber"
     kinds: tuple[str, ...] = ()   # a driveline scenario file with a [camber] table
     realtime = False
     nodes = ("DLS", "SIM", "CIS")  # the driveline car carrying the inspection devices
     faults = None
     campaign = CAMPAIGN  # vehest-can campaign
-
-    def scenario_dir(self) -> Path:
-        return scenario_dir()
+    scenario_dir = staticmethod(scenario_dir)
+    load = staticmethod(load_scenario)
+    car = staticmethod(drive_from_scenario)
 
     def claims(self, doc: dict) -> bool:
         return "kind" not in doc and "camber" in doc
-
-    def load(self, path: Path):
-        return load_scenario(path)
-
-    def car(self, scenario, duration_s: float | None = None):
-        return drive_from_scenario(scenario, duration_s)
 
     def setup(self, scenarios: list, out: Path) -> Setup:
         """The calibration step of an inspection line, on the first camber scenario: each device in its

@@ -5,13 +5,13 @@ module only marshals arrays. See ``dkf_ref.py`` for the independent numpy implem
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from ...errors import ConfigError
-from ...native import check, config_class, ffi, lib
+from ...native import check, config_class, ffi, from_c_default, lib
 
 SPEEDS_TORQUE = "speeds+torque"
 SPEEDS = "speeds"
@@ -33,14 +33,8 @@ class DkfConfig(_C_CONFIG):
     def default(cls, meas: str = SPEEDS_TORQUE, **overrides) -> DkfConfig:
         if meas not in _MEAS:
             raise ConfigError(f"measurement set {meas!r}: expected one of {sorted(_MEAS)}")
-        c = ffi.new("vh_dkf_config_t *")
-        lib.vh_dkf_config_default(c, _MEAS[meas])
-        cfg = cls.from_c(c)
-        for key, value in overrides.items():
-            if key not in {f.name for f in fields(cls)}:
-                raise ConfigError(f"unknown filter setting {key!r}")
-            setattr(cfg, key, tuple(value) if isinstance(value, (list, tuple, np.ndarray)) else value)
-        return cfg
+        return from_c_default(cls, lambda c: lib.vh_dkf_config_default(c, _MEAS[meas]), overrides, "filter setting",
+                              lambda _, v: tuple(v) if isinstance(v, (list, tuple, np.ndarray)) else v)
 
 
 @dataclass

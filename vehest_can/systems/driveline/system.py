@@ -5,34 +5,25 @@ from pathlib import Path
 
 from ...sim.scenario import load_scenario, scenario_dir
 from ...sim.session import drive_from_scenario
-from .. import Setup
+from .. import Registration, Setup
 from . import report
 from .campaign import CAMPAIGN
 from .faults import FAULTS
 
 
-class Driveline:
+class Driveline(Registration):
     campaign = CAMPAIGN  # vehest-can campaign
     name = "driveline"
     kinds: tuple[str, ...] = ()   # driveline scenario files carry no `kind`
     realtime = True
     nodes = ("DLS", "SIM", "CIS")  # the car (vh_dlsim_t): sensor node, plant; CIS when it carries inspection devices
     faults = FAULTS
-
-    def scenario_dir(self) -> Path:
-        return scenario_dir()
+    scenario_dir = staticmethod(scenario_dir)
+    load = staticmethod(load_scenario)
+    car = staticmethod(drive_from_scenario)
 
     def claims(self, doc: dict) -> bool:
         return "kind" not in doc and "camber" not in doc
-
-    def load(self, path: Path):
-        return load_scenario(path)
-
-    def car(self, scenario, duration_s: float | None = None):
-        return drive_from_scenario(scenario, duration_s)
-
-    def setup(self, scenarios: list, out: Path) -> Setup:
-        return Setup()
 
     def metrics(self, scenario, session, out_dir: Path, setup: Setup) -> dict:
         metrics = report.driveline_metrics(session)

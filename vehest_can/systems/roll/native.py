@@ -93,17 +93,17 @@ class Ukf:
         return _fn(self.prec, "vh_roll_ukf_step")(self.c, _ptr(self.prec, u), _ptr(self.prec, z), mask)
 
     def f(self, x, u) -> np.ndarray:
-        x = np.ascontiguousarray(x, self.dtype)
-        u = np.ascontiguousarray(u, self.dtype)
-        out = np.zeros(NX, self.dtype)
-        _fn(self.prec, "vh_roll_model_f")(self.c, _ptr(self.prec, x), _ptr(self.prec, u), _ptr(self.prec, out))
-        return out
+        return self._model("vh_roll_model_f", NX, x, u)
 
     def h(self, x, u) -> np.ndarray:
+        return self._model("vh_roll_model_h", NZ, x, u)
+
+    def _model(self, name: str, size: int, x, u) -> np.ndarray:
+        """One of the C model functions (state transition f, measurement h) at (x, u): `size` values."""
         x = np.ascontiguousarray(x, self.dtype)
         u = np.ascontiguousarray(u, self.dtype)
-        out = np.zeros(NZ, self.dtype)
-        _fn(self.prec, "vh_roll_model_h")(self.c, _ptr(self.prec, x), _ptr(self.prec, u), _ptr(self.prec, out))
+        out = np.zeros(size, self.dtype)
+        _fn(self.prec, name)(self.c, _ptr(self.prec, x), _ptr(self.prec, u), _ptr(self.prec, out))
         return out
 
     def run(self, u: np.ndarray, z: np.ndarray, mask: np.ndarray | None = None):

@@ -144,6 +144,16 @@ def plots(session, out_dir: Path, title: str, passive=None) -> list[Path]:
     t = np.arange(len(tr)) * DT
     e = estimates(session)
     te = e["tick"] * DT
+
+    def save(fig, ax, what: str, name: str) -> None:
+        """Panels over a shared time axis finished alike: the axis label, grid and legend, the title; written."""
+        ax[-1].set_xlabel("t [s]")
+        for a in ax:
+            a.grid(True)
+            a.legend()
+        fig.suptitle(f"{title}: {what}")
+        figs.save(fig, f"{title}_{name}.png")
+
     fig, ax = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     ax[0].plot(t, np.degrees(tr["phi"]), label="truth (14-DOF plant)")
     ax[0].plot(te, np.degrees(e["RollEstAngle"]), "--", label="UKF (ECU, from the bus)")
@@ -151,12 +161,7 @@ def plots(session, out_dir: Path, title: str, passive=None) -> list[Path]:
     ax[1].plot(t, np.degrees(tr["p"]), label="truth")
     ax[1].plot(te, np.degrees(e["RollEstRate"]), "--", label="UKF")
     ax[1].set_ylabel("roll rate [deg/s]")
-    ax[1].set_xlabel("t [s]")
-    for a in ax:
-        a.grid(True)
-        a.legend()
-    fig.suptitle(f"{title}: roll estimate (cf. seed 003 Fig. 3-6)")
-    figs.save(fig, f"{title}_estimate.png")
+    save(fig, ax, "roll estimate (cf. seed 003 Fig. 3-6)", "estimate")
     if passive is not None:
         tp = passive.truth
         fig, ax = plt.subplots(4, 1, figsize=(8, 10), sharex=True)
@@ -168,12 +173,7 @@ def plots(session, out_dir: Path, title: str, passive=None) -> list[Path]:
             a.plot(t, np.degrees(tp[key]), label="passive")
             a.plot(t, np.degrees(tr[key]), label="active")
             a.set_ylabel(unit)
-        ax[3].set_xlabel("t [s]")
-        for a in ax:
-            a.grid(True)
-            a.legend()
-        fig.suptitle(f"{title}: passive against active (cf. seed 003 Fig. 8-15)")
-        figs.save(fig, f"{title}_passive_vs_active.png")
+        save(fig, ax, "passive against active (cf. seed 003 Fig. 8-15)", "passive_vs_active")
     return figs.paths
 
 

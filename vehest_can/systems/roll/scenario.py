@@ -24,8 +24,8 @@ import numpy as np
 
 from ...errors import ScenarioError
 from ...paths import ShippedSet
-from ...schema import Checker, Num, read_toml, type_name
-from ...sim.scenario import DT, _native
+from ...schema import Num
+from ...sim.scenario import DT, _native, derived_seed, kind_checker, load_shipped, set_channels
 from ..tireforce.scenario import TireForceScenario, tireforce_scenario_from_dict, truth_dtype
 
 KINDS = ("roll",)
@@ -66,6 +66,11 @@ SCENARIOS = ShippedSet("scenarios/roll", "firmware_sim/scenarios/roll")
 roll_scenario_dir, list_roll_scenarios, roll_scenario_path = SCENARIOS.dir, SCENARIOS.names, SCENARIOS.path
 
 
+def _plant_attr(name: str) -> Any:
+    """A read-only attribute of a RollScenario that is its plant's."""
+    return property(lambda self: getattr(self.plant, name), doc=f"The plant's {name}.")
+
+
 @dataclass(frozen=True)
 class RollScenario:
     """A validated roll scenario: the plant's part (a tyre-force scenario) and the roll node's."""
@@ -75,25 +80,12 @@ class RollScenario:
     actuators: tuple[tuple[str, float], ...] = ()  # only the keys written
     roll_sensors: tuple[tuple[str, float], ...] = ()
 
-    @property
-    def name(self) -> str:
-        return self.plant.name
-
-    @property
-    def description(self) -> str:
-        return self.plant.description
-
-    @property
-    def duration_s(self) -> float:
-        return self.plant.duration_s
-
-    @property
-    def n_steps(self) -> int:
-        return self.plant.n_steps
-
-    @property
-    def path(self):
-        return self.plant.path
+    # name, description, length and file: the plant scenario's
+    name = _plant_attr("name")
+    description = _plant_attr("description")
+    duration_s = _plant_attr("duration_s")
+    n_steps = _plant_attr("n_steps")
+    path = _plant_attr("path")
 
     def active_at(self, t) -> np.ndarray:
         """The driver's switch at times t: True where active."""
@@ -123,15 +115,12 @@ class RollScenario:
     @property
     def node_seed(self) -> int:
         """The roll node's random stream, derived from the scenario's seed (apart from the CHS node's)."""
-        return (self.plant.seed * 0x9E3779B97F4A7C15 + 0x524F4C4C) % 2**64
+        return derived_seed(self.plant.seed, 0x524F4C4C)
 
     def node_config(self, ffi, lib):
         cfg = ffi.new("vh_rln_config_t *")
         lib.vh_rln_config_default(cfg)
-        for key, value in self.roll_sensors:
-            array, chans, _ = _ROLL_SENSORS[key]
-            for ch in chans:
-                getattr(cfg, array)[ch] = value
+        set_channels(cfg, self.roll_sensors, _ROLL_SENSORS)
         cfg.seed = self.node_seed
         cfg.mode_active = int(self.active_at(0.0))
         return cfg
@@ -161,9 +150,7 @@ class RollCar:
         self._ffi, self._lib = ffi, lib
         self.scenario = sc
         self.name = sc.name
-        self.n = sc.n_steps if duration_s is None else int(round(duration_s / DT))
-        if not 0 < self.n <= sc.n_steps:
-            raise ScenarioError(f"{sc.plant._where()}: duration must be in (0, {sc.duration_s}] s")
+        self.n = sc.plant.car_steps(duration_s)
         self.truth_dtype = roll_truth_dtype()
         self._base_names = _names(truth_dtype(None))
         self._inputs = sc.plant.inputs(ffi)
@@ -244,18 +231,13 @@ class RollCar:
 # ---- loading -------------------------------------------------------------------------------------
 
 def load_roll_scenario(path: str | Path) -> RollScenario:
-    path = roll_scenario_path(path)
-    return roll_scenario_from_dict(read_toml(path), path)
+    return load_shipped(SCENARIOS, path, roll_scenario_from_dict)
 
 
 def roll_scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> RollScenario:
     """Validate a parsed roll scenario (``path`` names it in errors)."""
     ffi, lib = _native()
-    c = Checker(Path(path))
-    if not isinstance(doc, dict):
-        c.fail("", f"must be a TOML document (a table), not {type_name(doc)}")
-    if doc.get("kind") not in KINDS:
-        c.fail("kind", f'must be "roll", not {doc.get("kind")!r}')
+    c = kind_checker(doc, path, KINDS, '"roll"')
     plant_doc = {k: v for k, v in doc.items() if k not in _ROLL_TABLES}
     plant_doc["kind"] = "tireforce"
     plant = tireforce_scenario_from_dict(plant_doc, path)

@@ -4,35 +4,23 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .. import Setup
+from .. import Registration, Setup
 from . import report
 from .campaign import CAMPAIGN
 from .faults import FAULTS
 from .scenario import KINDS, RollCar, load_roll_scenario, roll_scenario_dir
 
 
-class Roll:
+class Roll(Registration):
     name = "roll"
     kinds = KINDS
     nodes = ("CHS", "ROLL")  # the 14-DOF plant with its chassis node and its roll node (sensors, actuators)
     realtime = True
     faults = FAULTS
     campaign = CAMPAIGN  # vehest-can campaign
-
-    def scenario_dir(self) -> Path:
-        return roll_scenario_dir()
-
-    def claims(self, doc: dict) -> bool:
-        return doc.get("kind") in KINDS
-
-    def load(self, path: Path):
-        return load_roll_scenario(path)
-
-    def car(self, scenario, duration_s: float | None = None):
-        return RollCar(scenario, duration_s)
-
-    def setup(self, scenarios: list, out: Path) -> Setup:
-        return Setup()
+    scenario_dir = staticmethod(roll_scenario_dir)
+    load = staticmethod(load_roll_scenario)
+    car = staticmethod(RollCar)
 
     def metrics(self, scenario, session, out_dir: Path, setup: Setup) -> dict:
         """Against the plant, from the bus: the ECU's float32 UKF estimates (VEHEST_RollEst), the

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import ConfigError
-from ...native import check, config_class, ffi, lib
+from ...native import check, config_class, ffi, from_c_default, lib
 
 SKFMEC = "skfmec"
 EKF = "ekf"
@@ -38,15 +38,8 @@ class SkfConfig(_C_CONFIG):
     def default(cls, variant: str = SKFMEC, **overrides) -> SkfConfig:
         if variant not in _VARIANT_C:
             raise ConfigError(f"estimator {variant!r}: expected one of {list(VARIANTS)}")
-        c = ffi.new("vh_skf_config_t *")
-        lib.vh_skf_config_default(c, _VARIANT_C[variant])
-        cfg = cls.from_c(c)
-        names = {f.name for f in fields(cls)}
-        for key, value in overrides.items():
-            if key not in names:
-                raise ConfigError(f"unknown estimator setting {key!r}")
-            setattr(cfg, key, tuple(float(v) for v in value) if key in _VEC else value)
-        return cfg
+        return from_c_default(cls, lambda c: lib.vh_skf_config_default(c, _VARIANT_C[variant]), overrides,
+                              "estimator setting", lambda k, v: tuple(float(x) for x in v) if k in _VEC else v)
 
 
 @dataclass

@@ -529,6 +529,15 @@ def plots(kind: str, truth, runs: dict[str, tf.TireForceRun] | None, out_dir: Pa
 
     save = figs.save
 
+    def save_over_time(fig, ax, ylabel: str, what: str, name: str) -> None:
+        """A one-panel figure over time finished alike: axis labels, title, grid, legend; written."""
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel(ylabel)
+        ax.set_title(prefix + what)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+        save(fig, name)
+
     if kind == "relations":
         cfg = config or tf.SkfConfig.default(tf.SKFMEC)
         g = np.abs(np.asarray(truth["ay"], float)) / G
@@ -543,12 +552,7 @@ def plots(kind: str, truth, runs: dict[str, tf.TireForceRun] | None, out_dir: Pa
         over = np.nonzero(g > AY_BAND_G[1])[0]
         if len(over):
             ax.axvspan(t[over[0]], t[-1], color="0.9", label=f"a_y > {AY_BAND_G[1]:g} g")
-        ax.set_xlabel("time [s]")
-        ax.set_ylabel("ζ [kN/rad]")
-        ax.set_title(f"{prefix}Fig. 3: ζ1, ζ2 (relation 1, eq. 31-32)")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
-        save(fig, "fig3_zeta.png")
+        save_over_time(fig, ax, "ζ [kN/rad]", "Fig. 3: ζ1, ζ2 (relation 1, eq. 31-32)", "fig3_zeta.png")
 
         fig, axes = plt.subplots(1, 2, figsize=(11, 5))
         static = fz[0]
@@ -583,12 +587,8 @@ def plots(kind: str, truth, runs: dict[str, tf.TireForceRun] | None, out_dir: Pa
             if v in runs:
                 ax.plot(t, runs[v].fy[:, i], **_STYLE[v])
         _ylim_after(ax, t, [fy[:, i]] + [runs[v].fy[:, i] for v in runs], settle_s)
-        ax.set_xlabel("time [s]")
-        ax.set_ylabel(f"F_y{i + 1} [N]")
-        ax.set_title(f"{prefix}Fig. {fig_no}: {what}-front lateral force ({WHEELS[i]})")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
-        save(fig, f"fig{fig_no}_{what}_front.png")
+        save_over_time(fig, ax, f"F_y{i + 1} [N]", f"Fig. {fig_no}: {what}-front lateral force ({WHEELS[i]})",
+                       f"fig{fig_no}_{what}_front.png")
     fig, axes = plt.subplots(4, 1, figsize=(10, 10), sharex=True)
     peak = np.abs(fy).max(axis=0)
     for i, ax in enumerate(axes):
@@ -614,12 +614,7 @@ def plots(kind: str, truth, runs: dict[str, tf.TireForceRun] | None, out_dir: Pa
         if true_mass_kg is not None:
             ax.axhline(true_mass_kg, color="k", lw=1.2, label=f"truth {true_mass_kg:.0f} kg")
         ax.axhline(tf.SkfConfig.default().m, color="0.5", ls=":", lw=1, label="model mass (the paper's car)")
-        ax.set_xlabel("time [s]")
-        ax.set_ylabel("mass [kg]")
-        ax.set_title(f"{prefix}estimated mass")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
-        save(fig, "mass.png")
+        save_over_time(fig, ax, "mass [kg]", "estimated mass", "mass.png")
     return figs.paths
 
 

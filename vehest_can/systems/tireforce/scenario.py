@@ -23,14 +23,14 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from ...errors import ScenarioError
 from ...paths import ShippedSet
-from ...schema import Checker, Num, read_toml, type_name
-from ...sim.scenario import DT, SCENARIO_TOP, _native, scenario_top
+from ...schema import Checker, Num, type_name
+from ...sim.scenario import DT, SCENARIO_TOP, ScenarioBase, _native, kind_checker, load_shipped, scenario_top
 
 #: The scenario kind, then its old name (files that say kind = "chassis" keep loading).
 KINDS = ("tireforce", "chassis")
@@ -108,14 +108,14 @@ _SENSORS = {
 
 
 @dataclass(frozen=True)
-class TireForceScenario:
+class TireForceScenario(ScenarioBase):
     """One validated tyre-force scenario. Profiles are (t, value...) points, piecewise linear in time."""
 
-    name: str
-    description: str
-    duration_s: float
-    seed: int
-    initial_speed_kmh: float
+    _NODE: ClassVar[str] = "vh_chs"
+    _TRUTH: ClassVar[str] = "vh_v14_truth_t"
+    _SEED_SALT: ClassVar[int] = 0x434853
+    _SENSORS: ClassVar[dict[str, tuple]] = _SENSORS
+
     steer_deg: tuple[tuple[float, float], ...]
     drive_nm: tuple[tuple[float, ...], ...]      # (t, FL, FR, RL, RR)
     brake_nm: tuple[tuple[float, ...], ...]
@@ -129,10 +129,6 @@ class TireForceScenario:
     path: Path | None = None
 
     # ---- time and inputs ----
-
-    @property
-    def n_steps(self) -> int:
-        return int(round(self.duration_s / DT))
 
     def times(self) -> np.ndarray:
         """Sample time of each step: 0, DT, ..., (n_steps - 1) DT (the truth of step k is at k DT)."""
@@ -192,19 +188,8 @@ class TireForceScenario:
                 setattr(prm, _TYRE[key][0], value)
         return prm
 
-    @property
-    def node_seed(self) -> int:
-        """Seed of the sensor node's random stream, derived from ``seed`` (odd multiplier: a bijection)."""
-        return (self.seed * 0x9E3779B97F4A7C15 + 0x434853) % 2**64
-
     def node_config(self, ffi, lib):
-        cfg = ffi.new("vh_chs_config_t *")
-        lib.vh_chs_config_default(cfg)
-        for key, value in self.sensors:
-            array, chans, _ = _SENSORS[key]
-            for ch in chans:
-                getattr(cfg, array)[ch] = value
-        cfg.seed = self.node_seed
+        cfg = super().node_config(ffi, lib)
         cfg.accel_gravity = int(self.accel_gravity)
         return cfg
 
@@ -216,21 +201,10 @@ class TireForceScenario:
         lib.vh_v14_set_rolling(p, self.initial_speed_kmh / 3.6)
         return p
 
-    def make_node(self, ffi, lib):
-        n = ffi.new("vh_chs_t *")
-        if lib.vh_chs_init(n, self.node_config(ffi, lib)) != lib.VH_OK:
-            raise ScenarioError(f"{self._where()}: sensors: the sensor node refuses this configuration")
-        return n
-
     # ---- runs ----
 
-    def run_truth(self, ffi, lib) -> np.ndarray:
-        """The plant alone over the whole scenario: the truth of every step as a numpy record array."""
-        p = self.make_plant(ffi, lib)
-        n = self.n_steps
-        out = ffi.new("vh_v14_truth_t[]", n)
-        lib.vh_v14_run(p, n, self.inputs(ffi), out)
-        return truth_to_numpy(ffi, out, n)
+    def _run(self, ffi, lib, plant, n: int, out) -> None:
+        lib.vh_v14_run(plant, n, self.inputs(ffi), out)
 
     def run_with_frames(self, ffi, lib):
         """Plant and sensor node tick by tick: (truth record array, list of CHS_Sensors payloads)."""
@@ -247,9 +221,6 @@ class TireForceScenario:
             payloads.append(bytes(ffi.buffer(frame[0].data, frame[0].len)))
         return truth_to_numpy(ffi, out, n), payloads
 
-    def _where(self) -> str:
-        return str(self.path) if self.path is not None else f"scenario {self.name!r}"
-
 
 class ChassisCar:
     """The 14-DOF plant and its chassis sensor node as a car on the bus: one tick per call, the
@@ -262,9 +233,7 @@ class ChassisCar:
         self._ffi, self._lib = ffi, lib
         self.scenario = sc
         self.name = sc.name
-        self.n = sc.n_steps if duration_s is None else int(round(duration_s / DT))
-        if not 0 < self.n <= sc.n_steps:
-            raise ScenarioError(f"{sc._where()}: duration must be in (0, {sc.duration_s}] s")
+        self.n = sc.car_steps(duration_s)
         self.truth_dtype = truth_dtype(ffi)
         self._inputs = sc.inputs(ffi)
         self._out = ffi.new("vh_frame_t[1]")
@@ -307,21 +276,15 @@ def _vector_profile(c: Checker, value, key: str, spec: Num) -> tuple[tuple[float
 
 def load_tireforce_scenario(path: str | Path) -> TireForceScenario:
     """Load and validate one tyre-force scenario (a path, or the name of a shipped one)."""
-    path = tireforce_scenario_path(path)
-    return tireforce_scenario_from_dict(read_toml(path), path)
+    return load_shipped(SCENARIOS, path, tireforce_scenario_from_dict)
 
 
 def tireforce_scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> TireForceScenario:
     """Validate an already parsed TOML document (``path`` only names it in errors)."""
     ffi, lib = _native()
-    c = Checker(Path(path))
-    if not isinstance(doc, dict):
-        c.fail("", f"must be a TOML document (a table), not {type_name(doc)}")
-    if doc.get("kind") not in KINDS:
-        if "kind" not in doc:
-            c.fail("kind", 'missing: a tireforce scenario starts with kind = "tireforce" (or its old name, '
-                           'kind = "chassis"; driveline scenarios are read by vehest_can.sim.scenario.load_scenario)')
-        c.fail("kind", f'must be "tireforce" (or its old name "chassis"), not {doc["kind"]!r}')
+    c = kind_checker(doc, path, KINDS, '"tireforce" (or its old name "chassis")',
+                     missing='missing: a tireforce scenario starts with kind = "tireforce" (or its old name, '
+                             'kind = "chassis"; driveline scenarios are read by vehest_can.sim.scenario.load_scenario)')
     top = scenario_top(c, doc, _TOP, _TABLES)
 
     if "driver" not in doc:

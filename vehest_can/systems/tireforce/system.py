@@ -7,7 +7,7 @@ import numpy as np
 
 from ...bus.frames import database
 from ...sim.report import decode
-from .. import Setup
+from .. import Registration, Setup
 from . import api as tf
 from . import report
 from .adaptive import AdaptiveFixed
@@ -15,28 +15,16 @@ from .campaign import CAMPAIGN
 from .scenario import KINDS, ChassisCar, load_tireforce_scenario, tireforce_scenario_dir
 
 
-class TireForce:
+class TireForce(Registration):
     campaign = CAMPAIGN  # vehest-can campaign
     name = "tireforce"
     kinds = KINDS
     realtime = False
     nodes = ("CHS",)  # the 14-DOF plant and its chassis sensor node
     faults = None
-
-    def scenario_dir(self) -> Path:
-        return tireforce_scenario_dir()
-
-    def claims(self, doc: dict) -> bool:
-        return doc.get("kind") in KINDS
-
-    def load(self, path: Path):
-        return load_tireforce_scenario(path)
-
-    def car(self, scenario, duration_s: float | None = None):
-        return ChassisCar(scenario, duration_s)
-
-    def setup(self, scenarios: list, out: Path) -> Setup:
-        return Setup()
+    scenario_dir = staticmethod(tireforce_scenario_dir)
+    load = staticmethod(load_tireforce_scenario)
+    car = staticmethod(ChassisCar)
 
     def metrics(self, scenario, session, out_dir: Path, setup: Setup) -> dict:
         """Against the plant: the ECU's fixed-point estimates from the bus, and the double SKFMEC and
