@@ -60,6 +60,11 @@ static void take(vh_ecu_dls_t *d, vh_ecu_counters_t *cnt, int ok, double value, 
     d->valid |= (uint8_t)(1u << sig);
 }
 
+/* take() of one DLS_Sensors signal through the generated decoder, into d->dst */
+#define TAKE(sig, SIG, dst, bit)                                              \
+    take(d, cnt, m.qf_##sig && m.sig != VH_PT_DLS_SENSORS_##SIG##_SNA_CHOICE, \
+         vh_pt_dls_sensors_##sig##_decode(m.sig), &d->dst, bit)
+
 void vh_drv_app_rx(vh_drv_app_t *a, const double gear_ratio[VH_ECU_N_GEARS], vh_ecu_counters_t *cnt,
                    const vh_frame_t *f)
 {
@@ -74,18 +79,12 @@ void vh_drv_app_rx(vh_drv_app_t *a, const double gear_ratio[VH_ECU_N_GEARS], vh_
     }
     (void)vh_pt_dls_sensors_unpack(&m, f->data, f->len);
     d->valid = 0u;
-    take(d, cnt, m.qf_out_shaft_speed && m.out_shaft_speed != VH_PT_DLS_SENSORS_OUT_SHAFT_SPEED_SNA_CHOICE,
-         vh_pt_dls_sensors_out_shaft_speed_decode(m.out_shaft_speed), &d->wo, SIG_WO);
-    take(d, cnt, m.qf_wheel_speed_l && m.wheel_speed_l != VH_PT_DLS_SENSORS_WHEEL_SPEED_L_SNA_CHOICE,
-         vh_pt_dls_sensors_wheel_speed_l_decode(m.wheel_speed_l), &d->wwl, SIG_WWL);
-    take(d, cnt, m.qf_wheel_speed_r && m.wheel_speed_r != VH_PT_DLS_SENSORS_WHEEL_SPEED_R_SNA_CHOICE,
-         vh_pt_dls_sensors_wheel_speed_r_decode(m.wheel_speed_r), &d->wwr, SIG_WWR);
-    take(d, cnt, m.qf_shaft_torque && m.shaft_torque != VH_PT_DLS_SENSORS_SHAFT_TORQUE_SNA_CHOICE,
-         vh_pt_dls_sensors_shaft_torque_decode(m.shaft_torque), &d->to, SIG_TO);
-    take(d, cnt, m.qf_engine_speed && m.engine_speed != VH_PT_DLS_SENSORS_ENGINE_SPEED_SNA_CHOICE,
-         vh_pt_dls_sensors_engine_speed_decode(m.engine_speed), &d->we, SIG_WE);
-    take(d, cnt, m.qf_turbine_speed && m.turbine_speed != VH_PT_DLS_SENSORS_TURBINE_SPEED_SNA_CHOICE,
-         vh_pt_dls_sensors_turbine_speed_decode(m.turbine_speed), &d->wt, SIG_WT);
+    TAKE(out_shaft_speed, OUT_SHAFT_SPEED, wo, SIG_WO);
+    TAKE(wheel_speed_l, WHEEL_SPEED_L, wwl, SIG_WWL);
+    TAKE(wheel_speed_r, WHEEL_SPEED_R, wwr, SIG_WWR);
+    TAKE(shaft_torque, SHAFT_TORQUE, to, SIG_TO);
+    TAKE(engine_speed, ENGINE_SPEED, we, SIG_WE);
+    TAKE(turbine_speed, TURBINE_SPEED, wt, SIG_WT);
     if ((d->valid & (1u << SIG_WWL)) && (d->valid & (1u << SIG_WWR))) {
         d->still_lp += VH_DRV_STILL_LP * (fmax(fabs(d->wwl), fabs(d->wwr)) - d->still_lp);
     }
