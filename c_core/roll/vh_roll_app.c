@@ -80,6 +80,12 @@ static void take(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, int ch, int 
 /* take() of one ROLL_Sensors signal through the generated decoder */
 #define TAKE(sig, SIG, ch) \
     take(a, cfg, ch, m.qf_##sig && m.sig != VH_CH_ROLL_SENSORS_##SIG##_SNA_CHOICE, vh_ch_roll_sensors_##sig##_decode(m.sig))
+/* the four corners' signals sig_fl, sig_fr, sig_rl, sig_rr into channels ch0 + 0..3 */
+#define TAKE_CORNERS(sig, SIG, ch0)      \
+    TAKE(sig##_fl, SIG##_FL, (ch0) + 0); \
+    TAKE(sig##_fr, SIG##_FR, (ch0) + 1); \
+    TAKE(sig##_rl, SIG##_RL, (ch0) + 2); \
+    TAKE(sig##_rr, SIG##_RR, (ch0) + 3)
 
 /* The handlers below get frames vh_rx_accept has passed (vh_roll_app_rx, RX_MSGS). */
 static void rx_sensors(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, const vh_frame_t *f)
@@ -90,18 +96,9 @@ static void rx_sensors(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, const 
     a->sens_arrived = 1u;
     a->sens_wait = 0u;
     TAKE(roll_lat_accel, ROLL_LAT_ACCEL, VH_ROLL_Z_AY);
-    TAKE(wheel_vert_accel_fl, WHEEL_VERT_ACCEL_FL, VH_ROLL_Z_AZU + 0);
-    TAKE(wheel_vert_accel_fr, WHEEL_VERT_ACCEL_FR, VH_ROLL_Z_AZU + 1);
-    TAKE(wheel_vert_accel_rl, WHEEL_VERT_ACCEL_RL, VH_ROLL_Z_AZU + 2);
-    TAKE(wheel_vert_accel_rr, WHEEL_VERT_ACCEL_RR, VH_ROLL_Z_AZU + 3);
-    TAKE(tyre_defl_fl, TYRE_DEFL_FL, VH_ROLL_Z_DT + 0);
-    TAKE(tyre_defl_fr, TYRE_DEFL_FR, VH_ROLL_Z_DT + 1);
-    TAKE(tyre_defl_rl, TYRE_DEFL_RL, VH_ROLL_Z_DT + 2);
-    TAKE(tyre_defl_rr, TYRE_DEFL_RR, VH_ROLL_Z_DT + 3);
-    TAKE(susp_defl_fl, SUSP_DEFL_FL, VH_ROLL_Z_DS + 0);
-    TAKE(susp_defl_fr, SUSP_DEFL_FR, VH_ROLL_Z_DS + 1);
-    TAKE(susp_defl_rl, SUSP_DEFL_RL, VH_ROLL_Z_DS + 2);
-    TAKE(susp_defl_rr, SUSP_DEFL_RR, VH_ROLL_Z_DS + 3);
+    TAKE_CORNERS(wheel_vert_accel, WHEEL_VERT_ACCEL, VH_ROLL_Z_AZU);
+    TAKE_CORNERS(tyre_defl, TYRE_DEFL, VH_ROLL_Z_DT);
+    TAKE_CORNERS(susp_defl, SUSP_DEFL, VH_ROLL_Z_DS);
 }
 
 static void rx_yaw(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, const vh_frame_t *f)
