@@ -196,6 +196,12 @@ int vh_drv_app_fill_est(vh_drv_app_t *a, const vh_dkf_t dkf[VH_ECU_N_DKF], uint8
     return 1;
 }
 
+/* The fault counters VEHEST_Status carries, each as its field cnt_<name> (saturation is the
+ * chassis estimator's, in its own status) */
+#define STATUS_COUNTERS(X)                                                               \
+    X(crc_error) X(counter_repeat) X(counter_skip) X(dlc_error) X(timeout) X(unknown_id) \
+    X(signal_invalid) X(input_invalid) X(filter_reset) X(deadline_miss) X(rx_burst) X(secoc_reject)
+
 int vh_drv_app_fill_status(vh_drv_app_t *a, const vh_dkf_t dkf[VH_ECU_N_DKF], const vh_ecu_counters_t *cnt,
                            uint32_t tick, uint8_t *data)
 {
@@ -205,18 +211,9 @@ int vh_drv_app_fill_status(vh_drv_app_t *a, const vh_dkf_t dkf[VH_ECU_N_DKF], co
     st.dkf_t_health_sts = dkf[VH_ECU_DKF_T].health;
     st.dkf_s_health_sts = dkf[VH_ECU_DKF_S].health;
     st.ecu_tick = tick;
-    st.cnt_crc_error = cnt->crc_error;
-    st.cnt_counter_repeat = cnt->counter_repeat;
-    st.cnt_counter_skip = cnt->counter_skip;
-    st.cnt_dlc_error = cnt->dlc_error;
-    st.cnt_timeout = cnt->timeout;
-    st.cnt_unknown_id = cnt->unknown_id;
-    st.cnt_signal_invalid = cnt->signal_invalid;
-    st.cnt_input_invalid = cnt->input_invalid;
-    st.cnt_filter_reset = cnt->filter_reset;
-    st.cnt_deadline_miss = cnt->deadline_miss;
-    st.cnt_rx_burst = cnt->rx_burst;
-    st.cnt_secoc_reject = cnt->secoc_reject;
+#define COPY(name) st.cnt_##name = cnt->name;
+    STATUS_COUNTERS(COPY)
+#undef COPY
     st.rx_fault_active = (uint8_t)((d->rx.timed_out ? 1u : 0u) | (((d->valid & 0x3Fu) != 0x3Fu) ? 2u : 0u) |
                                    (a->ti_valid ? 0u : 4u) | (cnt->secoc_reject != a->secoc_seen ? 8u : 0u));
     a->secoc_seen = cnt->secoc_reject;
