@@ -1,7 +1,7 @@
 /* bench_xcp.c - cost of the XCP slave per ECU tick, in a C loop (host build, -O2).
  *
  * Not firmware: uses the heap-free slave with a clock (CLOCK_MONOTONIC) around it. One line per
- * benchmark, "name n median_ns p99_ns", the clock's own cost subtracted:
+ * benchmark, "name n median_ns p99_ns", the clock's own cost subtracted (vh_bench_common.h):
  *   idle           vh_xcp_tick + the three events + draining the TX queue, no DAQ running
  *   daq20_classic  the same with 20 float32 (+ timestamp) on the every-tick event, MAX_DTO 8: 12 DTOs
  *   daq20_fd       the same on CAN FD, MAX_DTO 64: 2 DTOs
@@ -10,6 +10,8 @@
  * Usage: bench_xcp [samples]
  */
 #define _POSIX_C_SOURCE 199309L
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "vh_bench_common.h"
