@@ -1,12 +1,14 @@
 """What the cffi build scripts share (``vehest_build.py`` and the standalone extensions in
 ``xcp/``, ``secoc/``, ``roll/``): the strict C flags, compiling sources with them apart from
-cffi's glue (which -pedantic rejects), a public header as cffi declarations, and how to link
-OpenSSL's libcrypto (the host's AES backend, vh_aes128_host.c)."""
+cffi's glue (which -pedantic rejects), a public header as cffi declarations, the builder of a
+standalone extension, and how to link OpenSSL's libcrypto (the host's AES backend,
+vh_aes128_host.c)."""
 from __future__ import annotations
 
 import ctypes.util
 import re
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
 STRICT_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
@@ -38,6 +40,19 @@ def compile_strict(sources: list[Path], include_dirs: list[Path], out_dir: Path,
     customize_compiler(cc)
     return cc.compile([str(s) for s in sources], output_dir=str(out_dir), include_dirs=[str(d) for d in include_dirs],
                       extra_postargs=(flags or STRICT_FLAGS + OPT_FLAGS) + ["-fPIC"] + (extra_flags or []))
+
+
+def extension(module: str, header: Path, cdef: str, objects: list[str], **link: Any) -> Any:
+    """The cffi builder of a standalone extension: ``cdef`` declared, its glue including ``header``
+    (from the header's folder), linked with ``objects`` (built by compile_strict) and ``link``
+    (``set_source``'s link arguments)."""
+    from cffi import FFI
+
+    ffi = FFI()
+    ffi.cdef(cdef)
+    ffi.set_source(module, f'#include "{header.name}"', include_dirs=[str(header.parent)],
+                   extra_objects=objects, **link)
+    return ffi
 
 
 def libcrypto() -> str:

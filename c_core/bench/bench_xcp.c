@@ -1,7 +1,7 @@
 /* bench_xcp.c - cost of the XCP slave per ECU tick, in a C loop (host build, -O2).
  *
  * Not firmware: uses the heap-free slave with a clock (CLOCK_MONOTONIC) around it. One line per
- * benchmark, "name n median_ns p99_ns", the clock's own cost subtracted:
+ * benchmark, "name n median_ns p99_ns", the clock's own cost subtracted (vh_bench_common.h):
  *   idle           vh_xcp_tick + the three events + draining the TX queue, no DAQ running
  *   daq20_classic  the same with 20 float32 (+ timestamp) on the every-tick event, MAX_DTO 8: 12 DTOs
  *   daq20_fd       the same on CAN FD, MAX_DTO 64: 2 DTOs
@@ -13,28 +13,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
+#include "vh_bench_common.h"
 #include "vh_xcp.h"
-
-static double now_ns(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec * 1e9 + (double)ts.tv_nsec;
-}
-
-static int cmp(const void *a, const void *b)
-{
-    const double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
-static void report(const char *name, double *s, int n, double clock_ns)
-{
-    qsort(s, (size_t)n, sizeof *s, cmp);
-    printf("%s %d %.1f %.1f\n", name, n, s[n / 2] - clock_ns, s[(n * 99) / 100] - clock_ns);
-}
 
 #define MEAS 0x10000000u
 #define CAL 0x20000000u
@@ -51,11 +32,6 @@ static void cro(vh_xcp_t *x, const uint8_t *c, size_t len)
     vh_xcp_rx(x, c, len, 0u);
     while (vh_xcp_tx_pop(x, &f)) {
     }
-}
-
-static void wr32(uint8_t *p, uint32_t v)
-{
-    p[0] = (uint8_t)v; p[1] = (uint8_t)(v >> 8); p[2] = (uint8_t)(v >> 16); p[3] = (uint8_t)(v >> 24);
 }
 
 static void setup(vh_xcp_t *x, int fd, int daq)
@@ -93,7 +69,7 @@ static void setup(vh_xcp_t *x, int fd, int daq)
             if (size > 80u - off) size = 80u - off;
             c[0] = 0xE2; c[2] = 0; c[3] = 0; c[4] = (uint8_t)j; c[5] = 0;
             cro(x, c, 6);
-            c[0] = 0xE1; c[1] = 0xFF; c[2] = (uint8_t)size; c[3] = 0; wr32(&c[4], MEAS + off);
+            c[0] = 0xE1; c[1] = 0xFF; c[2] = (uint8_t)size; c[3] = 0; vh_bench_le32(&c[4], MEAS + off);
             cro(x, c, 8);
             off += size;
         }
@@ -117,17 +93,17 @@ static void bench_tick(const char *name, int fd, int daq, double *s, int n, doub
     int i;
     setup(x, fd, daq);
     for (i = 0; i < n; ++i) {
-        double t0 = now_ns();
+        double t0 = vh_bench_now_ns();
         vh_xcp_tick(x, (uint32_t)i);
         vh_xcp_event(x, 0u);
         if (i % 2 == 0) vh_xcp_event(x, 1u);
         if (i % 20 == 0) vh_xcp_event(x, 2u);
         while (vh_xcp_tx_pop(x, &f)) {
         }
-        s[i] = now_ns() - t0;
+        s[i] = vh_bench_now_ns() - t0;
         meas[i % 20] = (float)i;
     }
-    report(name, s, n, clock_ns);
+    vh_bench_report(name, s, n, clock_ns);
     free(x);
 }
 
@@ -137,47 +113,41 @@ int main(int argc, char **argv)
     double *s = malloc(sizeof *s * (size_t)(n > 1000 ? n : 1000)), clock_ns;
     vh_xcp_t *x = malloc(sizeof *x);
     vh_xcp_frame_t f;
-    for (i = 0; i < 1000; ++i) {
-        double t0 = now_ns();
-        s[i] = now_ns() - t0;
-    }
-    qsort(s, 1000u, sizeof *s, cmp);
-    clock_ns = s[500];
-    printf("clock 1000 %.1f 0\n", clock_ns);
+    clock_ns = vh_bench_clock(s, 1000);
     bench_tick("idle", 0, 0, s, n, clock_ns);
     bench_tick("daq20_classic", 0, 1, s, n, clock_ns);
     bench_tick("daq20_fd", 1, 1, s, n, clock_ns);
     setup(x, 0, 0);
     {
         uint8_t c[8] = {0xF4, 4, 0, 0};
-        wr32(&c[4], MEAS + 8u);
+        vh_bench_le32(&c[4], MEAS + 8u);
         for (i = 0; i < n; ++i) {
-            double t0 = now_ns();
+            double t0 = vh_bench_now_ns();
             vh_xcp_rx(x, c, 8, 0u);
             while (vh_xcp_tx_pop(x, &f)) {
             }
-            s[i] = now_ns() - t0;
+            s[i] = vh_bench_now_ns() - t0;
         }
-        report("short_upload", s, n, clock_ns);
+        vh_bench_report("short_upload", s, n, clock_ns);
     }
     {
         /* the master's seed & key is not configured here (protect = 0): writes are open */
         uint8_t mta[8] = {0xF6, 0, 0, 0}, c[6] = {0xF0, 4};
         float v = 12.5f;
         memcpy(&c[2], &v, 4);
-        wr32(&mta[4], CAL);
+        vh_bench_le32(&mta[4], CAL);
         for (i = 0; i < n; ++i) {
             double t0;
             vh_xcp_rx(x, mta, 8, 0u);
             while (vh_xcp_tx_pop(x, &f)) {
             }
-            t0 = now_ns();
+            t0 = vh_bench_now_ns();
             vh_xcp_rx(x, c, 6, 0u);
             while (vh_xcp_tx_pop(x, &f)) {
             }
-            s[i] = now_ns() - t0;
+            s[i] = vh_bench_now_ns() - t0;
         }
-        report("download", s, n, clock_ns);
+        vh_bench_report("download", s, n, clock_ns);
         if (x->n.cal_writes != (uint32_t)n) {
             printf("downloads refused\n");
             return 1;

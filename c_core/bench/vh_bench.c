@@ -25,6 +25,7 @@
 #include <string.h>
 
 #include "vh_bench_common.h"
+#include "vh_bench_drive.h"
 
 #include "vh_chsnode.h"
 #include "vh_dkf.h"
@@ -110,8 +111,6 @@ int main(void)
     static vh_dlsim_t sim;
     static vh_ecu_t ecu;
     static vh_frame_t frames[N_SAMPLES], chs[N_SAMPLES];
-    vh_dlp_params_t prm;
-    vh_dls_config_t node;
     vh_ecu_config_t ecfg;
     vh_dkf_config_t kcfg;
     vh_dkf_t kf;
@@ -122,16 +121,8 @@ int main(void)
 
     clock_ns = vh_bench_clock(samples, N_SAMPLES);
 
-    /* the car's frames of a launch, made once */
-    vh_dlp_params_default(&prm);
-    vh_dls_config_default(&node);
-    if (vh_dlsim_init(&sim, &prm, 1u, &node) != VH_OK) {
-        return 1;
-    }
-    for (i = 0; i < N_SAMPLES; ++i) {
-        (void)vh_dlsim_tick(&sim, i < 2000 ? 0.0 : 0.6, 2, &frames[i], 1u);
-    }
-    if (!make_chs_frames(chs, N_SAMPLES)) {
+    /* the car's frames of a launch and the chassis node's, made once */
+    if (!vh_bench_launch(&sim, frames, N_SAMPLES) || !make_chs_frames(chs, N_SAMPLES)) {
         return 1;
     }
 

@@ -1,4 +1,4 @@
-/* vh_bench_common.h - the timing harness shared by the C-loop benchmarks (vh_bench.c, vh_bench_skf.c).
+/* vh_bench_common.h - the timing harness shared by the C-loop benchmarks (every benchmark in c_core/bench).
  *
  * Each sample is one call timed with CLOCK_MONOTONIC; the clock's own cost is measured first
  * (vh_bench_clock) and subtracted. Output: one line "name n median_ns p99_ns" per benchmark.
@@ -8,6 +8,7 @@
 #ifndef VH_BENCH_COMMON_H
 #define VH_BENCH_COMMON_H
 
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <time.h>
@@ -45,6 +46,16 @@ static double vh_bench_clock(double *s, int n)
     clock_ns = s[n / 2];
     printf("clock %d %.1f 0\n", n, clock_ns);
     return clock_ns;
+}
+
+/* v into p[0..4), least significant byte first: the 32-bit fields of the XCP benches' commands
+ * (seed & key, addresses), Intel byte order as the slaves are configured. */
+static inline void vh_bench_le32(uint8_t *p, uint32_t v)
+{
+    p[0] = (uint8_t)v;
+    p[1] = (uint8_t)(v >> 8);
+    p[2] = (uint8_t)(v >> 16);
+    p[3] = (uint8_t)(v >> 24);
 }
 
 #endif /* VH_BENCH_COMMON_H */

@@ -16,6 +16,7 @@
 #include <string.h>
 
 #include "vh_bench_common.h"
+#include "vh_bench_drive.h"
 
 #include "vh_ch.h"
 #include "vh_chsnode.h"
@@ -51,8 +52,6 @@ static int make_frames(void)
     static vh_v14_params_t prm;
     static vh_rln_t roll;
     static vh_secoc_bus_t node, peer;
-    vh_dlp_params_t dprm;
-    vh_dls_config_t dcfg;
     vh_v14_input_t in;
     vh_chs_config_t ccfg;
     vh_chs_t chs;
@@ -60,13 +59,11 @@ static int make_frames(void)
     size_t j;
     int i;
 
-    vh_dlp_params_default(&dprm);
-    vh_dls_config_default(&dcfg);
     vh_v14_params_default(&prm);
     vh_chs_config_default(&ccfg);
     vh_rln_config_default(&rcfg);
     rcfg.mode_active = 1u;
-    if (vh_dlsim_init(&sim, &dprm, 1u, &dcfg) != VH_OK || vh_v14_init(&plant, &prm) != VH_OK ||
+    if (!vh_bench_launch_init(&sim) || vh_v14_init(&plant, &prm) != VH_OK ||
         vh_v14_set_rolling(&plant, 20.0) != VH_OK || vh_chs_init(&chs, &ccfg) != VH_OK ||
         vh_rln_init(&roll, &rcfg) != VH_OK || !keyed(&node, "ROLL") || !keyed(&peer, "VEHEST")) {
         return 0;
@@ -76,7 +73,7 @@ static int make_frames(void)
     for (i = 0; i < N_SAMPLES; ++i) {
         const double t = i * 5e-4;
         in.steer = 0.0873 * (t < 0.5 ? 0.0 : (t < 2.5 ? (t - 0.5) / 2.0 : 1.0));
-        s_n[i] = vh_dlsim_tick(&sim, i < 2000 ? 0.0 : 0.6, 2, &s_sec[i][0], 1u);
+        s_n[i] = vh_bench_launch_tick(&sim, i, &s_sec[i][0], 1u);
         vh_rln_actuate(&roll, &plant);
         vh_v14_step(&plant, &in);
         s_n[i] += vh_chs_step(&chs, &plant.truth, &s_sec[i][s_n[i]], 1u);

@@ -15,6 +15,7 @@
 #include <string.h>
 
 #include "vh_bench_common.h"
+#include "vh_bench_drive.h"
 
 #include "vh_dlsim.h"
 #include "vh_ecu.h"
@@ -65,10 +66,7 @@ static int connect_unlocked(vh_ecu_t *ecu)
         }
         seed = (uint32_t)res[2] | (uint32_t)res[3] << 8 | (uint32_t)res[4] << 16 | (uint32_t)res[5] << 24;
         key = vh_xcp_key(seed, 0x5EC0DE42u);
-        unlock[2] = (uint8_t)key;
-        unlock[3] = (uint8_t)(key >> 8);
-        unlock[4] = (uint8_t)(key >> 16);
-        unlock[5] = (uint8_t)(key >> 24);
+        vh_bench_le32(&unlock[2], key);
         if (!cro(ecu, unlock, 6u, NULL)) {
             return 0;
         }
@@ -112,10 +110,7 @@ static int daq_20_at_1ms(vh_ecu_t *ecu)
             const uint32_t a = VH_ECU_XCP_MEAS_ADDRESS + (uint32_t)(odt == 0u ? ODT0[i].off : ODT1[i].off);
             w[2] = odt == 0u ? ODT0[i].size : ODT1[i].size;
             w[3] = 0u;
-            w[4] = (uint8_t)a;
-            w[5] = (uint8_t)(a >> 8);
-            w[6] = (uint8_t)(a >> 16);
-            w[7] = (uint8_t)(a >> 24);
+            vh_bench_le32(&w[4], a);
             if (!cro(ecu, w, 8u, NULL)) {
                 return 0;
             }
@@ -129,8 +124,6 @@ int main(void)
     static vh_dlsim_t sim;
     static vh_ecu_t none, idle, daq;
     static vh_frame_t frames[N_SAMPLES];
-    vh_dlp_params_t prm;
-    vh_dls_config_t node;
     vh_ecu_config_t ecfg;
     vh_ecu_xcp_config_t xcfg;
     vh_frame_t tx[VH_ECU_MAX_TX];
@@ -140,13 +133,8 @@ int main(void)
     volatile size_t sink = 0u;
 
     clock_ns = vh_bench_clock(s_none, N_SAMPLES);
-    vh_dlp_params_default(&prm);
-    vh_dls_config_default(&node);
-    if (vh_dlsim_init(&sim, &prm, 1u, &node) != VH_OK) {
+    if (!vh_bench_launch(&sim, frames, N_SAMPLES)) {
         return 1;
-    }
-    for (i = 0; i < N_SAMPLES; ++i) {
-        (void)vh_dlsim_tick(&sim, i < 2000 ? 0.0 : 0.6, 2, &frames[i], 1u);
     }
     vh_ecu_config_default(&ecfg);
     memset(&xcfg, 0, sizeof xcfg);

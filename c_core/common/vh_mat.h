@@ -15,34 +15,32 @@
 /* The small products are static inline so that, called with constant sizes, the compiler
  * unrolls and vectorises them (a 4-state filter step is mostly these). */
 
-/* c[n x p] = a[n x m] * b[m x p] */
-static inline void vh_mat_mul(const double *a, const double *b, double *c, int n, int m, int p)
+/* c[n x p] = a[n x m] * B, B[k][j] = b[k * bk + j * bj]: the one product loop of vh_mat_mul and
+ * vh_mat_mul_bt, which differ only in how b is laid out (inlined with constant strides). */
+static inline void vh_mat_mul_strided(const double *a, const double *b, double *c, int n, int m, int p, int bk, int bj)
 {
     int i, j, k;
     for (i = 0; i < n; ++i) {
         for (j = 0; j < p; ++j) {
             double s = 0.0;
             for (k = 0; k < m; ++k) {
-                s += a[i * m + k] * b[k * p + j];
+                s += a[i * m + k] * b[k * bk + j * bj];
             }
             c[i * p + j] = s;
         }
     }
 }
 
+/* c[n x p] = a[n x m] * b[m x p] */
+static inline void vh_mat_mul(const double *a, const double *b, double *c, int n, int m, int p)
+{
+    vh_mat_mul_strided(a, b, c, n, m, p, p, 1);
+}
+
 /* c[n x p] = a[n x m] * b[p x m]^T */
 static inline void vh_mat_mul_bt(const double *a, const double *b, double *c, int n, int m, int p)
 {
-    int i, j, k;
-    for (i = 0; i < n; ++i) {
-        for (j = 0; j < p; ++j) {
-            double s = 0.0;
-            for (k = 0; k < m; ++k) {
-                s += a[i * m + k] * b[j * m + k];
-            }
-            c[i * p + j] = s;
-        }
-    }
+    vh_mat_mul_strided(a, b, c, n, m, p, 1, m);
 }
 
 static inline void vh_mat_identity(double *a, int n)

@@ -60,6 +60,11 @@ static void take(vh_ecu_dls_t *d, vh_ecu_counters_t *cnt, int ok, double value, 
     d->valid |= (uint8_t)(1u << sig);
 }
 
+/* take() of one DLS_Sensors signal through the generated decoder, into d->dst */
+#define TAKE(sig, SIG, dst, bit)                                              \
+    take(d, cnt, m.qf_##sig && m.sig != VH_PT_DLS_SENSORS_##SIG##_SNA_CHOICE, \
+         vh_pt_dls_sensors_##sig##_decode(m.sig), &d->dst, bit)
+
 void vh_drv_app_rx(vh_drv_app_t *a, const double gear_ratio[VH_ECU_N_GEARS], vh_ecu_counters_t *cnt,
                    const vh_frame_t *f)
 {
@@ -74,18 +79,12 @@ void vh_drv_app_rx(vh_drv_app_t *a, const double gear_ratio[VH_ECU_N_GEARS], vh_
     }
     (void)vh_pt_dls_sensors_unpack(&m, f->data, f->len);
     d->valid = 0u;
-    take(d, cnt, m.qf_out_shaft_speed && m.out_shaft_speed != VH_PT_DLS_SENSORS_OUT_SHAFT_SPEED_SNA_CHOICE,
-         vh_pt_dls_sensors_out_shaft_speed_decode(m.out_shaft_speed), &d->wo, SIG_WO);
-    take(d, cnt, m.qf_wheel_speed_l && m.wheel_speed_l != VH_PT_DLS_SENSORS_WHEEL_SPEED_L_SNA_CHOICE,
-         vh_pt_dls_sensors_wheel_speed_l_decode(m.wheel_speed_l), &d->wwl, SIG_WWL);
-    take(d, cnt, m.qf_wheel_speed_r && m.wheel_speed_r != VH_PT_DLS_SENSORS_WHEEL_SPEED_R_SNA_CHOICE,
-         vh_pt_dls_sensors_wheel_speed_r_decode(m.wheel_speed_r), &d->wwr, SIG_WWR);
-    take(d, cnt, m.qf_shaft_torque && m.shaft_torque != VH_PT_DLS_SENSORS_SHAFT_TORQUE_SNA_CHOICE,
-         vh_pt_dls_sensors_shaft_torque_decode(m.shaft_torque), &d->to, SIG_TO);
-    take(d, cnt, m.qf_engine_speed && m.engine_speed != VH_PT_DLS_SENSORS_ENGINE_SPEED_SNA_CHOICE,
-         vh_pt_dls_sensors_engine_speed_decode(m.engine_speed), &d->we, SIG_WE);
-    take(d, cnt, m.qf_turbine_speed && m.turbine_speed != VH_PT_DLS_SENSORS_TURBINE_SPEED_SNA_CHOICE,
-         vh_pt_dls_sensors_turbine_speed_decode(m.turbine_speed), &d->wt, SIG_WT);
+    TAKE(out_shaft_speed, OUT_SHAFT_SPEED, wo, SIG_WO);
+    TAKE(wheel_speed_l, WHEEL_SPEED_L, wwl, SIG_WWL);
+    TAKE(wheel_speed_r, WHEEL_SPEED_R, wwr, SIG_WWR);
+    TAKE(shaft_torque, SHAFT_TORQUE, to, SIG_TO);
+    TAKE(engine_speed, ENGINE_SPEED, we, SIG_WE);
+    TAKE(turbine_speed, TURBINE_SPEED, wt, SIG_WT);
     if ((d->valid & (1u << SIG_WWL)) && (d->valid & (1u << SIG_WWR))) {
         d->still_lp += VH_DRV_STILL_LP * (fmax(fabs(d->wwl), fabs(d->wwr)) - d->still_lp);
     }
@@ -197,6 +196,12 @@ int vh_drv_app_fill_est(vh_drv_app_t *a, const vh_dkf_t dkf[VH_ECU_N_DKF], uint8
     return 1;
 }
 
+/* The fault counters VEHEST_Status carries, each as its field cnt_<name> (saturation is the
+ * chassis estimator's, in its own status) */
+#define STATUS_COUNTERS(X)                                                               \
+    X(crc_error) X(counter_repeat) X(counter_skip) X(dlc_error) X(timeout) X(unknown_id) \
+    X(signal_invalid) X(input_invalid) X(filter_reset) X(deadline_miss) X(rx_burst) X(secoc_reject)
+
 int vh_drv_app_fill_status(vh_drv_app_t *a, const vh_dkf_t dkf[VH_ECU_N_DKF], const vh_ecu_counters_t *cnt,
                            uint32_t tick, uint8_t *data)
 {
@@ -206,18 +211,9 @@ int vh_drv_app_fill_status(vh_drv_app_t *a, const vh_dkf_t dkf[VH_ECU_N_DKF], co
     st.dkf_t_health_sts = dkf[VH_ECU_DKF_T].health;
     st.dkf_s_health_sts = dkf[VH_ECU_DKF_S].health;
     st.ecu_tick = tick;
-    st.cnt_crc_error = cnt->crc_error;
-    st.cnt_counter_repeat = cnt->counter_repeat;
-    st.cnt_counter_skip = cnt->counter_skip;
-    st.cnt_dlc_error = cnt->dlc_error;
-    st.cnt_timeout = cnt->timeout;
-    st.cnt_unknown_id = cnt->unknown_id;
-    st.cnt_signal_invalid = cnt->signal_invalid;
-    st.cnt_input_invalid = cnt->input_invalid;
-    st.cnt_filter_reset = cnt->filter_reset;
-    st.cnt_deadline_miss = cnt->deadline_miss;
-    st.cnt_rx_burst = cnt->rx_burst;
-    st.cnt_secoc_reject = cnt->secoc_reject;
+#define COPY(name) st.cnt_##name = cnt->name;
+    STATUS_COUNTERS(COPY)
+#undef COPY
     st.rx_fault_active = (uint8_t)((d->rx.timed_out ? 1u : 0u) | (((d->valid & 0x3Fu) != 0x3Fu) ? 2u : 0u) |
                                    (a->ti_valid ? 0u : 4u) | (cnt->secoc_reject != a->secoc_seen ? 8u : 0u));
     a->secoc_seen = cnt->secoc_reject;

@@ -80,38 +80,30 @@ static void take(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, int ch, int 
 /* take() of one ROLL_Sensors signal through the generated decoder */
 #define TAKE(sig, SIG, ch) \
     take(a, cfg, ch, m.qf_##sig && m.sig != VH_CH_ROLL_SENSORS_##SIG##_SNA_CHOICE, vh_ch_roll_sensors_##sig##_decode(m.sig))
+/* the four corners' signals sig_fl, sig_fr, sig_rl, sig_rr into channels ch0 + 0..3 */
+#define TAKE_CORNERS(sig, SIG, ch0)      \
+    TAKE(sig##_fl, SIG##_FL, (ch0) + 0); \
+    TAKE(sig##_fr, SIG##_FR, (ch0) + 1); \
+    TAKE(sig##_rl, SIG##_RL, (ch0) + 2); \
+    TAKE(sig##_rr, SIG##_RR, (ch0) + 3)
 
+/* The handlers below get frames vh_rx_accept has passed (vh_roll_app_rx, RX_MSGS). */
 static void rx_sensors(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, const vh_frame_t *f)
 {
     struct vh_ch_roll_sensors_t m;
-    if (!vh_rx_accept(&a->cnt, &a->rx[VH_ROLL_RX_SENS], f, VH_CH_ROLL_SENSORS_LENGTH, VH_CH_ROLL_SENSORS_E2E_DATA_ID)) {
-        return;
-    }
     (void)vh_ch_roll_sensors_unpack(&m, f->data, f->len);
     a->heard = 1u;
     a->sens_arrived = 1u;
     a->sens_wait = 0u;
     TAKE(roll_lat_accel, ROLL_LAT_ACCEL, VH_ROLL_Z_AY);
-    TAKE(wheel_vert_accel_fl, WHEEL_VERT_ACCEL_FL, VH_ROLL_Z_AZU + 0);
-    TAKE(wheel_vert_accel_fr, WHEEL_VERT_ACCEL_FR, VH_ROLL_Z_AZU + 1);
-    TAKE(wheel_vert_accel_rl, WHEEL_VERT_ACCEL_RL, VH_ROLL_Z_AZU + 2);
-    TAKE(wheel_vert_accel_rr, WHEEL_VERT_ACCEL_RR, VH_ROLL_Z_AZU + 3);
-    TAKE(tyre_defl_fl, TYRE_DEFL_FL, VH_ROLL_Z_DT + 0);
-    TAKE(tyre_defl_fr, TYRE_DEFL_FR, VH_ROLL_Z_DT + 1);
-    TAKE(tyre_defl_rl, TYRE_DEFL_RL, VH_ROLL_Z_DT + 2);
-    TAKE(tyre_defl_rr, TYRE_DEFL_RR, VH_ROLL_Z_DT + 3);
-    TAKE(susp_defl_fl, SUSP_DEFL_FL, VH_ROLL_Z_DS + 0);
-    TAKE(susp_defl_fr, SUSP_DEFL_FR, VH_ROLL_Z_DS + 1);
-    TAKE(susp_defl_rl, SUSP_DEFL_RL, VH_ROLL_Z_DS + 2);
-    TAKE(susp_defl_rr, SUSP_DEFL_RR, VH_ROLL_Z_DS + 3);
+    TAKE_CORNERS(wheel_vert_accel, WHEEL_VERT_ACCEL, VH_ROLL_Z_AZU);
+    TAKE_CORNERS(tyre_defl, TYRE_DEFL, VH_ROLL_Z_DT);
+    TAKE_CORNERS(susp_defl, SUSP_DEFL, VH_ROLL_Z_DS);
 }
 
 static void rx_yaw(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, const vh_frame_t *f)
 {
     struct vh_ch_roll_yaw_rate_t y;
-    if (!vh_rx_accept(&a->cnt, &a->rx[VH_ROLL_RX_YAW], f, VH_CH_ROLL_YAW_RATE_LENGTH, VH_CH_ROLL_YAW_RATE_E2E_DATA_ID)) {
-        return;
-    }
     (void)vh_ch_roll_yaw_rate_unpack(&y, f->data, f->len);
     a->yaw_arrived = 1u;
     take(a, cfg, VH_ROLL_Z_R, y.qf_roll_yaw_rate && y.roll_yaw_rate != VH_CH_ROLL_YAW_RATE_ROLL_YAW_RATE_SNA_CHOICE,
@@ -130,9 +122,6 @@ static void rx_chs(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, const vh_f
     struct vh_ch_chs_sensors_t m;
     double w_sum = 0.0;
     int n_w = 0;
-    if (!vh_rx_accept(&a->cnt, &a->rx[VH_ROLL_RX_CHS], f, VH_CH_CHS_SENSORS_LENGTH, VH_CH_CHS_SENSORS_E2E_DATA_ID)) {
-        return;
-    }
     (void)vh_ch_chs_sensors_unpack(&m, f->data, f->len);
     WHEEL(wheel_speed_fl, WHEEL_SPEED_FL)
     WHEEL(wheel_speed_fr, WHEEL_SPEED_FR)
@@ -145,13 +134,10 @@ static void rx_chs(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, const vh_f
     }
 }
 
-static void rx_act(vh_roll_app_t *a, const vh_frame_t *f)
+static void rx_act(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, const vh_frame_t *f)
 {
     struct vh_ch_roll_actuator_status_t s;
-    if (!vh_rx_accept(&a->cnt, &a->rx[VH_ROLL_RX_ACT], f, VH_CH_ROLL_ACTUATOR_STATUS_LENGTH,
-                      VH_CH_ROLL_ACTUATOR_STATUS_E2E_DATA_ID)) {
-        return;
-    }
+    (void)cfg;
     (void)vh_ch_roll_actuator_status_unpack(&s, f->data, f->len);
     a->arc_state = s.arc_state;
     if (s.arc_state == 2u || s.arc_state == 3u) { /* HOLD, FAILSAFE: the commands do not arrive */
@@ -166,51 +152,52 @@ static void rx_act(vh_roll_app_t *a, const vh_frame_t *f)
     }
 }
 
-static void rx_mode(vh_roll_app_t *a, const vh_frame_t *f)
+static void rx_mode(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, const vh_frame_t *f)
 {
     struct vh_ch_roll_mode_cmd_t mc;
-    if (!vh_rx_accept(&a->cnt, &a->rx[VH_ROLL_RX_MODE], f, VH_CH_ROLL_MODE_CMD_LENGTH, VH_CH_ROLL_MODE_CMD_E2E_DATA_ID)) {
-        return;
-    }
+    (void)cfg;
     (void)vh_ch_roll_mode_cmd_unpack(&mc, f->data, f->len);
     a->mode_active = mc.roll_mode_req;
 }
 
+/* The application's RX messages in the order of a->rx (VH_ROLL_RX_*): frame ID, what vh_rx_accept
+ * checks (length, E2E data ID), the timeout in ticks, and what an accepted frame goes to. */
+typedef void (*rx_handler_t)(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, const vh_frame_t *f);
+#define RX_MSG(MSG, handler) \
+    {VH_CH_##MSG##_FRAME_ID, VH_CH_##MSG##_LENGTH, VH_CH_##MSG##_E2E_DATA_ID, TIMEOUT(MSG), handler}
+static const struct {
+    uint32_t id;
+    uint8_t len;
+    uint16_t data_id;
+    uint16_t timeout;
+    rx_handler_t handler;
+} RX_MSGS[VH_ROLL_N_RX] = {RX_MSG(ROLL_SENSORS, rx_sensors), RX_MSG(ROLL_YAW_RATE, rx_yaw),
+                           RX_MSG(CHS_SENSORS, rx_chs), RX_MSG(ROLL_ACTUATOR_STATUS, rx_act),
+                           RX_MSG(ROLL_MODE_CMD, rx_mode)};
+
 void vh_roll_app_rx(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, const vh_frame_t *f)
 {
+    int i;
     if ((f->flags & VH_FRAME_EXT) != 0u) {
         vh_rx_count(&a->cnt.dlc_error);
         return;
     }
-    switch (f->id) {
-    case VH_CH_ROLL_SENSORS_FRAME_ID:
-        rx_sensors(a, cfg, f);
-        break;
-    case VH_CH_ROLL_YAW_RATE_FRAME_ID:
-        rx_yaw(a, cfg, f);
-        break;
-    case VH_CH_CHS_SENSORS_FRAME_ID:
-        rx_chs(a, cfg, f);
-        break;
-    case VH_CH_ROLL_ACTUATOR_STATUS_FRAME_ID:
-        rx_act(a, f);
-        break;
-    case VH_CH_ROLL_MODE_CMD_FRAME_ID:
-        rx_mode(a, f);
-        break;
-    default:
-        vh_rx_count(&a->cnt.unknown_id);
-        break;
+    for (i = 0; i < VH_ROLL_N_RX; ++i) {
+        if (f->id == RX_MSGS[i].id) {
+            if (vh_rx_accept(&a->cnt, &a->rx[i], f, RX_MSGS[i].len, RX_MSGS[i].data_id)) {
+                RX_MSGS[i].handler(a, cfg, f);
+            }
+            return;
+        }
     }
+    vh_rx_count(&a->cnt.unknown_id);
 }
 
 void vh_roll_app_tick(vh_roll_app_t *a, unsigned burst_limit)
 {
-    static const uint16_t timeout[VH_ROLL_N_RX] = {TIMEOUT(ROLL_SENSORS), TIMEOUT(ROLL_YAW_RATE), TIMEOUT(CHS_SENSORS),
-                                                   TIMEOUT(ROLL_ACTUATOR_STATUS), TIMEOUT(ROLL_MODE_CMD)};
     int i;
     for (i = 0; i < VH_ROLL_N_RX; ++i) {
-        if (!vh_rx_tick(&a->cnt, &a->rx[i], timeout[i], burst_limit)) {
+        if (!vh_rx_tick(&a->cnt, &a->rx[i], RX_MSGS[i].timeout, burst_limit)) {
             /* a burst: the frames of this tick are not trusted (the measurements' new bits go) */
             if (i == VH_ROLL_RX_SENS) {
                 a->z_new &= (1u << VH_ROLL_Z_R);

@@ -14,7 +14,7 @@ from cffi import FFI
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
-from cbuild import ROOT, STRICT_FLAGS, compile_strict, header_cdef, libcrypto  # noqa: E402,F401  (c_core/cbuild.py)
+from cbuild import ROOT, STRICT_FLAGS, compile_strict, extension, header_cdef, libcrypto  # noqa: E402,F401  (c_core/cbuild.py)
 
 HEADERS = [HERE / "vh_aes128.h", HERE / "vh_cmac.h", HERE / "vh_secoc.h"]
 SOURCES = [HERE / "vh_cmac.c", HERE / "vh_secoc.c", HERE / "vh_aes128_host.c"]
@@ -30,11 +30,8 @@ def compile_objects(out_dir: Path = ROOT / "build" / "secoc_obj", extra_flags: l
 
 
 def make_ffi() -> FFI:
-    ffi = FFI()
-    ffi.cdef(cdef_text())
-    ffi.set_source("vehest_can._secoc", '#include "vh_secoc.h"', include_dirs=[str(HERE)],
-                   extra_objects=compile_objects(), extra_link_args=[libcrypto()])
-    return ffi
+    return extension("vehest_can._secoc", HERE / "vh_secoc.h", cdef_text(), compile_objects(),
+                     extra_link_args=[libcrypto()])
 
 
 ffibuilder = make_ffi()

@@ -14,7 +14,7 @@ from cffi import FFI
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
-from cbuild import ROOT, STRICT_FLAGS, compile_strict, header_cdef  # noqa: E402,F401  (c_core/cbuild.py)
+from cbuild import ROOT, STRICT_FLAGS, compile_strict, extension, header_cdef  # noqa: E402,F401  (c_core/cbuild.py)
 
 HEADER = HERE / "vh_xcp.h"
 SOURCES = [HERE / "vh_xcp.c"]
@@ -30,11 +30,7 @@ def compile_slave(out_dir: Path = ROOT / "build" / "xcp_obj", extra_flags: list[
 
 
 def make_ffi() -> FFI:
-    ffi = FFI()
-    ffi.cdef(cdef_text())
-    ffi.set_source("vehest_can._xcp", '#include "vh_xcp.h"', include_dirs=[str(HERE)],
-                   extra_objects=compile_slave())
-    return ffi
+    return extension("vehest_can._xcp", HEADER, cdef_text(), compile_slave())
 
 
 ffibuilder = make_ffi()
