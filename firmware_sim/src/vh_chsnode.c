@@ -7,6 +7,8 @@
 #include "vh_ch_enc.h"
 #include "vh_ch_meta.h"
 #include "vh_e2e.h"
+#include "vh_node_common.h"
+#include "vh_node_lifecycle.h"
 
 /* One channel: raw = round(phys / scale) clamped to the DBC range (the generated encoder), or
  * the signal's SNA value when the sensor failed. */
@@ -37,32 +39,7 @@ void vh_chs_config_default(vh_chs_config_t *cfg)
     cfg->accel_gravity = 0;
 }
 
-int vh_chs_init(vh_chs_t *n, const vh_chs_config_t *cfg)
-{
-    int i;
-    if (n == NULL || cfg == NULL) {
-        return VH_EINVAL;
-    }
-    for (i = 0; i < VH_CHS_NCH; ++i) {
-        if (!(cfg->noise_std[i] >= 0.0) || !isfinite(cfg->noise_std[i]) || !isfinite(cfg->bias[i])) {
-            return VH_EINVAL;
-        }
-    }
-    n->cfg = *cfg;
-    vh_chs_reset(n);
-    return VH_OK;
-}
-
-void vh_chs_reset(vh_chs_t *n)
-{
-    int i;
-    vh_rng_seed(&n->rng, n->cfg.seed);
-    for (i = 0; i < VH_CHS_NCH; ++i) {
-        n->meas[i] = 0.0;
-    }
-    n->counter = 0u;
-    n->frames = 0u;
-}
+VH_NODE_LIFECYCLE(chs, VH_CHS_NCH, cfg->bias)
 
 size_t vh_chs_step(vh_chs_t *n, const vh_v14_truth_t *truth, vh_frame_t *out, size_t cap)
 {
@@ -89,11 +66,8 @@ size_t vh_chs_step(vh_chs_t *n, const vh_v14_truth_t *truth, vh_frame_t *out, si
         phys[VH_CHS_CH_W + i] = truth->omega[i];
         phys[VH_CHS_CH_T + i] = truth->torque[i];
     }
-    for (i = 0; i < VH_CHS_NCH; ++i) {
-        n->meas[i] = phys[i] + n->cfg.bias[i] + n->cfg.noise_std[i] * vh_rng_gauss(&n->rng);
-        /* a sensor that reads garbage reports it rather than sending a clamped number */
-        ok[i] = (uint8_t)(isfinite(n->meas[i]) && !(n->cfg.fail_mask & (1u << i)));
-    }
+    vh_node_sample(&n->rng, phys, n->cfg.bias, n->cfg.noise_std, VH_CHS_NCH, n->meas);
+    vh_node_qualify(n->meas, n->cfg.fail_mask, VH_CHS_NCH, ok);
     (void)vh_ch_chs_sensors_init(&m);
     m.long_accel = ENC(long_accel, LONG_ACCEL, VH_CHS_CH_AX);
     m.lat_accel = ENC(lat_accel, LAT_ACCEL, VH_CHS_CH_AY);
@@ -122,16 +96,9 @@ size_t vh_chs_step(vh_chs_t *n, const vh_v14_truth_t *truth, vh_frame_t *out, si
     m.qf_wheel_torque_rl = ok[VH_CHS_CH_T + 2];
     m.qf_wheel_torque_rr = ok[VH_CHS_CH_T + 3];
 
-    for (i = 0; i < VH_FRAME_MAX_LEN; ++i) {
-        out->data[i] = 0u;
-    }
-    out->id = VH_CH_CHS_SENSORS_FRAME_ID;
-    out->len = (uint8_t)VH_CH_CHS_SENSORS_LENGTH;
-    out->flags = (uint8_t)(VH_FRAME_FD | VH_FRAME_BRS);
+    vh_node_frame_init(out, VH_CH_CHS_SENSORS_FRAME_ID, VH_CH_CHS_SENSORS_LENGTH);
     (void)vh_ch_chs_sensors_pack(out->data, &m, VH_CH_CHS_SENSORS_LENGTH);
     vh_e2e_p01_protect(out->data, VH_CH_CHS_SENSORS_LENGTH, VH_CH_CHS_SENSORS_E2E_DATA_ID, &n->counter);
-    if (n->frames < UINT32_MAX) {
-        ++n->frames;
-    }
+    vh_node_count(&n->frames);
     return 1u;
 }

@@ -3,6 +3,7 @@
 
 #include "vh_dlsim.h"
 #include "vh_e2e.h"
+#include "vh_node_common.h"
 #include "vh_pt.h"
 #include "vh_pt_meta.h"
 
@@ -65,10 +66,7 @@ static size_t cis_frame(vh_dlsim_t *sim, vh_frame_t *f)
     m.cis_acc_x_rl = raw[2][0]; m.cis_acc_y_rl = raw[2][1]; m.cis_acc_z_rl = raw[2][2];
     m.cis_acc_x_rr = raw[3][0]; m.cis_acc_y_rr = raw[3][1]; m.cis_acc_z_rr = raw[3][2];
     m.cis_present = 0xFu;
-    memset(f, 0, sizeof *f);
-    f->id = VH_PT_CIS_ACCEL_FRAME_ID;
-    f->len = VH_PT_CIS_ACCEL_LENGTH;
-    f->flags = VH_FRAME_FD | VH_FRAME_BRS;
+    vh_node_frame_init(f, VH_PT_CIS_ACCEL_FRAME_ID, VH_PT_CIS_ACCEL_LENGTH);
     (void)vh_pt_cis_accel_pack(f->data, &m, f->len);
     vh_e2e_p01_protect(f->data, f->len, VH_PT_CIS_ACCEL_E2E_DATA_ID, &sim->cis_counter);
     return 1u;
