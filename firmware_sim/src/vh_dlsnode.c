@@ -3,10 +3,14 @@
 
 #include "vh_e2e.h"
 #include "vh_node_common.h"
-#include "vh_node_lifecycle.h"
+#include "vh_node_impl.h"
 #include "vh_pt.h"
 #include "vh_pt_enc.h"
 #include "vh_pt_meta.h"
+
+/* One channel: raw = round(phys / scale), clamped to the DBC range (the generated encoder), or
+ * the signal's SNA value when the sensor failed; and its qualifier. */
+#define CHAN(sig, SIG, c) VH_NODE_CHANNEL(m, pt, PT, dls_sensors, DLS_SENSORS, sig, SIG, ok[c], n->meas[c])
 
 void vh_dls_config_default(vh_dls_config_t *cfg)
 {
@@ -49,26 +53,13 @@ size_t vh_dls_step(vh_dls_t *n, const vh_dlp_truth_t *truth, vh_frame_t *out, si
     vh_node_sample(&n->rng, phys, NULL, n->cfg.noise_std, VH_DLS_NCH, n->meas);
     vh_node_qualify(n->meas, n->cfg.fail_mask, VH_DLS_NCH, ok);
 
-    /* raw = round(phys / scale), clamped to the DBC range (generated from the DBC) */
     (void)vh_pt_dls_sensors_init(&m);
-    m.out_shaft_speed = ok[VH_DLS_CH_WO] ? vh_pt_dls_sensors_out_shaft_speed_encode_round(n->meas[VH_DLS_CH_WO])
-                                         : VH_PT_DLS_SENSORS_OUT_SHAFT_SPEED_SNA_CHOICE;
-    m.wheel_speed_l = ok[VH_DLS_CH_WL] ? vh_pt_dls_sensors_wheel_speed_l_encode_round(n->meas[VH_DLS_CH_WL])
-                                       : VH_PT_DLS_SENSORS_WHEEL_SPEED_L_SNA_CHOICE;
-    m.wheel_speed_r = ok[VH_DLS_CH_WR] ? vh_pt_dls_sensors_wheel_speed_r_encode_round(n->meas[VH_DLS_CH_WR])
-                                       : VH_PT_DLS_SENSORS_WHEEL_SPEED_R_SNA_CHOICE;
-    m.shaft_torque = ok[VH_DLS_CH_TO] ? vh_pt_dls_sensors_shaft_torque_encode_round(n->meas[VH_DLS_CH_TO])
-                                      : (int16_t)VH_PT_DLS_SENSORS_SHAFT_TORQUE_SNA_CHOICE;
-    m.engine_speed = ok[VH_DLS_CH_WE] ? vh_pt_dls_sensors_engine_speed_encode_round(n->meas[VH_DLS_CH_WE])
-                                      : VH_PT_DLS_SENSORS_ENGINE_SPEED_SNA_CHOICE;
-    m.turbine_speed = ok[VH_DLS_CH_WT] ? vh_pt_dls_sensors_turbine_speed_encode_round(n->meas[VH_DLS_CH_WT])
-                                       : VH_PT_DLS_SENSORS_TURBINE_SPEED_SNA_CHOICE;
-    m.qf_out_shaft_speed = ok[VH_DLS_CH_WO];
-    m.qf_wheel_speed_l = ok[VH_DLS_CH_WL];
-    m.qf_wheel_speed_r = ok[VH_DLS_CH_WR];
-    m.qf_shaft_torque = ok[VH_DLS_CH_TO];
-    m.qf_engine_speed = ok[VH_DLS_CH_WE];
-    m.qf_turbine_speed = ok[VH_DLS_CH_WT];
+    CHAN(out_shaft_speed, OUT_SHAFT_SPEED, VH_DLS_CH_WO);
+    CHAN(wheel_speed_l, WHEEL_SPEED_L, VH_DLS_CH_WL);
+    CHAN(wheel_speed_r, WHEEL_SPEED_R, VH_DLS_CH_WR);
+    CHAN(shaft_torque, SHAFT_TORQUE, VH_DLS_CH_TO);
+    CHAN(engine_speed, ENGINE_SPEED, VH_DLS_CH_WE);
+    CHAN(turbine_speed, TURBINE_SPEED, VH_DLS_CH_WT);
     m.gear_engaged = (truth->gear >= 0 && truth->gear <= VH_DLP_NGEARS) ? (uint8_t)truth->gear
                                                                         : VH_PT_DLS_SENSORS_GEAR_ENGAGED_SNA_CHOICE;
 

@@ -7,6 +7,7 @@
 #include "vh_ch_enc.h"
 #include "vh_ch_meta.h"
 #include "vh_node_common.h"
+#include "vh_node_impl.h"
 #include "vh_secoc_bus.h"
 
 #define TICKS(cycle_us) ((cycle_us) / VH_TICK_US)
@@ -14,10 +15,9 @@
 #define MODE_TICKS TICKS(VH_CH_ROLL_MODE_CMD_CYCLE_TIME_US)
 #define CMD_TIMEOUT_TICKS (VH_CH_VEHEST_ROLL_CMD_RX_TIMEOUT_CYCLES * TICKS(VH_CH_VEHEST_ROLL_CMD_CYCLE_TIME_US))
 
-/* One channel through the generated encoder, or its SNA value when the sensor is dead. */
-#define ENC(msg, MSG, sig, SIG, ch) \
-    (ok[ch] ? vh_ch_##msg##_##sig##_encode_round(n->sent[ch]) : VH_CH_##MSG##_##SIG##_SNA_CHOICE)
-#define SENS(sig, SIG, ch) ENC(roll_sensors, ROLL_SENSORS, sig, SIG, ch)
+/* One channel through the generated encoder, or its SNA value when the sensor is dead; and its
+ * qualifier. */
+#define SENS(sig, SIG, c) VH_NODE_CHANNEL(m, ch, CH, roll_sensors, ROLL_SENSORS, sig, SIG, ok[c], n->sent[c])
 
 void vh_rln_config_default(vh_rln_config_t *cfg)
 {
@@ -195,40 +195,18 @@ size_t vh_rln_step(vh_rln_t *n, const vh_v14_t *p, vh_frame_t *out, size_t cap)
         vh_node_qualify(n->sent, n->cfg.fail_mask, VH_RLN_NCH, ok);
         n->n_acc = 0u;
         (void)vh_ch_roll_sensors_init(&m);
-        m.roll_lat_accel = SENS(roll_lat_accel, ROLL_LAT_ACCEL, VH_RLN_CH_AY);
-        m.wheel_vert_accel_fl = SENS(wheel_vert_accel_fl, WHEEL_VERT_ACCEL_FL, VH_RLN_CH_AZU + 0);
-        m.wheel_vert_accel_fr = SENS(wheel_vert_accel_fr, WHEEL_VERT_ACCEL_FR, VH_RLN_CH_AZU + 1);
-        m.wheel_vert_accel_rl = SENS(wheel_vert_accel_rl, WHEEL_VERT_ACCEL_RL, VH_RLN_CH_AZU + 2);
-        m.wheel_vert_accel_rr = SENS(wheel_vert_accel_rr, WHEEL_VERT_ACCEL_RR, VH_RLN_CH_AZU + 3);
-        m.tyre_defl_fl = SENS(tyre_defl_fl, TYRE_DEFL_FL, VH_RLN_CH_DT + 0);
-        m.tyre_defl_fr = SENS(tyre_defl_fr, TYRE_DEFL_FR, VH_RLN_CH_DT + 1);
-        m.tyre_defl_rl = SENS(tyre_defl_rl, TYRE_DEFL_RL, VH_RLN_CH_DT + 2);
-        m.tyre_defl_rr = SENS(tyre_defl_rr, TYRE_DEFL_RR, VH_RLN_CH_DT + 3);
-        m.susp_defl_fl = SENS(susp_defl_fl, SUSP_DEFL_FL, VH_RLN_CH_DS + 0);
-        m.susp_defl_fr = SENS(susp_defl_fr, SUSP_DEFL_FR, VH_RLN_CH_DS + 1);
-        m.susp_defl_rl = SENS(susp_defl_rl, SUSP_DEFL_RL, VH_RLN_CH_DS + 2);
-        m.susp_defl_rr = SENS(susp_defl_rr, SUSP_DEFL_RR, VH_RLN_CH_DS + 3);
-        m.qf_roll_lat_accel = ok[VH_RLN_CH_AY];
-        m.qf_wheel_vert_accel_fl = ok[VH_RLN_CH_AZU + 0];
-        m.qf_wheel_vert_accel_fr = ok[VH_RLN_CH_AZU + 1];
-        m.qf_wheel_vert_accel_rl = ok[VH_RLN_CH_AZU + 2];
-        m.qf_wheel_vert_accel_rr = ok[VH_RLN_CH_AZU + 3];
-        m.qf_tyre_defl_fl = ok[VH_RLN_CH_DT + 0];
-        m.qf_tyre_defl_fr = ok[VH_RLN_CH_DT + 1];
-        m.qf_tyre_defl_rl = ok[VH_RLN_CH_DT + 2];
-        m.qf_tyre_defl_rr = ok[VH_RLN_CH_DT + 3];
-        m.qf_susp_defl_fl = ok[VH_RLN_CH_DS + 0];
-        m.qf_susp_defl_fr = ok[VH_RLN_CH_DS + 1];
-        m.qf_susp_defl_rl = ok[VH_RLN_CH_DS + 2];
-        m.qf_susp_defl_rr = ok[VH_RLN_CH_DS + 3];
+        SENS(roll_lat_accel, ROLL_LAT_ACCEL, VH_RLN_CH_AY);
+        VH_NODE_CORNERS(SENS, wheel_vert_accel, WHEEL_VERT_ACCEL, VH_RLN_CH_AZU);
+        VH_NODE_CORNERS(SENS, tyre_defl, TYRE_DEFL, VH_RLN_CH_DT);
+        VH_NODE_CORNERS(SENS, susp_defl, SUSP_DEFL, VH_RLN_CH_DS);
         if ((f = vh_node_slot(out, &k, cap, VH_CH_ROLL_SENSORS_FRAME_ID, VH_CH_ROLL_SENSORS_LENGTH)) != NULL) {
             (void)vh_ch_roll_sensors_pack(f->data, &m, VH_CH_ROLL_SENSORS_LENGTH);
             vh_e2e_p01_protect(f->data, VH_CH_ROLL_SENSORS_LENGTH, VH_CH_ROLL_SENSORS_E2E_DATA_ID, &n->counter[0]);
         }
 
         (void)vh_ch_roll_yaw_rate_init(&y);
-        y.roll_yaw_rate = ENC(roll_yaw_rate, ROLL_YAW_RATE, roll_yaw_rate, ROLL_YAW_RATE, VH_RLN_CH_R);
-        y.qf_roll_yaw_rate = ok[VH_RLN_CH_R];
+        VH_NODE_CHANNEL(y, ch, CH, roll_yaw_rate, ROLL_YAW_RATE, roll_yaw_rate, ROLL_YAW_RATE, ok[VH_RLN_CH_R],
+                        n->sent[VH_RLN_CH_R]);
         if ((f = vh_node_slot(out, &k, cap, VH_CH_ROLL_YAW_RATE_FRAME_ID, VH_CH_ROLL_YAW_RATE_LENGTH)) != NULL) {
             (void)vh_ch_roll_yaw_rate_pack(f->data, &y, VH_CH_ROLL_YAW_RATE_LENGTH);
             vh_e2e_p01_protect(f->data, VH_CH_ROLL_YAW_RATE_LENGTH, VH_CH_ROLL_YAW_RATE_E2E_DATA_ID, &n->counter[1]);
