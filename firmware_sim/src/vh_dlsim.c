@@ -30,6 +30,18 @@ void vh_dlsim_reset(vh_dlsim_t *sim)
     }
     sim->cis_counter = 0u;
     sim->ticks = 0u;
+    if (sim->dls_secoc != NULL) {
+        vh_secoc_bus_resync(sim->dls_secoc); /* the ECU may have restarted too */
+    }
+    if (sim->cis_secoc != NULL) {
+        vh_secoc_bus_resync(sim->cis_secoc);
+    }
+}
+
+void vh_dlsim_set_secoc(vh_dlsim_t *sim, vh_secoc_bus_t *dls, vh_secoc_bus_t *cis)
+{
+    sim->dls_secoc = dls;
+    sim->cis_secoc = cis;
 }
 
 int vh_dlsim_set_camber(vh_dlsim_t *sim, const vh_cambernode_config_t cfg[VH_DLSIM_N_CIS], int pose)
@@ -77,8 +89,13 @@ size_t vh_dlsim_tick(vh_dlsim_t *sim, double throttle, int gear, vh_frame_t *out
     size_t n;
     vh_dlp_step(&sim->plant, throttle, gear);
     n = vh_dls_step(&sim->node, &sim->plant.truth, out, cap);
-    if (sim->cis_on && sim->ticks % CIS_PERIOD_TICKS == 0u && n < cap) {
-        n += cis_frame(sim, out + n);
+    if (sim->dls_secoc != NULL) {
+        n = vh_secoc_bus_tx(sim->dls_secoc, out, n, cap);
+    }
+    if (sim->cis_on) {
+        const size_t c = (sim->ticks % CIS_PERIOD_TICKS == 0u && n < cap) ? cis_frame(sim, out + n) : 0u;
+        /* the devices' SecOC hook runs every tick, as a node's does: its sync frame is due by ticks */
+        n += sim->cis_secoc != NULL ? vh_secoc_bus_tx(sim->cis_secoc, out + n, c, cap - n) : c;
     }
     ++sim->ticks;
     return n;
