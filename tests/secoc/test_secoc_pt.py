@@ -12,15 +12,14 @@ import random
 import can
 import numpy as np
 import pytest
-from daemonproc import start_daemon, stop_daemon
+from secoc_bus_helpers import authentic, daemon_lockstep, dev_keys
 
-from vehest_can.bus.bus import open_bus, private_multicast
 from vehest_can.bus.busload import bus_load
 from vehest_can.bus.frames import authentic_data, database, to_message
-from vehest_can.bus.secoc import secured_messages, write_dev_keys
+from vehest_can.bus.secoc import secured_messages
 from vehest_can.paths import dbc_path
 from vehest_can.sim.scenario import load_scenario, scenario_dir
-from vehest_can.sim.session import Car, SimMaster, drive_from_scenario, run_inprocess
+from vehest_can.sim.session import Car, drive_from_scenario, run_inprocess
 from vehest_can.systems.ecu import Ecu
 
 PT = database("pt")
@@ -34,9 +33,7 @@ SECURED = {fid for fid, (node, _, _, sync) in secured_messages().items() if node
 
 @pytest.fixture(scope="module")
 def keys(tmp_path_factory):
-    from vehest_can.cli.secoc import sending_nodes
-
-    return write_dev_keys(tmp_path_factory.mktemp("keys") / "keys.toml", sending_nodes())
+    return dev_keys(tmp_path_factory)
 
 
 def drive(keys=None, duration_s=DURATION):
@@ -73,13 +70,6 @@ def run_car(keys, attack=None, duration_s=DURATION):
         out.append(ecu.step())
         sent.append(frames)
     return out, sent, car, ecu
-
-
-def authentic(frames):
-    """Frames without their SecOC tails and without the sync frames."""
-    sync = {i for i, v in secured_messages().items() if v[3]}
-    return [[(m.arbitration_id, authentic_data(m.arbitration_id, bytes(m.data))) for m in tick
-             if m.arbitration_id not in sync] for tick in frames]
 
 
 def test_genuine_traffic_zero_rejections_and_same_estimates_as_off(keys):
@@ -157,20 +147,7 @@ def test_a_car_without_keys_is_refused_by_a_secured_ecu(keys):
 
 
 def test_inprocess_lockstep_equals_tick_by_tick_and_bus_lockstep_with_secoc_on(keys, tmp_path):
-    keyfile = tmp_path / "keys.toml"
-    write_dev_keys(keyfile, [])
-    keyfile.write_text("[keys]\n" + "".join(f'{k.node} = "{k.raw.hex()}"\n' for k in keys.values()))
-    config = private_multicast()
-    proc = start_daemon(config, "--mode", "lockstep", "--idle-timeout", "60", "--secoc-keys", str(keyfile),
-                        tmp_path=tmp_path)
-    try:
-        bus = open_bus(config)
-        try:
-            session = SimMaster(bus, drive(keys)).run_lockstep()
-        finally:
-            bus.shutdown()
-    finally:
-        rc, err = stop_daemon(proc)
+    session, rc, err = daemon_lockstep(keys, drive(keys), tmp_path)
     assert rc == 0, err
     assert "SecOC: accepted" in err and "rejected 0," in err
     local = run_inprocess(drive(keys), ecu_for(keys))
