@@ -119,22 +119,30 @@ void vh_roll_smc_params_default(vh_roll_smc_params_t *c, const vh_roll_params_t 
     c->cphi = prm->cphi_f + prm->cphi_r;
 }
 
+/* Every value in (0, 1e12): a parameter that must be positive, and not absurd. */
+static int all_positive(const double *v, size_t n)
+{
+    size_t i;
+    int ok = 1;
+    for (i = 0; i < n; ++i) {
+        ok = ok && v[i] > 0.0 && v[i] < 1e12;
+    }
+    return ok;
+}
+/* all_positive over the arguments (a C99 compound literal: the count cannot go stale) */
+#define POSITIVE(...) \
+    all_positive((const double[]){__VA_ARGS__}, sizeof((const double[]){__VA_ARGS__}) / sizeof(double))
+
 int vh_roll_params_check(const vh_roll_params_t *prm)
 {
-    double vals[26];
-    int i, ok = 1;
+    int i, ok;
     if (prm == NULL) {
         return -1;
     }
-    vals[0] = prm->ms; vals[1] = prm->ix; vals[2] = prm->iy; vals[3] = prm->iz; vals[4] = prm->lf;
-    vals[5] = prm->lr; vals[6] = prm->tf; vals[7] = prm->tr; vals[8] = prm->h; vals[9] = prm->kphi_f;
-    vals[10] = prm->kphi_r; vals[11] = prm->cphi_f; vals[12] = prm->cphi_r; vals[13] = prm->m_uf;
-    vals[14] = prm->m_ur; vals[15] = prm->k_f; vals[16] = prm->k_r; vals[17] = prm->kt;
-    vals[18] = prm->calpha_f; vals[19] = prm->calpha_r; vals[20] = prm->mf_c; vals[21] = prm->mu;
-    vals[22] = prm->mu_load; vals[23] = prm->v_low; vals[24] = prm->dt; vals[25] = prm->ct + 1.0;
-    for (i = 0; i < 26; ++i) {
-        ok = ok && vals[i] > 0.0 && vals[i] < 1e12;
-    }
+    /* ct may be 0: ct + 1 */
+    ok = POSITIVE(prm->ms, prm->ix, prm->iy, prm->iz, prm->lf, prm->lr, prm->tf, prm->tr, prm->h, prm->kphi_f,
+                  prm->kphi_r, prm->cphi_f, prm->cphi_r, prm->m_uf, prm->m_ur, prm->k_f, prm->k_r, prm->kt,
+                  prm->calpha_f, prm->calpha_r, prm->mf_c, prm->mu, prm->mu_load, prm->v_low, prm->dt, prm->ct + 1.0);
     for (i = 0; i < VH_ROLL_NX; ++i) {
         ok = ok && prm->q[i] >= 0.0 && prm->q[i] < 1e12 && prm->p0[i] > 0.0 && prm->p0[i] < 1e12;
     }
@@ -158,18 +166,14 @@ int vh_roll_params_check(const vh_roll_params_t *prm)
 
 int vh_roll_smc_params_check(const vh_roll_smc_params_t *prm)
 {
-    double v[16];
-    int i, ok = 1;
+    int ok;
     if (prm == NULL) {
         return -1;
     }
-    v[0] = prm->lambda; v[1] = prm->k; v[2] = prm->p; v[3] = prm->ref_tau; v[4] = prm->m_max_f;
-    v[5] = prm->m_max_r; v[6] = prm->rate_max_f; v[7] = prm->rate_max_r; v[8] = prm->fade_time;
-    v[9] = prm->dt; v[10] = prm->i_roll; v[11] = prm->ms_e; v[12] = prm->kphi;
-    v[13] = prm->recover_time + 1.0; v[14] = prm->cphi + 1.0; v[15] = prm->ay_tau;
-    for (i = 0; i < 16; ++i) {
-        ok = ok && v[i] > 0.0 && v[i] < 1e12;
-    }
+    /* recover_time and cphi may be 0: + 1 */
+    ok = POSITIVE(prm->lambda, prm->k, prm->p, prm->ref_tau, prm->m_max_f, prm->m_max_r, prm->rate_max_f,
+                  prm->rate_max_r, prm->fade_time, prm->dt, prm->i_roll, prm->ms_e, prm->kphi,
+                  prm->recover_time + 1.0, prm->cphi + 1.0, prm->ay_tau);
     ok = ok && prm->ref_frac >= 0.0 && prm->ref_frac <= 1.0 && prm->front_share >= 0.0 &&
          prm->front_share <= 1.0 && prm->recover_time >= 0.0 && prm->not_ok_debounce >= 0.0 &&
          prm->not_ok_debounce < 1e3 && prm->cphi >= 0.0 &&

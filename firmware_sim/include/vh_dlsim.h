@@ -12,9 +12,11 @@
 #include "vh_dlplant.h"
 #include "vh_dlsnode.h"
 #include "vh_ecu.h"
+#include "vh_secoc_bus.h"
 #include "vh_types.h"
 
-#define VH_DLSIM_MAX_TX 2
+/* DLS_Sensors and CIS_Accel, each with its node's SecOC sync frame */
+#define VH_DLSIM_MAX_TX 4
 
 #define VH_DLSIM_N_CIS 4 /* camber inspection devices FL, FR, RL, RR */
 
@@ -25,6 +27,8 @@ typedef struct {
     uint8_t cis_on;      /* devices clamped on: CIS_Accel every 10 ms */
     uint8_t cis_counter; /* E2E alive counter of CIS_Accel */
     uint32_t ticks;      /* since reset */
+    vh_secoc_bus_t *dls_secoc; /* SecOC of the DLS node and of the CIS devices (caller-owned, kept */
+    vh_secoc_bus_t *cis_secoc; /* across resets), NULL: off */
 } vh_dlsim_t;
 
 int vh_dlsim_init(vh_dlsim_t *sim, const vh_dlp_params_t *prm, uint64_t plant_seed, const vh_dls_config_t *node);
@@ -32,6 +36,10 @@ void vh_dlsim_reset(vh_dlsim_t *sim);
 /* Clamp the four camber inspection devices on (seed 002), in a fixture pose
  * (vh_cambernode_pose_t); NULL switches them off. VH_EINVAL for a bad config (nothing changed). */
 int vh_dlsim_set_camber(vh_dlsim_t *sim, const vh_cambernode_config_t cfg[VH_DLSIM_N_CIS], int pose);
+/* SecOC for the nodes' frames: dls for node DLS (DLS_Sensors), cis for node CIS (CIS_Accel), each
+ * vh_secoc_bus_init'ed for its node, keyed and started; NULL leaves that node's frames unsecured.
+ * vh_dlsim_init clears both. */
+void vh_dlsim_set_secoc(vh_dlsim_t *sim, vh_secoc_bus_t *dls, vh_secoc_bus_t *cis);
 /* One tick of the car with the driver's throttle and gear; returns the frames written to out. */
 size_t vh_dlsim_tick(vh_dlsim_t *sim, double throttle, int gear, vh_frame_t *out, size_t cap);
 

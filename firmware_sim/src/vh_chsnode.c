@@ -7,11 +7,12 @@
 #include "vh_ch_enc.h"
 #include "vh_ch_meta.h"
 #include "vh_e2e.h"
+#include "vh_node_common.h"
+#include "vh_node_impl.h"
 
 /* One channel: raw = round(phys / scale) clamped to the DBC range (the generated encoder), or
- * the signal's SNA value when the sensor failed. */
-#define ENC(sig, SIG, ch) \
-    (ok[ch] ? vh_ch_chs_sensors_##sig##_encode_round(n->meas[ch]) : VH_CH_CHS_SENSORS_##SIG##_SNA_CHOICE)
+ * the signal's SNA value when the sensor failed; and its qualifier. */
+#define CHAN(sig, SIG, c) VH_NODE_CHANNEL(m, ch, CH, chs_sensors, CHS_SENSORS, sig, SIG, ok[c], n->meas[c])
 
 void vh_chs_config_default(vh_chs_config_t *cfg)
 {
@@ -37,32 +38,7 @@ void vh_chs_config_default(vh_chs_config_t *cfg)
     cfg->accel_gravity = 0;
 }
 
-int vh_chs_init(vh_chs_t *n, const vh_chs_config_t *cfg)
-{
-    int i;
-    if (n == NULL || cfg == NULL) {
-        return VH_EINVAL;
-    }
-    for (i = 0; i < VH_CHS_NCH; ++i) {
-        if (!(cfg->noise_std[i] >= 0.0) || !isfinite(cfg->noise_std[i]) || !isfinite(cfg->bias[i])) {
-            return VH_EINVAL;
-        }
-    }
-    n->cfg = *cfg;
-    vh_chs_reset(n);
-    return VH_OK;
-}
-
-void vh_chs_reset(vh_chs_t *n)
-{
-    int i;
-    vh_rng_seed(&n->rng, n->cfg.seed);
-    for (i = 0; i < VH_CHS_NCH; ++i) {
-        n->meas[i] = 0.0;
-    }
-    n->counter = 0u;
-    n->frames = 0u;
-}
+VH_NODE_LIFECYCLE(chs, VH_CHS_NCH, cfg->bias)
 
 size_t vh_chs_step(vh_chs_t *n, const vh_v14_truth_t *truth, vh_frame_t *out, size_t cap)
 {
@@ -89,49 +65,20 @@ size_t vh_chs_step(vh_chs_t *n, const vh_v14_truth_t *truth, vh_frame_t *out, si
         phys[VH_CHS_CH_W + i] = truth->omega[i];
         phys[VH_CHS_CH_T + i] = truth->torque[i];
     }
-    for (i = 0; i < VH_CHS_NCH; ++i) {
-        n->meas[i] = phys[i] + n->cfg.bias[i] + n->cfg.noise_std[i] * vh_rng_gauss(&n->rng);
-        /* a sensor that reads garbage reports it rather than sending a clamped number */
-        ok[i] = (uint8_t)(isfinite(n->meas[i]) && !(n->cfg.fail_mask & (1u << i)));
-    }
+    vh_node_sample(&n->rng, phys, n->cfg.bias, n->cfg.noise_std, VH_CHS_NCH, n->meas);
+    vh_node_qualify(n->meas, n->cfg.fail_mask, VH_CHS_NCH, ok);
     (void)vh_ch_chs_sensors_init(&m);
-    m.long_accel = ENC(long_accel, LONG_ACCEL, VH_CHS_CH_AX);
-    m.lat_accel = ENC(lat_accel, LAT_ACCEL, VH_CHS_CH_AY);
-    m.yaw_rate = ENC(yaw_rate, YAW_RATE, VH_CHS_CH_YAW);
-    m.roll_rate = ENC(roll_rate, ROLL_RATE, VH_CHS_CH_ROLL);
-    m.steer_angle = ENC(steer_angle, STEER_ANGLE, VH_CHS_CH_STEER);
-    m.wheel_speed_fl = ENC(wheel_speed_fl, WHEEL_SPEED_FL, VH_CHS_CH_W + 0);
-    m.wheel_speed_fr = ENC(wheel_speed_fr, WHEEL_SPEED_FR, VH_CHS_CH_W + 1);
-    m.wheel_speed_rl = ENC(wheel_speed_rl, WHEEL_SPEED_RL, VH_CHS_CH_W + 2);
-    m.wheel_speed_rr = ENC(wheel_speed_rr, WHEEL_SPEED_RR, VH_CHS_CH_W + 3);
-    m.wheel_torque_fl = ENC(wheel_torque_fl, WHEEL_TORQUE_FL, VH_CHS_CH_T + 0);
-    m.wheel_torque_fr = ENC(wheel_torque_fr, WHEEL_TORQUE_FR, VH_CHS_CH_T + 1);
-    m.wheel_torque_rl = ENC(wheel_torque_rl, WHEEL_TORQUE_RL, VH_CHS_CH_T + 2);
-    m.wheel_torque_rr = ENC(wheel_torque_rr, WHEEL_TORQUE_RR, VH_CHS_CH_T + 3);
-    m.qf_long_accel = ok[VH_CHS_CH_AX];
-    m.qf_lat_accel = ok[VH_CHS_CH_AY];
-    m.qf_yaw_rate = ok[VH_CHS_CH_YAW];
-    m.qf_roll_rate = ok[VH_CHS_CH_ROLL];
-    m.qf_steer_angle = ok[VH_CHS_CH_STEER];
-    m.qf_wheel_speed_fl = ok[VH_CHS_CH_W + 0];
-    m.qf_wheel_speed_fr = ok[VH_CHS_CH_W + 1];
-    m.qf_wheel_speed_rl = ok[VH_CHS_CH_W + 2];
-    m.qf_wheel_speed_rr = ok[VH_CHS_CH_W + 3];
-    m.qf_wheel_torque_fl = ok[VH_CHS_CH_T + 0];
-    m.qf_wheel_torque_fr = ok[VH_CHS_CH_T + 1];
-    m.qf_wheel_torque_rl = ok[VH_CHS_CH_T + 2];
-    m.qf_wheel_torque_rr = ok[VH_CHS_CH_T + 3];
+    CHAN(long_accel, LONG_ACCEL, VH_CHS_CH_AX);
+    CHAN(lat_accel, LAT_ACCEL, VH_CHS_CH_AY);
+    CHAN(yaw_rate, YAW_RATE, VH_CHS_CH_YAW);
+    CHAN(roll_rate, ROLL_RATE, VH_CHS_CH_ROLL);
+    CHAN(steer_angle, STEER_ANGLE, VH_CHS_CH_STEER);
+    VH_NODE_CORNERS(CHAN, wheel_speed, WHEEL_SPEED, VH_CHS_CH_W);
+    VH_NODE_CORNERS(CHAN, wheel_torque, WHEEL_TORQUE, VH_CHS_CH_T);
 
-    for (i = 0; i < VH_FRAME_MAX_LEN; ++i) {
-        out->data[i] = 0u;
-    }
-    out->id = VH_CH_CHS_SENSORS_FRAME_ID;
-    out->len = (uint8_t)VH_CH_CHS_SENSORS_LENGTH;
-    out->flags = (uint8_t)(VH_FRAME_FD | VH_FRAME_BRS);
+    vh_node_frame_init(out, VH_CH_CHS_SENSORS_FRAME_ID, VH_CH_CHS_SENSORS_LENGTH);
     (void)vh_ch_chs_sensors_pack(out->data, &m, VH_CH_CHS_SENSORS_LENGTH);
     vh_e2e_p01_protect(out->data, VH_CH_CHS_SENSORS_LENGTH, VH_CH_CHS_SENSORS_E2E_DATA_ID, &n->counter);
-    if (n->frames < UINT32_MAX) {
-        ++n->frames;
-    }
+    vh_node_count(&n->frames);
     return 1u;
 }

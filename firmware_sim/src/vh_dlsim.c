@@ -3,6 +3,7 @@
 
 #include "vh_dlsim.h"
 #include "vh_e2e.h"
+#include "vh_node_common.h"
 #include "vh_pt.h"
 #include "vh_pt_meta.h"
 
@@ -29,6 +30,18 @@ void vh_dlsim_reset(vh_dlsim_t *sim)
     }
     sim->cis_counter = 0u;
     sim->ticks = 0u;
+    if (sim->dls_secoc != NULL) {
+        vh_secoc_bus_resync(sim->dls_secoc); /* the ECU may have restarted too */
+    }
+    if (sim->cis_secoc != NULL) {
+        vh_secoc_bus_resync(sim->cis_secoc);
+    }
+}
+
+void vh_dlsim_set_secoc(vh_dlsim_t *sim, vh_secoc_bus_t *dls, vh_secoc_bus_t *cis)
+{
+    sim->dls_secoc = dls;
+    sim->cis_secoc = cis;
 }
 
 int vh_dlsim_set_camber(vh_dlsim_t *sim, const vh_cambernode_config_t cfg[VH_DLSIM_N_CIS], int pose)
@@ -65,10 +78,7 @@ static size_t cis_frame(vh_dlsim_t *sim, vh_frame_t *f)
     m.cis_acc_x_rl = raw[2][0]; m.cis_acc_y_rl = raw[2][1]; m.cis_acc_z_rl = raw[2][2];
     m.cis_acc_x_rr = raw[3][0]; m.cis_acc_y_rr = raw[3][1]; m.cis_acc_z_rr = raw[3][2];
     m.cis_present = 0xFu;
-    memset(f, 0, sizeof *f);
-    f->id = VH_PT_CIS_ACCEL_FRAME_ID;
-    f->len = VH_PT_CIS_ACCEL_LENGTH;
-    f->flags = VH_FRAME_FD | VH_FRAME_BRS;
+    vh_node_frame_init(f, VH_PT_CIS_ACCEL_FRAME_ID, VH_PT_CIS_ACCEL_LENGTH);
     (void)vh_pt_cis_accel_pack(f->data, &m, f->len);
     vh_e2e_p01_protect(f->data, f->len, VH_PT_CIS_ACCEL_E2E_DATA_ID, &sim->cis_counter);
     return 1u;
@@ -79,8 +89,13 @@ size_t vh_dlsim_tick(vh_dlsim_t *sim, double throttle, int gear, vh_frame_t *out
     size_t n;
     vh_dlp_step(&sim->plant, throttle, gear);
     n = vh_dls_step(&sim->node, &sim->plant.truth, out, cap);
-    if (sim->cis_on && sim->ticks % CIS_PERIOD_TICKS == 0u && n < cap) {
-        n += cis_frame(sim, out + n);
+    if (sim->dls_secoc != NULL) {
+        n = vh_secoc_bus_tx(sim->dls_secoc, out, n, cap);
+    }
+    if (sim->cis_on) {
+        const size_t c = (sim->ticks % CIS_PERIOD_TICKS == 0u && n < cap) ? cis_frame(sim, out + n) : 0u;
+        /* the devices' SecOC hook runs every tick, as a node's does: its sync frame is due by ticks */
+        n += sim->cis_secoc != NULL ? vh_secoc_bus_tx(sim->cis_secoc, out + n, c, cap - n) : c;
     }
     ++sim->ticks;
     return n;

@@ -1,12 +1,16 @@
 /* vh_dlsnode.c - see vh_dlsnode.h. */
 #include "vh_dlsnode.h"
 
-#include <math.h>
-
 #include "vh_e2e.h"
+#include "vh_node_common.h"
+#include "vh_node_impl.h"
 #include "vh_pt.h"
 #include "vh_pt_enc.h"
 #include "vh_pt_meta.h"
+
+/* One channel: raw = round(phys / scale), clamped to the DBC range (the generated encoder), or
+ * the signal's SNA value when the sensor failed; and its qualifier. */
+#define CHAN(sig, SIG, c) VH_NODE_CHANNEL(m, pt, PT, dls_sensors, DLS_SENSORS, sig, SIG, ok[c], n->meas[c])
 
 void vh_dls_config_default(vh_dls_config_t *cfg)
 {
@@ -28,39 +32,13 @@ void vh_dls_config_default(vh_dls_config_t *cfg)
     cfg->fail_mask = 0u;
 }
 
-int vh_dls_init(vh_dls_t *n, const vh_dls_config_t *cfg)
-{
-    int i;
-    if (n == NULL || cfg == NULL) {
-        return VH_EINVAL;
-    }
-    for (i = 0; i < VH_DLS_NCH; ++i) {
-        if (!(cfg->noise_std[i] >= 0.0) || !isfinite(cfg->noise_std[i])) {
-            return VH_EINVAL;
-        }
-    }
-    n->cfg = *cfg;
-    vh_dls_reset(n);
-    return VH_OK;
-}
-
-void vh_dls_reset(vh_dls_t *n)
-{
-    int i;
-    vh_rng_seed(&n->rng, n->cfg.seed);
-    for (i = 0; i < VH_DLS_NCH; ++i) {
-        n->meas[i] = 0.0;
-    }
-    n->counter = 0u;
-    n->frames = 0u;
-}
+VH_NODE_LIFECYCLE(dls, VH_DLS_NCH, NULL)
 
 size_t vh_dls_step(vh_dls_t *n, const vh_dlp_truth_t *truth, vh_frame_t *out, size_t cap)
 {
     struct vh_pt_dls_sensors_t m;
     double phys[VH_DLS_NCH];
     uint8_t ok[VH_DLS_NCH];
-    int i;
 
     if (out == NULL || cap == 0u || truth == NULL) {
         return 0u;
@@ -72,45 +50,22 @@ size_t vh_dls_step(vh_dls_t *n, const vh_dlp_truth_t *truth, vh_frame_t *out, si
     phys[VH_DLS_CH_TO] = truth->to;
     phys[VH_DLS_CH_WE] = truth->we;
     phys[VH_DLS_CH_WT] = truth->wt;
-    for (i = 0; i < VH_DLS_NCH; ++i) {
-        n->meas[i] = phys[i] + n->cfg.noise_std[i] * vh_rng_gauss(&n->rng);
-        /* a sensor that reads garbage reports it rather than sending a clamped number */
-        ok[i] = (uint8_t)(isfinite(n->meas[i]) && !(n->cfg.fail_mask & (1u << i)));
-    }
+    vh_node_sample(&n->rng, phys, NULL, n->cfg.noise_std, VH_DLS_NCH, n->meas);
+    vh_node_qualify(n->meas, n->cfg.fail_mask, VH_DLS_NCH, ok);
 
-    /* raw = round(phys / scale), clamped to the DBC range (generated from the DBC) */
     (void)vh_pt_dls_sensors_init(&m);
-    m.out_shaft_speed = ok[VH_DLS_CH_WO] ? vh_pt_dls_sensors_out_shaft_speed_encode_round(n->meas[VH_DLS_CH_WO])
-                                         : VH_PT_DLS_SENSORS_OUT_SHAFT_SPEED_SNA_CHOICE;
-    m.wheel_speed_l = ok[VH_DLS_CH_WL] ? vh_pt_dls_sensors_wheel_speed_l_encode_round(n->meas[VH_DLS_CH_WL])
-                                       : VH_PT_DLS_SENSORS_WHEEL_SPEED_L_SNA_CHOICE;
-    m.wheel_speed_r = ok[VH_DLS_CH_WR] ? vh_pt_dls_sensors_wheel_speed_r_encode_round(n->meas[VH_DLS_CH_WR])
-                                       : VH_PT_DLS_SENSORS_WHEEL_SPEED_R_SNA_CHOICE;
-    m.shaft_torque = ok[VH_DLS_CH_TO] ? vh_pt_dls_sensors_shaft_torque_encode_round(n->meas[VH_DLS_CH_TO])
-                                      : (int16_t)VH_PT_DLS_SENSORS_SHAFT_TORQUE_SNA_CHOICE;
-    m.engine_speed = ok[VH_DLS_CH_WE] ? vh_pt_dls_sensors_engine_speed_encode_round(n->meas[VH_DLS_CH_WE])
-                                      : VH_PT_DLS_SENSORS_ENGINE_SPEED_SNA_CHOICE;
-    m.turbine_speed = ok[VH_DLS_CH_WT] ? vh_pt_dls_sensors_turbine_speed_encode_round(n->meas[VH_DLS_CH_WT])
-                                       : VH_PT_DLS_SENSORS_TURBINE_SPEED_SNA_CHOICE;
-    m.qf_out_shaft_speed = ok[VH_DLS_CH_WO];
-    m.qf_wheel_speed_l = ok[VH_DLS_CH_WL];
-    m.qf_wheel_speed_r = ok[VH_DLS_CH_WR];
-    m.qf_shaft_torque = ok[VH_DLS_CH_TO];
-    m.qf_engine_speed = ok[VH_DLS_CH_WE];
-    m.qf_turbine_speed = ok[VH_DLS_CH_WT];
+    CHAN(out_shaft_speed, OUT_SHAFT_SPEED, VH_DLS_CH_WO);
+    CHAN(wheel_speed_l, WHEEL_SPEED_L, VH_DLS_CH_WL);
+    CHAN(wheel_speed_r, WHEEL_SPEED_R, VH_DLS_CH_WR);
+    CHAN(shaft_torque, SHAFT_TORQUE, VH_DLS_CH_TO);
+    CHAN(engine_speed, ENGINE_SPEED, VH_DLS_CH_WE);
+    CHAN(turbine_speed, TURBINE_SPEED, VH_DLS_CH_WT);
     m.gear_engaged = (truth->gear >= 0 && truth->gear <= VH_DLP_NGEARS) ? (uint8_t)truth->gear
                                                                         : VH_PT_DLS_SENSORS_GEAR_ENGAGED_SNA_CHOICE;
 
-    for (i = 0; i < VH_FRAME_MAX_LEN; ++i) {
-        out->data[i] = 0u;
-    }
-    out->id = VH_PT_DLS_SENSORS_FRAME_ID;
-    out->len = (uint8_t)VH_PT_DLS_SENSORS_LENGTH;
-    out->flags = (uint8_t)(VH_FRAME_FD | VH_FRAME_BRS);
+    vh_node_frame_init(out, VH_PT_DLS_SENSORS_FRAME_ID, VH_PT_DLS_SENSORS_LENGTH);
     (void)vh_pt_dls_sensors_pack(out->data, &m, VH_PT_DLS_SENSORS_LENGTH);
     vh_e2e_p01_protect(out->data, VH_PT_DLS_SENSORS_LENGTH, VH_PT_DLS_SENSORS_E2E_DATA_ID, &n->counter);
-    if (n->frames < UINT32_MAX) {
-        ++n->frames;
-    }
+    vh_node_count(&n->frames);
     return 1u;
 }

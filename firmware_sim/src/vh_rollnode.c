@@ -6,6 +6,8 @@
 #include "vh_ch.h"
 #include "vh_ch_enc.h"
 #include "vh_ch_meta.h"
+#include "vh_node_common.h"
+#include "vh_node_impl.h"
 #include "vh_secoc_bus.h"
 
 #define TICKS(cycle_us) ((cycle_us) / VH_TICK_US)
@@ -13,10 +15,9 @@
 #define MODE_TICKS TICKS(VH_CH_ROLL_MODE_CMD_CYCLE_TIME_US)
 #define CMD_TIMEOUT_TICKS (VH_CH_VEHEST_ROLL_CMD_RX_TIMEOUT_CYCLES * TICKS(VH_CH_VEHEST_ROLL_CMD_CYCLE_TIME_US))
 
-/* One channel through the generated encoder, or its SNA value when the sensor is dead. */
-#define ENC(msg, MSG, sig, SIG, ch) \
-    (ok[ch] ? vh_ch_##msg##_##sig##_encode_round(n->sent[ch]) : VH_CH_##MSG##_##SIG##_SNA_CHOICE)
-#define SENS(sig, SIG, ch) ENC(roll_sensors, ROLL_SENSORS, sig, SIG, ch)
+/* One channel through the generated encoder, or its SNA value when the sensor is dead; and its
+ * qualifier. */
+#define SENS(sig, SIG, c) VH_NODE_CHANNEL(m, ch, CH, roll_sensors, ROLL_SENSORS, sig, SIG, ok[c], n->sent[c])
 
 void vh_rln_config_default(vh_rln_config_t *cfg)
 {
@@ -42,14 +43,8 @@ void vh_rln_config_default(vh_rln_config_t *cfg)
 
 int vh_rln_init(vh_rln_t *n, const vh_rln_config_t *cfg)
 {
-    int i;
-    if (n == NULL || cfg == NULL) {
+    if (n == NULL || cfg == NULL || vh_node_check(cfg->noise_std, cfg->bias, VH_RLN_NCH) != VH_OK) {
         return VH_EINVAL;
-    }
-    for (i = 0; i < VH_RLN_NCH; ++i) {
-        if (!(cfg->noise_std[i] >= 0.0) || !isfinite(cfg->noise_std[i]) || !isfinite(cfg->bias[i])) {
-            return VH_EINVAL;
-        }
     }
     n->cfg = *cfg;
     n->secoc = NULL;
@@ -60,9 +55,8 @@ int vh_rln_init(vh_rln_t *n, const vh_rln_config_t *cfg)
 void vh_rln_reset(vh_rln_t *n)
 {
     int i;
-    vh_rng_seed(&n->rng, n->cfg.seed);
+    vh_node_restart(&n->rng, n->cfg.seed, n->acc, VH_RLN_NCH);
     for (i = 0; i < VH_RLN_NCH; ++i) {
-        n->acc[i] = 0.0;
         n->sent[i] = 0.0;
     }
     for (i = 0; i < VH_V14_NW; ++i) {
@@ -160,23 +154,6 @@ void vh_rln_actuate(vh_rln_t *n, vh_v14_t *p)
     }
 }
 
-static vh_frame_t *slot(vh_frame_t *out, size_t *k, size_t cap, uint32_t id, size_t len)
-{
-    vh_frame_t *f;
-    int i;
-    if (*k >= cap) {
-        return NULL;
-    }
-    f = &out[(*k)++];
-    for (i = 0; i < VH_FRAME_MAX_LEN; ++i) {
-        f->data[i] = 0u;
-    }
-    f->id = id;
-    f->len = (uint8_t)len;
-    f->flags = (uint8_t)(VH_FRAME_FD | VH_FRAME_BRS);
-    return f;
-}
-
 static uint8_t sat8(uint32_t v) { return (uint8_t)(v > 255u ? 255u : v); }
 
 size_t vh_rln_step(vh_rln_t *n, const vh_v14_t *p, vh_frame_t *out, size_t cap)
@@ -198,8 +175,9 @@ size_t vh_rln_step(vh_rln_t *n, const vh_v14_t *p, vh_frame_t *out, size_t cap)
         phys[VH_RLN_CH_DS + i] = t->zu[i] - zs;
     }
     phys[VH_RLN_CH_R] = t->r;
+    vh_node_sample(&n->rng, phys, n->cfg.bias, n->cfg.noise_std, VH_RLN_NCH, phys);
     for (i = 0; i < VH_RLN_NCH; ++i) {
-        n->acc[i] += phys[i] + n->cfg.bias[i] + n->cfg.noise_std[i] * vh_rng_gauss(&n->rng);
+        n->acc[i] += phys[i];
     }
     ++n->n_acc;
 
@@ -212,46 +190,24 @@ size_t vh_rln_step(vh_rln_t *n, const vh_v14_t *p, vh_frame_t *out, size_t cap)
             if (!(n->cfg.stuck_mask & (1u << i))) {
                 n->sent[i] = v;
             }
-            ok[i] = (uint8_t)(isfinite(n->sent[i]) && !(n->cfg.fail_mask & (1u << i)));
             n->acc[i] = 0.0;
         }
+        vh_node_qualify(n->sent, n->cfg.fail_mask, VH_RLN_NCH, ok);
         n->n_acc = 0u;
         (void)vh_ch_roll_sensors_init(&m);
-        m.roll_lat_accel = SENS(roll_lat_accel, ROLL_LAT_ACCEL, VH_RLN_CH_AY);
-        m.wheel_vert_accel_fl = SENS(wheel_vert_accel_fl, WHEEL_VERT_ACCEL_FL, VH_RLN_CH_AZU + 0);
-        m.wheel_vert_accel_fr = SENS(wheel_vert_accel_fr, WHEEL_VERT_ACCEL_FR, VH_RLN_CH_AZU + 1);
-        m.wheel_vert_accel_rl = SENS(wheel_vert_accel_rl, WHEEL_VERT_ACCEL_RL, VH_RLN_CH_AZU + 2);
-        m.wheel_vert_accel_rr = SENS(wheel_vert_accel_rr, WHEEL_VERT_ACCEL_RR, VH_RLN_CH_AZU + 3);
-        m.tyre_defl_fl = SENS(tyre_defl_fl, TYRE_DEFL_FL, VH_RLN_CH_DT + 0);
-        m.tyre_defl_fr = SENS(tyre_defl_fr, TYRE_DEFL_FR, VH_RLN_CH_DT + 1);
-        m.tyre_defl_rl = SENS(tyre_defl_rl, TYRE_DEFL_RL, VH_RLN_CH_DT + 2);
-        m.tyre_defl_rr = SENS(tyre_defl_rr, TYRE_DEFL_RR, VH_RLN_CH_DT + 3);
-        m.susp_defl_fl = SENS(susp_defl_fl, SUSP_DEFL_FL, VH_RLN_CH_DS + 0);
-        m.susp_defl_fr = SENS(susp_defl_fr, SUSP_DEFL_FR, VH_RLN_CH_DS + 1);
-        m.susp_defl_rl = SENS(susp_defl_rl, SUSP_DEFL_RL, VH_RLN_CH_DS + 2);
-        m.susp_defl_rr = SENS(susp_defl_rr, SUSP_DEFL_RR, VH_RLN_CH_DS + 3);
-        m.qf_roll_lat_accel = ok[VH_RLN_CH_AY];
-        m.qf_wheel_vert_accel_fl = ok[VH_RLN_CH_AZU + 0];
-        m.qf_wheel_vert_accel_fr = ok[VH_RLN_CH_AZU + 1];
-        m.qf_wheel_vert_accel_rl = ok[VH_RLN_CH_AZU + 2];
-        m.qf_wheel_vert_accel_rr = ok[VH_RLN_CH_AZU + 3];
-        m.qf_tyre_defl_fl = ok[VH_RLN_CH_DT + 0];
-        m.qf_tyre_defl_fr = ok[VH_RLN_CH_DT + 1];
-        m.qf_tyre_defl_rl = ok[VH_RLN_CH_DT + 2];
-        m.qf_tyre_defl_rr = ok[VH_RLN_CH_DT + 3];
-        m.qf_susp_defl_fl = ok[VH_RLN_CH_DS + 0];
-        m.qf_susp_defl_fr = ok[VH_RLN_CH_DS + 1];
-        m.qf_susp_defl_rl = ok[VH_RLN_CH_DS + 2];
-        m.qf_susp_defl_rr = ok[VH_RLN_CH_DS + 3];
-        if ((f = slot(out, &k, cap, VH_CH_ROLL_SENSORS_FRAME_ID, VH_CH_ROLL_SENSORS_LENGTH)) != NULL) {
+        SENS(roll_lat_accel, ROLL_LAT_ACCEL, VH_RLN_CH_AY);
+        VH_NODE_CORNERS(SENS, wheel_vert_accel, WHEEL_VERT_ACCEL, VH_RLN_CH_AZU);
+        VH_NODE_CORNERS(SENS, tyre_defl, TYRE_DEFL, VH_RLN_CH_DT);
+        VH_NODE_CORNERS(SENS, susp_defl, SUSP_DEFL, VH_RLN_CH_DS);
+        if ((f = vh_node_slot(out, &k, cap, VH_CH_ROLL_SENSORS_FRAME_ID, VH_CH_ROLL_SENSORS_LENGTH)) != NULL) {
             (void)vh_ch_roll_sensors_pack(f->data, &m, VH_CH_ROLL_SENSORS_LENGTH);
             vh_e2e_p01_protect(f->data, VH_CH_ROLL_SENSORS_LENGTH, VH_CH_ROLL_SENSORS_E2E_DATA_ID, &n->counter[0]);
         }
 
         (void)vh_ch_roll_yaw_rate_init(&y);
-        y.roll_yaw_rate = ENC(roll_yaw_rate, ROLL_YAW_RATE, roll_yaw_rate, ROLL_YAW_RATE, VH_RLN_CH_R);
-        y.qf_roll_yaw_rate = ok[VH_RLN_CH_R];
-        if ((f = slot(out, &k, cap, VH_CH_ROLL_YAW_RATE_FRAME_ID, VH_CH_ROLL_YAW_RATE_LENGTH)) != NULL) {
+        VH_NODE_CHANNEL(y, ch, CH, roll_yaw_rate, ROLL_YAW_RATE, roll_yaw_rate, ROLL_YAW_RATE, ok[VH_RLN_CH_R],
+                        n->sent[VH_RLN_CH_R]);
+        if ((f = vh_node_slot(out, &k, cap, VH_CH_ROLL_YAW_RATE_FRAME_ID, VH_CH_ROLL_YAW_RATE_LENGTH)) != NULL) {
             (void)vh_ch_roll_yaw_rate_pack(f->data, &y, VH_CH_ROLL_YAW_RATE_LENGTH);
             vh_e2e_p01_protect(f->data, VH_CH_ROLL_YAW_RATE_LENGTH, VH_CH_ROLL_YAW_RATE_E2E_DATA_ID, &n->counter[1]);
         }
@@ -262,7 +218,8 @@ size_t vh_rln_step(vh_rln_t *n, const vh_v14_t *p, vh_frame_t *out, size_t cap)
         s.applied_moment_r = vh_ch_roll_actuator_status_applied_moment_r_encode_round(p->arc.m[1]);
         s.cnt_cmd_timeout = sat8(n->cnt_timeout);
         s.cnt_cmd_rejected = sat8(n->cnt_rejected);
-        if ((f = slot(out, &k, cap, VH_CH_ROLL_ACTUATOR_STATUS_FRAME_ID, VH_CH_ROLL_ACTUATOR_STATUS_LENGTH)) != NULL) {
+        f = vh_node_slot(out, &k, cap, VH_CH_ROLL_ACTUATOR_STATUS_FRAME_ID, VH_CH_ROLL_ACTUATOR_STATUS_LENGTH);
+        if (f != NULL) {
             (void)vh_ch_roll_actuator_status_pack(f->data, &s, VH_CH_ROLL_ACTUATOR_STATUS_LENGTH);
             vh_e2e_p01_protect(f->data, VH_CH_ROLL_ACTUATOR_STATUS_LENGTH, VH_CH_ROLL_ACTUATOR_STATUS_E2E_DATA_ID,
                                &n->counter[2]);
@@ -272,7 +229,7 @@ size_t vh_rln_step(vh_rln_t *n, const vh_v14_t *p, vh_frame_t *out, size_t cap)
         struct vh_ch_roll_mode_cmd_t mc;
         (void)vh_ch_roll_mode_cmd_init(&mc);
         mc.roll_mode_req = n->cfg.mode_active ? 1u : 0u;
-        if ((f = slot(out, &k, cap, VH_CH_ROLL_MODE_CMD_FRAME_ID, VH_CH_ROLL_MODE_CMD_LENGTH)) != NULL) {
+        if ((f = vh_node_slot(out, &k, cap, VH_CH_ROLL_MODE_CMD_FRAME_ID, VH_CH_ROLL_MODE_CMD_LENGTH)) != NULL) {
             (void)vh_ch_roll_mode_cmd_pack(f->data, &mc, VH_CH_ROLL_MODE_CMD_LENGTH);
             vh_e2e_p01_protect(f->data, VH_CH_ROLL_MODE_CMD_LENGTH, VH_CH_ROLL_MODE_CMD_E2E_DATA_ID, &n->counter[3]);
         }

@@ -310,7 +310,7 @@ def test_cli_project_bus(capsys):
     out = capsys.readouterr().out
     load = bus_load(dbc_path("pt"))
     assert "vehest_pt" in out and "500k/4M" in out and f"{load.worst_pct:.1f}" in out
-    assert "DLS_Sensors" in out and "33+194" in out and "event" in out
+    assert "DLS_Sensors" in out and "33+239" in out and "event" in out  # 20 bytes: 16 + the SecOC tail
 
 
 def test_cli_foreign_bus_json_and_limit(foreign_dbc, capsys):

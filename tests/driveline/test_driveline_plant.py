@@ -464,8 +464,8 @@ def test_node_frame_without_noise_is_truth_quantised(db):
         lib.vh_dlp_step(p, 0.4 if k > 50 else 0.0, 2)
         f, data = step_frame(n, ffi.addressof(p, "truth"))
         assert f.id == msg.frame_id and not msg.is_extended_frame
-        assert f.len == 16 and f.flags == lib.VH_FRAME_FD | lib.VH_FRAME_BRS
-        assert all(b == 0 for b in f.data[16:64])
+        assert f.len == msg.length == 20 and f.flags == lib.VH_FRAME_FD | lib.VH_FRAME_BRS
+        assert all(b == 0 for b in f.data[16:64])  # the SecOC tail (16..19) stays zero without SecOC
         sig = db.decode_message(msg.frame_id, data, decode_choices=False)
         for name, field, scale in CHANNELS:
             phys = getattr(p.truth, field)
@@ -496,7 +496,8 @@ def test_node_noise_matches_its_configuration(db):
 
 
 def test_node_e2e_crc_and_counter(db):
-    data_id = db.get_message_by_name("DLS_Sensors").dbc.attributes["E2EDataID"].value
+    msg = db.get_message_by_name("DLS_Sensors")
+    data_id, length = msg.dbc.attributes["E2EDataID"].value, msg.length  # over the whole frame, tail too
     n = node()
     p = plant()
     rx = ffi.new("vh_e2e_rx_t *")
@@ -505,9 +506,9 @@ def test_node_e2e_crc_and_counter(db):
     for k in range(40):
         lib.vh_dlp_step(p, 0.3, 2)
         f, data = step_frame(n, ffi.addressof(p, "truth"))
-        assert data[0] == lib.vh_e2e_p01_crc(f.data, 16, data_id)
+        assert data[0] == lib.vh_e2e_p01_crc(f.data, length, data_id)
         counters.append(data[1] & 0x0F)
-        status = lib.vh_e2e_p01_check(rx, f.data, 16, data_id)
+        status = lib.vh_e2e_p01_check(rx, f.data, length, data_id)
         assert status == (lib.VH_E2E_INITIAL if k == 0 else lib.VH_E2E_OK)
     assert counters == [k % 15 for k in range(40)]
     assert n.frames == 40

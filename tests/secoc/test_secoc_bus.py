@@ -12,16 +12,15 @@ import random
 import can
 import numpy as np
 import pytest
-from daemonproc import start_daemon, stop_daemon
+from secoc_bus_helpers import authentic, daemon_lockstep, dev_keys
 
-from vehest_can.bus.bus import open_bus, private_multicast
 from vehest_can.bus.busload import bus_load
 from vehest_can.bus.frames import authentic_data, database, to_frame, to_message
 from vehest_can.bus.log import read_log
-from vehest_can.bus.secoc import FreshnessStore, Key, secured_messages, write_dev_keys
+from vehest_can.bus.secoc import FreshnessStore, Key, secured_messages
 from vehest_can.native import ffi
 from vehest_can.paths import dbc_path
-from vehest_can.sim.session import SimMaster, run_inprocess
+from vehest_can.sim.session import run_inprocess
 from vehest_can.systems.ecu import Ecu
 from vehest_can.systems.roll.scenario import RollCar, load_roll_scenario
 
@@ -38,9 +37,7 @@ ROLL_SECURED = {fid for fid, (node, _, _, sync) in secured_messages().items() if
 
 @pytest.fixture(scope="module")
 def keys(tmp_path_factory):
-    from vehest_can.cli.secoc import sending_nodes
-
-    return write_dev_keys(tmp_path_factory.mktemp("keys") / "keys.toml", sending_nodes())
+    return dev_keys(tmp_path_factory)
 
 
 def secured_ecu(keys, store=None) -> Ecu:
@@ -104,13 +101,6 @@ def run_roll(keys, duration_s=1.0, attack=None, car_rx=None):
         out.append(sent)
         truth.append(car.truth())
     return out, np.array(truth), car, ecu
-
-
-def authentic(frames):
-    """The ECU's frames without their SecOC tails and without the sync frames."""
-    sync = {i for i, v in secured_messages().items() if v[3]}
-    return [[(m.arbitration_id, authentic_data(m.arbitration_id, bytes(m.data))) for m in tick
-             if m.arbitration_id not in sync] for tick in frames]
 
 
 def test_genuine_traffic_zero_rejections_and_same_estimates_as_off(keys):
@@ -324,20 +314,7 @@ def test_secured_session_log_verified_independently(keys, tmp_path):
 # ---- lockstep over the bus -----------------------------------------------------------------------
 
 def test_lockstep_over_multicast_equals_inprocess_with_secoc_on(keys, tmp_path):
-    keyfile = tmp_path / "keys.toml"
-    write_dev_keys(keyfile, [])  # a fresh file, then the module's keys into it (mode 600 kept)
-    keyfile.write_text("[keys]\n" + "".join(f'{k.node} = "{k.raw.hex()}"\n' for k in keys.values()))
-    config = private_multicast()
-    proc = start_daemon(config, "--mode", "lockstep", "--idle-timeout", "60", "--secoc-keys", str(keyfile),
-                        tmp_path=tmp_path)
-    try:
-        bus = open_bus(config)
-        try:
-            session = SimMaster(bus, secured_car(keys, 1.0)).run_lockstep()
-        finally:
-            bus.shutdown()
-    finally:
-        rc, err = stop_daemon(proc)
+    session, rc, err = daemon_lockstep(keys, secured_car(keys, 1.0), tmp_path)
     assert rc == 0, err
     assert "SecOC: accepted" in err and "rejected 0," in err
     local = run_inprocess(secured_car(keys, 1.0), secured_ecu(keys))

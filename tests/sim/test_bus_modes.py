@@ -105,8 +105,8 @@ def test_realtime_daemon_exchanges_frames_and_reports_timing(tmp_path):
     try:
         session = SimMaster(bus, short_drive(2.0)).run_realtime()
         # hostile frames on the live bus: counted, survived
-        bus.send(can.Message(arbitration_id=0x100, is_extended_id=False, is_fd=True, data=bytes(16)))
-        bus.send(can.Message(arbitration_id=0x100, is_extended_id=False, is_fd=True, data=bytes(12)))
+        bus.send(can.Message(arbitration_id=0x100, is_extended_id=False, is_fd=True, data=bytes(20)))  # bad CRC
+        bus.send(can.Message(arbitration_id=0x100, is_extended_id=False, is_fd=True, data=bytes(12)))  # bad DLC
         bus.send(can.Message(arbitration_id=0x6AB, is_extended_id=False, data=b"\x00"))
         time.sleep(0.3)
     finally:

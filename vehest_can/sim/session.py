@@ -47,10 +47,20 @@ class Drive:
     node_config: object           # vh_dls_config_t *
     initial_speed: float = 0.0    # m/s; > 0 starts rolling in gear[0]
     camber: tuple | None = None   # (vh_cambernode_config_t[4], pose): inspection devices on
+    secoc_keys: dict | None = None  # SecOC on for the DLS node and the CIS devices (enable_secoc)
 
     @property
     def n(self) -> int:
         return len(self.throttle)
+
+    def enable_secoc(self, keys: dict, store=None) -> Drive:
+        """SecOC on for the car's nodes DLS and CIS: every Car made from this drive secures their
+        frames (vehest_can.bus.secoc.BusSecoc, one per node, FVs from 1: a new car is a new session
+        on both sides, so in-process and bus runs stay bit-identical). No freshness store here."""
+        if store is not None:
+            raise ValueError("a driveline car keeps no freshness state")
+        self.secoc_keys = keys
+        return self
 
 
 @dataclass
@@ -101,10 +111,18 @@ class Car:
         if drive.camber is not None:
             check(lib.vh_dlsim_set_camber(self.c, *drive.camber), "camber inspection devices")
         self._out = ffi.new("vh_frame_t[]", lib.VH_DLSIM_MAX_TX)
+        self.secoc: dict = {}  # node -> its BusSecoc, while the drive has SecOC on
+        if drive.secoc_keys is not None:
+            from ..bus.secoc import BusSecoc
+
+            self.secoc = {node: BusSecoc(node, drive.secoc_keys) for node in ("DLS", "CIS")}
+            lib.vh_dlsim_set_secoc(self.c, self.secoc["DLS"].c, self.secoc["CIS"].c)
         self.reset()
 
     def reset(self) -> None:
         lib.vh_dlsim_reset(self.c)
+        for s in self.secoc.values():
+            s.restart()  # a new session: a lockstep session's ECU starts afresh too
         if self.drive.initial_speed > 0:
             check(lib.vh_dlp_set_rolling(ffi.addressof(self.c.plant), self.drive.initial_speed,
                                          int(self.drive.gear[0])), "initial speed")
