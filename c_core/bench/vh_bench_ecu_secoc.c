@@ -27,7 +27,7 @@
 #include "vh_veh14.h"
 
 #define N_SAMPLES 40000
-#define PER_TICK 7 /* DLS + CHS + the roll node's 4 + its sync frame */
+#define PER_TICK 8 /* DLS + its sync frame + CHS + the roll node's 4 + its sync frame */
 
 static const uint8_t KEY[16] = {0x2b, 0x7e, 0x15, 0x16, 0x28, 0xae, 0xd2, 0xa6,
                                 0xab, 0xf7, 0x15, 0x88, 0x09, 0xcf, 0x4f, 0x3c};
@@ -41,17 +41,18 @@ static int keyed(vh_secoc_bus_t *s, const char *self)
     vh_secoc_bus_init(s, (unsigned)vh_secoc_bus_node(self));
     return vh_secoc_bus_set_key(s, (unsigned)vh_secoc_bus_node("VEHEST"), KEY) == VH_OK &&
            vh_secoc_bus_set_key(s, (unsigned)vh_secoc_bus_node("ROLL"), KEY) == VH_OK &&
+           vh_secoc_bus_set_key(s, (unsigned)vh_secoc_bus_node("DLS"), KEY) == VH_OK &&
            vh_secoc_bus_start(s, 1u, UINT64_MAX) == VH_OK;
 }
 
-/* Every tick's frames, secured by the roll node, and as a node without SecOC sends them. */
+/* Every tick's frames, secured by the DLS and roll nodes, and as nodes without SecOC send them. */
 static int make_frames(void)
 {
     static vh_dlsim_t sim;
     static vh_v14_t plant;
     static vh_v14_params_t prm;
     static vh_rln_t roll;
-    static vh_secoc_bus_t node, peer;
+    static vh_secoc_bus_t node, peer, dls;
     vh_v14_input_t in;
     vh_chs_config_t ccfg;
     vh_chs_t chs;
@@ -65,15 +66,17 @@ static int make_frames(void)
     rcfg.mode_active = 1u;
     if (!vh_bench_launch_init(&sim) || vh_v14_init(&plant, &prm) != VH_OK ||
         vh_v14_set_rolling(&plant, 20.0) != VH_OK || vh_chs_init(&chs, &ccfg) != VH_OK ||
-        vh_rln_init(&roll, &rcfg) != VH_OK || !keyed(&node, "ROLL") || !keyed(&peer, "VEHEST")) {
+        vh_rln_init(&roll, &rcfg) != VH_OK || !keyed(&node, "ROLL") || !keyed(&peer, "VEHEST") ||
+        !keyed(&dls, "DLS")) {
         return 0;
     }
     vh_rln_set_secoc(&roll, &node);
+    vh_dlsim_set_secoc(&sim, &dls, NULL);
     vh_v14_input_init(&in, 1.0);
     for (i = 0; i < N_SAMPLES; ++i) {
         const double t = i * 5e-4;
         in.steer = 0.0873 * (t < 0.5 ? 0.0 : (t < 2.5 ? (t - 0.5) / 2.0 : 1.0));
-        s_n[i] = vh_bench_launch_tick(&sim, i, &s_sec[i][0], 1u);
+        s_n[i] = vh_bench_launch_tick(&sim, i, &s_sec[i][0], 2u);
         vh_rln_actuate(&roll, &plant);
         vh_v14_step(&plant, &in);
         s_n[i] += vh_chs_step(&chs, &plant.truth, &s_sec[i][s_n[i]], 1u);
