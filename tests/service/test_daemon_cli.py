@@ -9,7 +9,7 @@ import time
 import can
 import pytest
 
-from vehest_can.bus.frames import frame_id, unused_frame_id
+from vehest_can.bus.frames import frame_id, message, unused_frame_id
 from vehest_can.cli import main
 from vehest_can.service.daemon import RX_FIFO, DaemonStats, EcuDaemon
 from vehest_can.sim.session import run_inprocess
@@ -46,7 +46,7 @@ def test_counters_are_true_totals_past_65535():
     ecu.note_deadline_miss(200_000)  # one stall longer than 65535 ticks
     assert ecu.counters()["deadline_miss"] == 200_000
     assert ecu.c_counters()["deadline_miss"] == 200_000 % 65536
-    bad = bytearray(16)  # a DLS_Sensors frame with a wrong CRC, 70 000 times
+    bad = bytearray(message("DLS_Sensors").length)  # a DLS_Sensors frame with a wrong CRC, 70 000 times
     bad[0] = 0x55
     msg = can.Message(arbitration_id=frame_id("DLS_Sensors"), is_extended_id=False, is_fd=True, data=bytes(bad))
     for k in range(70_000):

@@ -36,12 +36,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import guestlib  # noqa: E402
 from guestlib import STATUS_ID, cansend, cansend_frame  # noqa: E402
 
-from vehest_can.bus.frames import frame_id, to_message  # noqa: E402
+from vehest_can.bus.frames import frame_id, message, to_message  # noqa: E402
 from vehest_can.sim.scenario import load_scenario  # noqa: E402
 from vehest_can.sim.session import SimMaster, drive_from_scenario, run_inprocess  # noqa: E402
 from vehest_can.systems.ecu import Ecu
 
 DLS_ID = frame_id("DLS_Sensors")
+DLS_LEN = message("DLS_Sensors").length  # with its SecOC tail
 SCENARIO = "launch_2nd"
 PLAY_FROM_S, PLAY_S = 1.0, 3.0
 # Markers around the flood: payloads the flood's random frames will not repeat.
@@ -110,7 +111,7 @@ def phase_hostile(out: Path) -> dict:
         "bad CRC": (cansend_frame(corrupt(m1)), {"crc_error": 1}),
         "good, next counter": (cansend_frame(m1), {}),
         "counter jumps by 3": (cansend_frame(m4), {"counter_skip": 1}),
-        "FD, 12 bytes instead of 16": (f"100##1{bytes(m5.data[:12]).hex().upper()}", {"dlc_error": 1}),
+        f"FD, 12 bytes instead of {DLS_LEN}": (f"100##1{bytes(m5.data[:12]).hex().upper()}", {"dlc_error": 1}),
         "classic, 8 bytes": (f"100#{bytes(m5.data[:8]).hex().upper()}", {"dlc_error": 1}),
         "extended ID 0x100": (cansend_frame(ext), {"dlc_error": 1}),
         "unknown standard ID": ("6AB#00", {"unknown_id": 1}),
@@ -128,7 +129,7 @@ def phase_hostile(out: Path) -> dict:
     time.sleep(0.5)  # VEHEST_Status frames with the counters go out
     cansend(MARK_BEFORE)
     floods = [["cangen", guestlib.CHANNEL, "-g", "0", "-n", "20000", "-m", "-i"],
-              ["cangen", guestlib.CHANNEL, "-g", "0", "-n", "5000", "-f", "-b", "-I", "100", "-L", "16", "-i"]]
+              ["cangen", guestlib.CHANNEL, "-g", "0", "-n", "5000", "-f", "-b", "-I", "100", "-L", str(DLS_LEN), "-i"]]
     t = time.monotonic()
     flood_rc = [subprocess.run(cmd, capture_output=True, text=True).returncode for cmd in floods]
     flood_s = time.monotonic() - t

@@ -28,7 +28,7 @@ from pathlib import Path
 import can
 
 from ..bus import bus as busmod
-from ..bus.frames import TICK_S, frame_id, to_message, unused_frame_id
+from ..bus.frames import TICK_S, frame_id, message, to_message, unused_frame_id
 from ..bus.rt import Ticker
 from ..errors import VehestError
 from ..sim.session import Car, drive_from_scenario
@@ -122,8 +122,9 @@ def _proc(pid: int) -> tuple[int, int]:
 
 
 def _hostile_frames() -> dict[str, can.Message]:
-    dls = frame_id("DLS_Sensors")
-    return {"crc": can.Message(arbitration_id=dls, is_extended_id=False, is_fd=True, data=bytes([0x55] + [0] * 15)),
+    dls, length = frame_id("DLS_Sensors"), message("DLS_Sensors").length  # the DBC's length: a CRC error, not a DLC one
+    return {"crc": can.Message(arbitration_id=dls, is_extended_id=False, is_fd=True,
+                               data=bytes([0x55] + [0] * (length - 1))),
             "unknown_id": can.Message(arbitration_id=unused_frame_id(), is_extended_id=False, data=bytes(8)),
             "dlc": can.Message(arbitration_id=dls, is_extended_id=False, is_fd=True, data=bytes(12))}
 
