@@ -373,3 +373,28 @@ def test_plots_and_command_line_write_files(paper, relation, tmp_path, capsys):
     assert metrics[0]["scenario"] == "chassis_relation_70kph"
     assert set(metrics[0]["variants"]) == set(tr.ALL_VARIANTS)
     assert len(metrics[0]["plots"]) == 6 and all((tmp_path / "cli").joinpath(p).exists() for p in metrics[0]["plots"])
+
+
+def test_skfmec_a_acceptance_lines_judge_its_tyres_and_its_mass():
+    """SKFMEC-A has its own lines: per-tyre against the 10 % target, and the final mass against the
+    plant's within 5 %, only once converged; a run at the model's mass that never converged (no
+    longitudinal excitation) has no mass line."""
+    from vehest_can.systems.tireforce.adaptive import ADAPTIVE
+
+    m0 = tf.SkfConfig.default().m
+    pct = {"FL": 3.0, "FR": 2.0, "RL": 11.0, "RR": 2.5, "front": 2.0, "rear": 1.8}
+
+    def lines(final_kg, converged_s, true_kg):
+        v = {ADAPTIVE: {"rms_pct": pct, "axle_scale_pct": {"front": 0.0, "rear": 0.0},
+                        "mass": {"final_kg": final_kg, "final_std_kg": 9.0, "converged_s": converged_s}}}
+        m = {"variants": v, "oracle": {"split_pct": dict.fromkeys(tr.WHEELS, 1.0)}, "true_mass_kg": true_kg}
+        return {a["line"]: a for a in tr.acceptance(m)}
+
+    got = lines(m0 + 190, 1.5, m0 + 200)
+    tyres = got[f"per-tire RMS <= 10 % of peak |Fy| ({ADAPTIVE})"]
+    mass = got[f"mass estimate within 5 % of the truth ({ADAPTIVE})"]
+    assert tyres["verdict"] == "SHORT" and "RL 11.00 %" in tyres["detail"]
+    assert mass["verdict"] == "pass" and "converged at 1.50 s" in mass["detail"]
+    assert lines(m0 + 400, 1.5, m0)[f"mass estimate within 5 % of the truth ({ADAPTIVE})"]["verdict"] == "SHORT"
+    assert lines(m0, None, m0 + 200)[f"mass estimate within 5 % of the truth ({ADAPTIVE})"]["verdict"] == "SHORT"
+    assert not any("mass" in k for k in lines(m0, None, m0))
