@@ -9,7 +9,7 @@ import sys
 from ...errors import ScenarioError
 from . import api as tf
 from .adaptive import STRESS_DIR, AdaptiveSkfmec
-from .report import decode_inputs, evaluate
+from .report import decode_inputs, evaluate, true_mass
 from .scenario import list_tireforce_scenarios, load_tireforce_scenario, tireforce_scenario_dir
 
 ABLATIONS = {"SKFMEC (paper)": None, "SKFMEC-A": {}, "  - no mass estimate": {"mass": False},
@@ -30,7 +30,7 @@ def ablation(sc) -> dict:
     for label, opts in ABLATIONS.items():
         runs[label] = (tf.estimator(tf.SKFMEC).run(u, dec.mask) if opts is None
                        else AdaptiveSkfmec().with_options(**opts).run(u, dec.mask))
-    true = tf.SkfConfig.default().m + sc.mass_delta_kg
+    true = true_mass(sc)
     m = evaluate(truth, runs, true_mass_kg=true)
     mass = m["variants"]["SKFMEC-A"]["mass"]
     return {"scenario": sc.name, "mass_error_pct": 100 * (mass["final_kg"] / true - 1), **m}

@@ -393,11 +393,10 @@ def acceptance(m: dict) -> list[dict]:
     # a line where there was a payload to find or an excitation that found one (a run at the
     # model's mass without longitudinal excitation rightly stays unconverged: no target there)
     if mm is not None and true is not None and (mm["converged_s"] is not None or true != tf.SkfConfig.default().m):
-        err = 100 * (mm["final_kg"] / true - 1)
         conv = f"converged at {mm['converged_s']:.2f} s" if mm["converged_s"] is not None else "not converged"
+        ok = abs(100 * (mm["final_kg"] / true - 1)) <= TARGET_MASS_PCT and mm["converged_s"] is not None
         lines.append({"line": f"mass estimate within {TARGET_MASS_PCT:g} % of the truth ({ADAPTIVE})",
-                      "verdict": "pass" if abs(err) <= TARGET_MASS_PCT and mm["converged_s"] is not None else "SHORT",
-                      "detail": f"{mm['final_kg']:.0f} kg, truth {true:.0f} kg ({err:+.1f} %), {conv}"})
+                      "verdict": "pass" if ok else "SHORT", "detail": f"{_mass_vs_truth(mm['final_kg'], true)}, {conv}"})
     if "fixed_vs_double" in m:
         fd = m["fixed_vs_double"]
         worst = max(fd["rms_pct"].values())
@@ -414,6 +413,10 @@ def acceptance(m: dict) -> list[dict]:
                       "detail": (f"better on {len(better)} of 4 tires; " if better else "better on no tire; ")
                       + detail})
     return lines
+
+
+def _mass_vs_truth(mass_kg: float, true_kg: float) -> str:
+    return f"{mass_kg:.0f} kg, truth {true_kg:.0f} kg ({100 * (mass_kg / true_kg - 1):+.1f} %)"
 
 
 def relations(truth, config: tf.SkfConfig | None = None, band_g=AY_BAND_G) -> dict:
@@ -477,8 +480,8 @@ def table(metrics: dict, name: str | None = None) -> str:
             mm = vm["mass"]
             true = tf.SkfConfig.default().m + metrics.get("mass_delta_kg", 0.0)
             conv = f"converged at {mm['converged_s']:.2f} s" if mm["converged_s"] is not None else "not converged (DEGRADED)"
-            lines.append(f"{'  mass (' + v + ')':<22} {mm['final_kg']:.0f} kg, truth {true:.0f} kg "
-                         f"({100 * (mm['final_kg'] / true - 1):+.1f} %), std {mm['final_std_kg']:.0f} kg, {conv}")
+            lines.append(f"{'  mass (' + v + ')':<22} {_mass_vs_truth(mm['final_kg'], true)}, "
+                         f"std {mm['final_std_kg']:.0f} kg, {conv}")
     o = metrics["oracle"]
     lines.append(f"{'oracle: split only':<22}" + "".join(f"{o['split_pct'][w]:>9.2f}" for w in WHEELS))
     lines.append(f"{'oracle: eq.36, static':<22}" + "".join(f"{o['eq36_static_pct'][w]:>9.2f}" for w in WHEELS))
@@ -622,21 +625,22 @@ def plots(kind: str, truth, runs: dict[str, tf.TireForceRun] | None, out_dir: Pa
 
 # ---- command line ----------------------------------------------------------------------------
 
-def _true_mass(sc) -> float:
+def true_mass(sc) -> float:
+    """The plant's mass in a scenario: the model's plus the payload."""
     return tf.SkfConfig.default().m + sc.mass_delta_kg
 
 
 def report(sc, out_dir: Path | None = None, progress=None, max_ay_g: float | None = None) -> dict:
     """One scenario: simulate, evaluate, relations, plots (when out_dir). Returns the metrics."""
     truth, dec, runs = simulate(sc, progress=progress)
-    m = evaluate(truth, runs, max_ay_g=max_ay_g, true_mass_kg=_true_mass(sc))
+    m = evaluate(truth, runs, max_ay_g=max_ay_g, true_mass_kg=true_mass(sc))
     m = {"scenario": sc.name, "description": sc.description, "mass_delta_kg": sc.mass_delta_kg,
          "e2e_rejected": dec.e2e_rejected, "invalid_samples": dec.invalid, **m,
          "relations": relations(truth)}
     if out_dir is not None:
         d = Path(out_dir) / sc.name
         files = plots("relations", truth, None, d, title=sc.name) + plots("forces", truth, runs, d, title=sc.name,
-                                                                                 true_mass_kg=_true_mass(sc))
+                                                                                 true_mass_kg=true_mass(sc))
         m["plots"] = [str(p) for p in files]
     return m
 

@@ -49,7 +49,7 @@ class TireForce(Registration):
         same_a = bool(np.array_equal(bus_a, want_a))
         print(f"  ECU's SKFMEC-A Fy and mass on the bus == array API on the decoded samples: "
               f"{'identical' if same_a else 'DIFFERENT'} ({int(on_a.sum())} frames)")
-        true_mass = tf.SkfConfig.default().m + sc.mass_delta_kg
+        true_mass = report.true_mass(sc)
         metrics = {"scenario": sc.name, "description": sc.description, "mass_delta_kg": sc.mass_delta_kg,
                    "mode": session.mode, "ecu_equals_array_api": same, "ecu_adaptive_equals_array_api": same_a,
                    **report.evaluate(session.truth, runs, true_mass_kg=true_mass), "relations": report.relations(session.truth)}
