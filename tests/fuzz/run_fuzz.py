@@ -26,7 +26,7 @@ sys.path.insert(0, str(ROOT / "c_core"))
 import vehest_build  # noqa: E402
 
 SAN = ["-fsanitize=fuzzer,address,undefined,float-cast-overflow", "-fno-sanitize-recover=all",
-       "-fno-omit-frame-pointer", "-g", "-O1"]
+       "-fno-omit-frame-pointer", "-g", "-O1", f"-fsanitize-coverage-ignorelist={HERE / 'coverage_ignore.txt'}"]
 # the harness's RX table: DLS_Sensors, CIS_Accel, CHS_Sensors, ROLL_Sensors/_YawRate/_ActuatorStatus/_ModeCmd
 RX_INDEX = {0x100: 0, 0x200: 1, 0x110: 2, 0x120: 3, 0x121: 4, 0x122: 5, 0x123: 6}
 FIRST_ROLL = 3
@@ -144,8 +144,9 @@ def seed_corpus(out: Path, frames_per_seed: int = 64) -> int:
     return n
 
 
-def run(seconds: int, work: Path, jobs: int = 1, seed: int = 1,
-        defines: tuple[str, ...] = ()) -> subprocess.CompletedProcess:
+def run(seconds: int, work: Path, jobs: int = 1, seed: int = 1, defines: tuple[str, ...] = (),
+        runs: int | None = None, max_len: int = 4096) -> subprocess.CompletedProcess:
+    """Fuzz for `seconds` (and, given `runs`, stop each job after that many executions)."""
     work = work.resolve()  # libFuzzer runs in it: a relative path (the default) would not find the target
     work.mkdir(parents=True, exist_ok=True)
     exe = build(work, defines)
@@ -157,7 +158,8 @@ def run(seconds: int, work: Path, jobs: int = 1, seed: int = 1,
         if r.returncode != 0:
             return r
     return subprocess.run([str(exe), str(corpus), f"-max_total_time={seconds}", f"-seed={seed}",
-                           f"-jobs={jobs}", f"-workers={jobs}", "-max_len=4096", "-timeout=10",
+                           f"-jobs={jobs}", f"-workers={jobs}", f"-max_len={max_len}", "-timeout=10",
+                           *([f"-runs={runs}"] if runs else []),
                            f"-artifact_prefix={work}/", "-print_final_stats=1"],
                           capture_output=True, text=True, timeout=seconds + 300, cwd=work)
 
@@ -166,9 +168,13 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--seconds", type=int, default=600)
     p.add_argument("--jobs", type=int, default=1)
+    p.add_argument("--runs", type=int, default=None, help="stop each job after this many executions")
+    p.add_argument("--max-len", type=int, default=4096, help="the longest input, bytes (libFuzzer -max_len)")
     p.add_argument("--work", default="build/fuzz")
     args = p.parse_args(argv)
-    r = run(args.seconds, Path(args.work), args.jobs)
+    if args.seconds <= 0 or args.jobs <= 0 or args.max_len <= 1 or (args.runs is not None and args.runs <= 0):
+        p.error("--seconds, --jobs, --runs must be positive and --max-len at least 2")
+    r = run(args.seconds, Path(args.work), args.jobs, runs=args.runs, max_len=args.max_len)
     sys.stdout.write(r.stdout)
     sys.stderr.write(r.stderr[-20000:])
     return r.returncode
