@@ -908,6 +908,14 @@ static void cmd_start_stop_synch(vh_xcp_t *x, uint8_t mode)
         res_err(x, ERR_MODE_NOT_VALID);
         return;
     }
+    for (i = 0; mode == 1u && i < x->n_daq; ++i) {
+        /* a selected list may have changed since it was selected (WRITE_DAQ, SET_DAQ_LIST_MODE's
+         * timestamp): one that no longer fits a DTO starts none (found by the fuzzer) */
+        if ((x->daq[i].mode & MODE_SELECTED) && !daq_list_valid(x, &x->daq[i])) {
+            res_err(x, ERR_DAQ_CONFIG);
+            return;
+        }
+    }
     for (i = 0; i < x->n_daq; ++i) {
         vh_xcp_daq_t *d = &x->daq[i];
         if (mode == 0u) {
