@@ -105,7 +105,7 @@ def _inline_prototypes(text: str) -> str:
 
 def header_cdef(text: str) -> str:
     """The cffi declarations of one public header, from the header itself."""
-    text = _inline_prototypes(_COMMENT.sub("", text))
+    text = _inline_prototypes(_COMMENT.sub("", text).replace("\\\n", " "))  # a macro's continued lines: one
     lines = []
     for line in text.splitlines():
         s = line.strip()

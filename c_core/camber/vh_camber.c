@@ -1,5 +1,6 @@
 /* vh_camber.c - see vh_camber.h. Single-precision float only (no double literals or calls). */
 #include <math.h>
+#include <string.h>
 
 #include "vh_camber.h"
 
@@ -56,15 +57,7 @@ void vh_camber_cal_limits_default(vh_camber_cal_limits_t *lim)
 int vh_camber_capture_init(vh_camber_capture_t *c, const float lsb_g[3])
 {
     int k;
-    for (k = 0; k < 3; ++k) {
-        c->lsb_g[k] = 0.0f;
-        c->sum[k] = 0;
-        c->sum_sq[k] = 0;
-    }
-    c->sum_mag = 0.0f;
-    c->sum_mag_c = 0.0f;
-    c->n = 0u;
-    c->n_saturated = 0u;
+    memset(c, 0, sizeof *c); /* no samples; lsb 0 until it is known good */
     if (!lsb_ok(lsb_g)) {
         return VH_EINVAL;
     }

@@ -54,6 +54,18 @@ static inline void vh_mat_identity(double *a, int n)
     }
 }
 
+/* a = diag(d) (n x n): a covariance's (re)start value */
+static inline void vh_mat_diag(double *a, const double *d, int n)
+{
+    int i;
+    for (i = 0; i < n * n; ++i) {
+        a[i] = 0.0;
+    }
+    for (i = 0; i < n; ++i) {
+        a[i * n + i] = d[i];
+    }
+}
+
 /* a = (a + a^T) / 2, in place */
 static inline void vh_mat_symmetrise(double *a, int n)
 {

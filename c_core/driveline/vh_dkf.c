@@ -19,16 +19,9 @@ void vh_dkf_config_default(vh_dkf_config_t *cfg, int meas)
 {
     memset(cfg, 0, sizeof *cfg);
     /* Table 1 */
-    cfg->jo = 0.016;
-    cfg->jv = 160.0;
-    cfg->rd = 0.255;
-    cfg->ri = 0.43;
-    cfg->ks = 9000.0;
+    cfg->jo = 0.016; cfg->jv = 160.0; cfg->rd = 0.255; cfg->ri = 0.43; cfg->ks = 9000.0;
     cfg->c = vh_dkf_road_load_coeff(0.3, 0.123, 0.33, 2.0, 80.0); /* rho_a as printed */
-    cfg->ts = 0.0005;
-    cfg->meas = meas;
-    cfg->disc = VH_DKF_ZOH;
-    cfg->use_input = 1;
+    cfg->ts = 0.0005; cfg->meas = meas; cfg->disc = VH_DKF_ZOH; cfg->use_input = 1;
     if (meas == VH_DKF_SPEEDS) { /* sec. 4, speeds only */
         cfg->q[0] = 1e4; cfg->q[1] = 1000.0; cfg->q[2] = 1.0; cfg->q[3] = 2e4;
         cfg->r[0] = 500.0; cfg->r[1] = 50.0; cfg->r[2] = 1e5;
@@ -130,13 +123,9 @@ int vh_dkf_init(vh_dkf_t *f, const vh_dkf_config_t *cfg)
 
 static void restart(vh_dkf_t *f)
 {
-    int i;
     memset(f->x, 0, sizeof f->x);
-    memset(f->p, 0, sizeof f->p);
     memset(f->k, 0, sizeof f->k);
-    for (i = 0; i < NX; ++i) {
-        f->p[i * NX + i] = f->cfg.p0[i];
-    }
+    vh_mat_diag(f->p, f->cfg.p0, NX);
     vh_kf_restart(&f->steps, &f->x_init, &f->health);
 }
 

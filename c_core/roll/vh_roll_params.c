@@ -11,36 +11,17 @@ void vh_roll_params_default(vh_roll_params_t *prm)
     if (prm == NULL) {
         return;
     }
-    prm->ms = 1661.0;
-    prm->ix = 580.0;
-    prm->iy = 2450.0;
-    prm->iz = 2560.0;
-    prm->lf = 1.076;
-    prm->lr = 1.617;
-    prm->tf = 0.784;
-    prm->tr = 0.760;
-    prm->h = 0.55;
-    prm->hf = 0.114;
-    prm->hr = 0.004;
-    prm->kphi_f = 108205.8;
-    prm->kphi_r = 81436.7;
-    prm->cphi_f = 826.8;
-    prm->cphi_r = 658.9;
+    prm->ms = 1661.0; prm->ix = 580.0; prm->iy = 2450.0; prm->iz = 2560.0;
+    prm->lf = 1.076; prm->lr = 1.617; prm->tf = 0.784; prm->tr = 0.760;
+    prm->h = 0.55; prm->hf = 0.114; prm->hr = 0.004;
+    prm->kphi_f = 108205.8; prm->kphi_r = 81436.7; prm->cphi_f = 826.8; prm->cphi_r = 658.9;
     prm->m_uf = 153.0 / 2.0 * 1.617 / (1.076 + 1.617);
     prm->m_ur = 153.0 / 2.0 * 1.076 / (1.076 + 1.617);
-    prm->k_f = 30000.0;
-    prm->k_r = 25000.0;
-    prm->kt = 250000.0;
-    prm->ct = 100.0;
+    prm->k_f = 30000.0; prm->k_r = 25000.0; prm->kt = 250000.0; prm->ct = 100.0;
     /* cornering stiffness per unit load of the plant's tyre at the static loads (docs/roll.md) */
-    prm->calpha_f = 17.34;
-    prm->calpha_r = 20.22;
-    prm->mf_c = 1.30;
-    prm->mu = 1.0;
-    prm->mu_load = 0.94;
-    prm->v_low = 1.0;
-    prm->dt = 0.001;
-    prm->kappa = 1.0;
+    prm->calpha_f = 17.34; prm->calpha_r = 20.22;
+    prm->mf_c = 1.30; prm->mu = 1.0; prm->mu_load = 0.94; prm->v_low = 1.0;
+    prm->dt = 0.001; prm->kappa = 1.0;
     /* Q per step: random-walk acceleration noise on the velocity states (model error: the
      * simplified tyre above all), small on the positions */
     for (i = 0; i < VH_ROLL_NX; ++i) {
@@ -92,19 +73,13 @@ void vh_roll_smc_params_default(vh_roll_smc_params_t *c, const vh_roll_params_t 
     l = prm->lf + prm->lr;
     h_ra = prm->hf + (prm->hr - prm->hf) * prm->lf / l;
     e = prm->h - h_ra;
-    c->lambda = 10.0;
-    c->k = 5.0;
-    c->p = 0.1;
-    c->ref_frac = 0.3;
-    c->ref_tau = 0.05;
-    c->ay_tau = 0.02;
+    c->lambda = 10.0; c->k = 5.0; c->p = 0.1;
+    c->ref_frac = 0.3; c->ref_tau = 0.05; c->ay_tau = 0.02;
     c->front_share = prm->kphi_f / (prm->kphi_f + prm->kphi_r);
     /* 48 V electromechanical stabiliser, ~1.2 kNm at the bar per axle; through the bar's lever
      * arms and links that is ~4.8 kNm of roll moment on the body (docs/roll.md) */
-    c->m_max_f = 4800.0;
-    c->m_max_r = 4800.0;
-    c->rate_max_f = 16000.0;
-    c->rate_max_r = 16000.0;
+    c->m_max_f = 4800.0; c->m_max_r = 4800.0;
+    c->rate_max_f = 16000.0; c->rate_max_r = 16000.0;
     c->fade_time = 0.3; /* = m_max / rate_max: the fastest the rate limit allows */
     c->recover_time = 0.5;
     /* ride-through: a not-OK estimate (frames missing, every input timed out, the actuators holding)

@@ -37,25 +37,10 @@ void vh_skf_config_default(vh_skf_config_t *cfg, int variant)
     int i;
     memset(cfg, 0, sizeof *cfg);
     /* Ford FC/HVE (nomenclature) */
-    cfg->m = 1814.0;
-    cfg->ms = 1661.0;
-    cfg->iz = 2560.0;
-    cfg->ix = 580.0;
-    cfg->lf = 1.076;
-    cfg->lr = 1.617;
-    cfg->h = 0.55;
-    cfg->e = 0.48;
-    cfg->hf = 0.114;
-    cfg->hr = 0.004;
-    cfg->kphif = 108205.8;
-    cfg->kphir = 81436.7;
-    cfg->cphif = 826.8;
-    cfg->cphir = 658.9;
-    cfg->rw = 0.305;
-    cfg->iw = 2.0;
-    cfg->tf = 0.784;
-    cfg->tr = 0.760;
-    cfg->g = 9.81;
+    cfg->m = 1814.0; cfg->ms = 1661.0; cfg->iz = 2560.0; cfg->ix = 580.0;
+    cfg->lf = 1.076; cfg->lr = 1.617; cfg->h = 0.55; cfg->e = 0.48; cfg->hf = 0.114; cfg->hr = 0.004;
+    cfg->kphif = 108205.8; cfg->kphir = 81436.7; cfg->cphif = 826.8; cfg->cphir = 658.9;
+    cfg->rw = 0.305; cfg->iw = 2.0; cfg->tf = 0.784; cfg->tr = 0.760; cfg->g = 9.81;
     vh_skf_zeta_steady(cfg, &cfg->zeta1, &cfg->zeta2);
     cfg->lt_gain = 2.0; /* rigid-body lateral transfer with the half-tracks (docs/skfmec.md) */
     cfg->ts = 0.0005;

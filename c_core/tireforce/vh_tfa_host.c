@@ -11,33 +11,19 @@ void vh_tfa_config_default(vh_tfa_config_t *c)
     static const double a[9] = {1.30, -22.1, 1011.0, 1078.0, 1.82, 0.208, 0.0, -0.354, 0.707};
     static const double b[9] = {1.65, -21.3, 1144.0, 49.6, 226.0, 0.069, -0.006, 0.056, 0.486};
     memset(c, 0, sizeof *c);
-    c->cda = 0.73;
-    c->rho = 1.2;
-    c->tau_lp = 0.2;
-    c->decim = 20;
-    c->ax_gate = 0.3;
-    c->ay_gate = 6.0;
-    c->vx_gate = 5.0;
-    c->forget = 0.999;
-    c->sigma_y = 60.0;
-    c->mass_sigma0 = 0.2;
-    c->mass_sigma_floor = 0.005;
-    c->mass_sigma_ok = 0.02;
-    c->mass_lo = 0.7;
-    c->mass_hi = 1.6;
+    c->cda = 0.73; c->rho = 1.2;
+    c->tau_lp = 0.2; c->decim = 20;
+    c->ax_gate = 0.3; c->ay_gate = 6.0; c->vx_gate = 5.0;
+    c->forget = 0.999; c->sigma_y = 60.0;
+    c->mass_sigma0 = 0.2; c->mass_sigma_floor = 0.005; c->mass_sigma_ok = 0.02;
+    c->mass_lo = 0.7; c->mass_hi = 1.6;
     memcpy(c->tyre_a, a, sizeof a);
     c->tyre_fz_scale = 1.75;
     c->mu = 1.0;
     memcpy(c->tyre_b, b, sizeof b);
-    c->tau_slip = 0.5;
-    c->fx_gate = 200.0;
-    c->q_gate = 0.85;
-    c->tau_mu = 0.5;
-    c->tau_mu_forget = 3.0;
-    c->mu_floor = 0.1;
-    c->ellipse_floor = 0.2;
-    c->friction = 1;
-    c->combined = 1;
+    c->tau_slip = 0.5; c->fx_gate = 200.0; c->q_gate = 0.85;
+    c->tau_mu = 0.5; c->tau_mu_forget = 3.0; c->mu_floor = 0.1; c->ellipse_floor = 0.2;
+    c->friction = 1; c->combined = 1;
 }
 
 /* Bakker-Nyborg-Pacejka 1987 at mu = 1 (adaptive._mf): x in the formula's unit, f in kN / size */

@@ -46,7 +46,8 @@ void vh_dls_config_default(vh_dls_config_t *cfg);
 int vh_dls_init(vh_dls_t *n, const vh_dls_config_t *cfg);
 /* Counter to 0, random stream restarted from cfg.seed. */
 void vh_dls_reset(vh_dls_t *n);
-/* Sample truth and write one DLS_Sensors frame (FD|BRS, 16 bytes) to out[0].
+/* Sample truth and write one DLS_Sensors frame (FD|BRS, its DBC length: 20 bytes with the SecOC
+ * tail, zero until vh_dlsim secures it) to out[0].
  * Returns the number of frames written: 1, or 0 when cap is 0 or out or truth is NULL. */
 size_t vh_dls_step(vh_dls_t *n, const vh_dlp_truth_t *truth, vh_frame_t *out, size_t cap);
 

@@ -268,21 +268,13 @@ static void fill_truth(vh_v14_t *p, const ctx_t *c, const double *dx, const aux_
     const double *x = p->x;
     int i;
 
+#define STATE(f, X) t->f = x[VH_V14_X_##X]
     t->t = (double)p->steps * VH_V14_DT;
-    t->px = x[VH_V14_X_PX];
-    t->py = x[VH_V14_X_PY];
-    t->yaw = x[VH_V14_X_YAW];
-    t->vx = x[VH_V14_X_VX];
-    t->vy = x[VH_V14_X_VY];
-    t->r = x[VH_V14_X_R];
+    STATE(px, PX); STATE(py, PY); STATE(yaw, YAW); STATE(vx, VX); STATE(vy, VY); STATE(r, R);
     t->ax = dx[VH_V14_X_VX] - t->r * t->vy;
     t->ay = dx[VH_V14_X_VY] + t->r * t->vx;
-    t->z = x[VH_V14_X_Z];
-    t->vz = x[VH_V14_X_VZ];
-    t->phi = x[VH_V14_X_PHI];
-    t->p = x[VH_V14_X_P];
-    t->theta = x[VH_V14_X_THETA];
-    t->q = x[VH_V14_X_Q];
+    STATE(z, Z); STATE(vz, VZ); STATE(phi, PHI); STATE(p, P); STATE(theta, THETA); STATE(q, Q);
+#undef STATE
     t->steer = steer;
     for (i = 0; i < VH_V14_NW; ++i) {
         t->fx[i] = aux->fx[i];

@@ -16,7 +16,7 @@ from ..service.hil import load_hil_config
 from ..systems.camber.api import load_calibrations
 from ..systems.ecu import Ecu, EcuConfig
 from ..xcp import ecu as xcp_ecu
-from ._common import add_log_arguments, add_secoc_arguments, check_log_arguments, open_session_log, secoc_from_args
+from ._common import add_log_arguments, add_secoc_arguments, check_log_arguments, check_seconds, open_session_log, secoc_from_args
 
 
 def add_subparser(subparsers) -> None:
@@ -49,15 +49,10 @@ def add_subparser(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _seconds(value: float | None, flag: str) -> None:
-    if value is not None and not (math.isfinite(value) and value > 0):
-        raise ConfigError(f"{flag} must be a finite number of seconds > 0, not {value}")
-
-
 def run(args) -> int:
-    _seconds(args.duration, "--duration")
-    _seconds(args.idle_timeout, "--idle-timeout")
-    _seconds(args.report_every, "--report-every")
+    for flag, value in (("--duration", args.duration), ("--idle-timeout", args.idle_timeout),
+                        ("--report-every", args.report_every)):
+        check_seconds(value, flag, maximum=math.inf)
     if args.mode == "realtime":
         given = [flag for flag, on in (("--idle-timeout", args.idle_timeout is not None),
                                         ("--exit-on-end", args.exit_on_end)) if on]

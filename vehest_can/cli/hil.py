@@ -8,11 +8,12 @@ from pathlib import Path
 
 from ..bus import bus as busmod
 from ..bus.frames import BUSES, TICK_S, database, sent_by
-from ..errors import ConfigError, VehestError
+from ..errors import VehestError
 from ..progress import Progress
 from ..service import sdnotify
 from ..service.hil import ResidualBus, load_hil_config
 from ..systems import Setup, registered
+from ._common import check_seconds
 
 
 def add_subparser(subparsers) -> None:
@@ -34,8 +35,7 @@ def add_subparser(subparsers) -> None:
 
 
 def run(args) -> int:
-    if args.duration is not None and not 0 < args.duration <= 86_400:
-        raise ConfigError("--duration must be a number of seconds in (0, 86400]")
+    check_seconds(args.duration, "--duration", maximum=86_400, why="")
     config = load_hil_config(args.config)
     if args.check:
         print("\n".join(config.summary()))

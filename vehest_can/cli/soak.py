@@ -11,6 +11,7 @@ from ..bus import bus as busmod
 from ..errors import ConfigError
 from ..progress import Progress
 from ..service.soak import Soak, SoakConfig, format_result
+from ._common import check_seconds
 
 
 def add_subparser(subparsers) -> None:
@@ -34,10 +35,10 @@ def add_subparser(subparsers) -> None:
 
 
 def run(args) -> int:
-    for flag, value, hi in (("--duration", args.duration, 30 * 86400), ("--interval", args.interval, 86400),
-                            ("--hostile-rate", args.hostile_rate, 20_000)):
-        if not (math.isfinite(value) and 0 < value <= hi):
-            raise ConfigError(f"{flag} must be a number in (0, {hi:g}], not {value}")
+    check_seconds(args.duration, "--duration", maximum=30 * 86400, why="")
+    check_seconds(args.interval, "--interval", maximum=86400, why="")
+    if not (math.isfinite(args.hostile_rate) and 0 < args.hostile_rate <= 20_000):
+        raise ConfigError(f"--hostile-rate must be a number of frames per second in (0, 20000], not {args.hostile_rate}")
     if not (math.isfinite(args.warmup) and 0 <= args.warmup < args.duration):
         raise ConfigError(f"--warmup must be a number of seconds in [0, --duration), not {args.warmup}")
     if args.interval > args.duration:

@@ -108,6 +108,10 @@ class ScenarioBase:
     #: its [sensors] table: TOML key -> (config array, channels, range)
     _SENSORS: ClassVar[dict[str, tuple]]
 
+    def __init_subclass__(cls, *, node: str, truth: str, seed_salt: int, sensors: dict[str, tuple], **kw: Any) -> None:
+        super().__init_subclass__(**kw)
+        cls._NODE, cls._TRUTH, cls._SEED_SALT, cls._SENSORS = node, truth, seed_salt, sensors
+
     if TYPE_CHECKING:  # fields of each subclass, after its own (they have defaults, the fields above none)
         @property
         def sensors(self) -> tuple[tuple[str, float], ...]: ...  # [sensors] (key, value) pairs
@@ -178,13 +182,8 @@ class Camber:
 
 
 @dataclass(frozen=True)
-class Scenario(ScenarioBase):
+class Scenario(ScenarioBase, node="vh_dls", truth="vh_dlp_truth_t", seed_salt=0x444C53, sensors=_SENSORS):
     """One validated scenario. Times in s, speeds in rad/s unless the name says otherwise."""
-
-    _NODE: ClassVar[str] = "vh_dls"
-    _TRUTH: ClassVar[str] = "vh_dlp_truth_t"
-    _SEED_SALT: ClassVar[int] = 0x444C53
-    _SENSORS: ClassVar[dict[str, tuple]] = _SENSORS
 
     gear: int
     throttle: tuple[tuple[float, float], ...]  # (t, value) points, t strictly increasing

@@ -23,7 +23,7 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 
@@ -108,13 +108,8 @@ _SENSORS = {
 
 
 @dataclass(frozen=True)
-class TireForceScenario(ScenarioBase):
+class TireForceScenario(ScenarioBase, node="vh_chs", truth="vh_v14_truth_t", seed_salt=0x434853, sensors=_SENSORS):
     """One validated tyre-force scenario. Profiles are (t, value...) points, piecewise linear in time."""
-
-    _NODE: ClassVar[str] = "vh_chs"
-    _TRUTH: ClassVar[str] = "vh_v14_truth_t"
-    _SEED_SALT: ClassVar[int] = 0x434853
-    _SENSORS: ClassVar[dict[str, tuple]] = _SENSORS
 
     steer_deg: tuple[tuple[float, float], ...]
     drive_nm: tuple[tuple[float, ...], ...]      # (t, FL, FR, RL, RR)
