@@ -105,7 +105,8 @@ def _inline_prototypes(text: str) -> str:
 
 def header_cdef(text: str) -> str:
     """The cffi declarations of one public header, from the header itself."""
-    text = _inline_prototypes(_COMMENT.sub("", text).replace("\\\n", " "))  # a macro's continued lines: one
+    # a macro continued over several lines is one line to the reader below (a function-like one is skipped)
+    text = _inline_prototypes(_COMMENT.sub("", text).replace("\\\n", " "))
     lines = []
     for line in text.splitlines():
         s = line.strip()

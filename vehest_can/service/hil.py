@@ -170,8 +170,11 @@ class HilConfig:
         lines = _table(head, rows, right=(6, 7))
         lines += [f"buses.{b.name}.kwargs: {b.not_checked}" for b in self.buses if b.not_checked]
         lines.append(f"mode {self.mode}; bus load limit {BUS_LOAD_LIMIT_PCT:g}% (worst case, with stuff bits)")
-        lines.append(f"ECU (VEHEST): simulated here on bus{'es' if len(self.ecu_buses) > 1 else ''} "
-                     f"{', '.join(self.ecu_buses)}" if self.ecu_simulated else "ECU (VEHEST): real, on the bench")
+        if self.ecu_simulated:
+            lines.append(f"ECU (VEHEST): simulated here on bus{'es' if len(self.ecu_buses) > 1 else ''} "
+                         f"{', '.join(self.ecu_buses)}")
+        else:
+            lines.append("ECU (VEHEST): real, on the bench")
         for car in self.cars:
             sc = car.scenario
             length = f"{self.duration_s:g} s" if self.duration_s else f"{sc.duration_s:g} s (the scenario's)"
