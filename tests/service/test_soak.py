@@ -30,7 +30,7 @@ def test_soak_60s_memory_fds_and_counters_hold():
 
 
 def test_soak_arguments_are_checked(capsys):
-    for args, problem in [(["--duration", "nan"], "--duration must be a number"),
+    for args, problem in [(["--duration", "nan"], "--duration must be a finite number of seconds > 0"),
                           (["--duration", "10", "--warmup", "10"], "--warmup must be"),
                           (["--hostile-rate", "0"], "--hostile-rate must be"),
                           (["--duration", "5", "--interval", "10", "--warmup", "1"], "--interval must not be longer")]:
