@@ -82,6 +82,9 @@ def test_bad_scenario_file_names_the_key(tmp_path, capsys):
 def test_missing_files_are_errors_not_tracebacks(tmp_path, capsys):
     assert main(["replay", str(tmp_path / "nope.log")]) == 1
     assert "no such log file" in capsys.readouterr().err
+    for argv in (["replay", str(tmp_path)], ["replay", "--play", str(tmp_path)]):
+        assert main(argv) == 1
+        assert "is a folder, not a log file" in capsys.readouterr().err
     garbage = tmp_path / "garbage.log"
     garbage.write_text("this is not a candump log\n")
     assert main(["replay", str(garbage)]) == 1

@@ -130,6 +130,13 @@ def test_bad_numbers_are_errors(argv, capsys):
     assert rc == 1 and err.startswith("error:")
 
 
+@pytest.mark.parametrize("argv", [["monitor", "--refresh", "0"], ["monitor", "--duration", "nan"]])
+def test_monitor_bounds_give_no_session_reason(argv, capsys):
+    """The monitor keeps no session in memory: its bound is stated without that reason."""
+    rc, _, err = cli(argv, capsys)
+    assert rc == 1 and err.startswith(f"error: {argv[1]} must be a finite number of seconds > 0") and "session" not in err
+
+
 def test_an_unknown_plot_format_is_an_error(tmp_path, capsys):
     rc, _, err = cli(["camber", "bound", "--plot", str(tmp_path / "x.xyz")], capsys)
     assert rc == 1 and "unknown plot format '.xyz'" in err

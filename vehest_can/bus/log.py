@@ -152,12 +152,20 @@ class SessionLog(can.Listener):
         self.stop()
 
 
+def check_log_file(path: str | Path) -> Path:
+    """A log to read: an existing regular file (a folder or a missing path is a ConfigError)."""
+    path = Path(path)
+    if path.is_dir():
+        raise ConfigError(f"{path}: is a folder, not a log file")
+    if not path.is_file():
+        raise ConfigError(f"{path}: no such log file")
+    return path
+
+
 def iter_log(path: str | Path) -> Iterator[can.Message]:
     """The data frames of a log, one by one (error and remote frames skipped); a malformed file or
     an ID beyond 29 bits is a ConfigError."""
-    path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"{path}: no such log file")
+    path = check_log_file(path)
     try:
         for i, m in enumerate(can.LogReader(str(path))):
             if m.is_error_frame or m.is_remote_frame:
@@ -191,9 +199,7 @@ def iter_log_arrays(path: str | Path, chunk: int = CHUNK_FRAMES, progress=None,
     `progress(done, total)` is called with bytes read. With copy=False a batch is valid only until
     the next one is asked for (no copy of each batch); with `buffers` > 1, until `buffers` - 1 more
     are (candump -L: the batches rotate through that many buffers; other formats make new arrays)."""
-    path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"{path}: no such log file")
+    path = check_log_file(path)
     total = path.stat().st_size
     if path.suffix.lower() != ".log":
         batch: list[can.Message] = []

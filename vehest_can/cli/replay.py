@@ -5,7 +5,7 @@ import math
 from pathlib import Path
 
 from ..bus import bus as busmod
-from ..bus.log import SessionLog, check_log_path
+from ..bus.log import SessionLog, check_log_file, check_log_path
 from ..errors import ConfigError
 from ..progress import Progress
 from ..service.estimates import TABLE_FORMATS, EstimateTable, check_table_path
@@ -47,8 +47,7 @@ def run(args) -> int:
     if given:
         raise ConfigError(f"bus options ({', '.join('--' + f.replace('_', '-') for f in given)}) apply to --play only: "
                           "the offline replay uses no bus")
-    if not Path(args.log).is_file():
-        raise ConfigError(f"{args.log}: no such log file")
+    check_log_file(args.log)
     table_path = check_table_path(args.table) if args.table else None
     writer = SessionLog(check_log_path(args.output), {"VEHEST"}) if args.output else None
     table = None
@@ -88,8 +87,7 @@ def _play(args) -> int:
     if offline:
         raise ConfigError(f"{' and '.join(offline)} write the offline replay's results; --play only sends the log "
                           "onto a bus (log the ECU there with `vehest-can daemon --log`)")
-    if not Path(args.log).is_file():
-        raise ConfigError(f"{args.log}: no such log file")
+    check_log_file(args.log)
     config = busmod.bus_config(args)
     bus = busmod.open_bus(config)
     try:
