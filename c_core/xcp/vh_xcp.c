@@ -785,6 +785,12 @@ static void cmd_write_daq(vh_xcp_t *x, const uint8_t *c)
         res_err(x, ERR_SEQUENCE);
         return;
     }
+    if (x->daq[x->ptr_daq].mode & MODE_RUNNING) {
+        /* the cursor was set before the list started: its ODTs are fixed while it runs (a
+         * timestamped list's ODT 0 would otherwise outgrow the DTO: found by the fuzzer) */
+        res_err(x, ERR_DAQ_ACTIVE);
+        return;
+    }
     o = &x->odt[x->daq[x->ptr_daq].first_odt + x->ptr_odt];
     if (x->ptr_entry >= o->entry_count) {
         res_err(x, ERR_OUT_OF_RANGE); /* the cursor ran past the ODT */

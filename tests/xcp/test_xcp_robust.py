@@ -165,6 +165,30 @@ def test_daq_over_the_limits_is_refused_and_counted():
     assert (c["err_daq"], c["err_access"], c["err_range"], c["err_other"]) == (8, 1, 2, 1)
 
 
+def test_a_running_list_cannot_be_rewritten():
+    """WRITE_DAQ through a cursor set before its list started is ERR_DAQ_ACTIVE: a running list's
+    ODTs are fixed, so a timestamped ODT 0 cannot outgrow MAX_DTO (fuzzer input
+    tests/fuzz/regressions/xcp_write_running_list: a 36-byte entry made a 49-byte DTO over 48)."""
+    desc = from_dict({**tomllib.loads(DEMO.read_text()),
+                      "xcp": {**tomllib.loads(DEMO.read_text())["xcp"], "fd": True, "max_cto": 8, "max_dto": 48}})
+    s = unlocked(desc)
+    m = struct.pack("<I", desc.measurement_address)
+    for cro in ([0xD6], [0xD5, 0, 1, 0], [0xD4, 0, 0, 0, 1], [0xD3, 0, 0, 0, 0, 2],
+                [0xE0, 0x10, 0, 0, 0, 0, 1, 0],                     # SET_DAQ_LIST_MODE: timestamp, event 0
+                [0xE2, 0, 0, 0, 0, 0], [0xE1, 0xFF, 4, 0, *m], [0xE1, 0xFF, 4, 0, *m],
+                [0xE2, 0, 0, 0, 0, 1],                               # the cursor back on entry 1
+                [0xDE, 1, 0, 0]):                                    # START_STOP_DAQ_LIST: start list 0
+        assert answer(s, bytes(cro))[0] == 0xFF, cro
+    assert answer(s, bytes([0xE1, 0xFF, 36, 0, *m])) == bytes([0xFE, 0x11])  # ERR_DAQ_ACTIVE
+    assert answer(s, bytes([0xE2, 0, 0, 0, 0, 0])) == bytes([0xFE, 0x11])
+    s.event(0)
+    dtos = s.frames()
+    assert len(dtos) == 1 and len(dtos[0].data) <= 48 and len(dtos[0].data) >= 1 + 4 + 8
+    assert answer(s, bytes([0xDE, 0, 0, 0]))[0] == 0xFF                   # stopped: the list can change again
+    assert answer(s, bytes([0xE1, 0xFF, 40, 0, *m])) == b"\xFF"             # 4 + 40 bytes fit an ODT ...
+    assert answer(s, bytes([0xDE, 1, 0, 0])) == bytes([0xFE, 0x2A])        # ... but not with the timestamp
+
+
 def test_daq_commands_need_the_daq_resource():
     s = Slave(DESC, secret=SECRET)
     answer(s, CONNECT)
