@@ -176,12 +176,19 @@ def test_results_of_another_campaign_are_not_mixed(tmp_path):
     assert execute(b, Store(tmp_path / "out", b), workers=1, fresh=True)["ran"] == 5
 
 
+def _sigint_default() -> None:
+    """In the child: SIGINT back to its default. A shell that started the suite in the background
+    (no job control) ignores SIGINT, children inherit that, and Python keeps an ignored SIGINT
+    ignored: the campaign would run to its end."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_sigint_half_way_then_resume_loses_and_repeats_nothing(tmp_path):
     p = short(tmp_path, runs=200, duration=1.0, name="long")
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     cmd = [sys.executable, "-m", "vehest_can.cli", "campaign", str(p), "--no-plots", "-j", "2", "--batch-size", "4"]
     proc = subprocess.Popen([*cmd, "-o", str(tmp_path / "a")], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=env, start_new_session=True)
+                            text=True, env=env, start_new_session=True, preexec_fn=_sigint_default)
     parts = tmp_path / "a" / "runs"
     deadline = time.monotonic() + 300  # a busy machine writes its first parts late
     while len(list(parts.glob("part-*.parquet"))) < 15 and time.monotonic() < deadline and proc.poll() is None:
