@@ -74,15 +74,16 @@ def secoc_from_args(args, node: str):
     return keys, (FreshnessStore(state) if state else None)
 
 
-def check_seconds(value: float | None, option: str, *, maximum: float = MAX_SESSION_S, zero: bool = False,
-                  why: str = "a session keeps every tick in memory") -> None:
-    """A duration flag: a finite number of seconds, > 0 (>= 0 with zero=True), at most `maximum` (for
-    the reason `why`; math.inf: no bound but finiteness, as for a daemon that runs for weeks)."""
+def check_seconds(value: float | None, option: str, *, maximum: float = MAX_SESSION_S, zero: bool = False) -> None:
+    """A duration flag: a finite number of seconds, > 0 (>= 0 with zero=True), at most `maximum`
+    (math.inf: no bound but finiteness, as for a daemon that runs for weeks). The default bound is a
+    session's, and its message says why; another bound is the caller's own."""
     if value is None:
         return
     low_ok = value >= 0 if zero else value > 0
     if not (math.isfinite(value) and low_ok and value <= maximum):
-        bound = f" and at most {maximum:g}" + (f" ({why})" if why else "") if math.isfinite(maximum) else ""
+        why = " (a session keeps every tick in memory)" if maximum == MAX_SESSION_S else ""
+        bound = f" and at most {maximum:g}{why}" if math.isfinite(maximum) else ""
         raise ConfigError(f"{option} must be a finite number of seconds {'>= 0' if zero else '> 0'}{bound}, "
                           f"not {value}")
 

@@ -35,7 +35,7 @@ def add_subparser(subparsers) -> None:
 
 
 def run(args) -> int:
-    check_seconds(args.duration, "--duration", maximum=86_400, why="")
+    check_seconds(args.duration, "--duration", maximum=86_400)
     config = load_hil_config(args.config)
     if args.check:
         print("\n".join(config.summary()))

@@ -24,8 +24,8 @@ def add_subparser(subparsers) -> None:
 
 
 def run(args) -> int:
-    check_seconds(args.duration, "--duration", maximum=365 * 86400.0, why="")
-    check_seconds(args.refresh, "--refresh", maximum=60.0, why="")
+    check_seconds(args.duration, "--duration", maximum=365 * 86400.0)
+    check_seconds(args.refresh, "--refresh", maximum=60.0)
     live = sys.stdout.isatty() and not args.once
     bus = busmod.open_bus(busmod.bus_config(args))
     mon = Monitor()

@@ -35,8 +35,8 @@ def add_subparser(subparsers) -> None:
 
 
 def run(args) -> int:
-    check_seconds(args.duration, "--duration", maximum=30 * 86400, why="")
-    check_seconds(args.interval, "--interval", maximum=86400, why="")
+    check_seconds(args.duration, "--duration", maximum=30 * 86400)
+    check_seconds(args.interval, "--interval", maximum=86400)
     if not (math.isfinite(args.hostile_rate) and 0 < args.hostile_rate <= 20_000):
         raise ConfigError(f"--hostile-rate must be a number of frames per second in (0, 20000], not {args.hostile_rate}")
     if not (math.isfinite(args.warmup) and 0 <= args.warmup < args.duration):
