@@ -357,3 +357,18 @@ def test_runs_without_a_value_are_counted_not_hidden(tmp_path):
     assert "(1 runs without a value, not in these figures)" in text
     assert "never" in text and "no value in any of the 3 runs" in text
     assert s["acceptance"][0]["passed"] == 2  # the two finite runs; NaN and the failed run never pass
+
+
+def test_two_local_dask_clusters_at_once_take_free_loopback_ports():
+    pytest.importorskip("distributed")
+    import warnings
+
+    from vehest_can.campaign.runner import local_cluster
+
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        with local_cluster(1) as a, local_cluster(1) as b:
+            servers = [c.scheduler.http_server for c in (a, b)]
+            assert {s.address for s in servers} == {"127.0.0.1"}  # nothing listens beyond loopback
+            assert len({s.port for s in servers}) == 2 and 8787 not in {s.port for s in servers}
+    assert not [w for w in seen if "already in use" in str(w.message)]

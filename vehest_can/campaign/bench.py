@@ -15,7 +15,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from .runner import LOCAL_DASK, Store, execute
+from .runner import LOCAL_DASK, Store, execute, local_cluster
 from .spec import CAMPAIGNS, load_campaign
 
 
@@ -26,13 +26,8 @@ def measure(spec: str, runs: int | None = None, workers: int | None = None, repe
     if runs is not None:
         c = dataclasses.replace(c, runs=runs)
     n = workers or os.cpu_count() or 1
-    import logging
-
-    from distributed import LocalCluster
-
     # an already running cluster (as a user's would be): its start-up is not a per-run cost
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                           dashboard_address=None, silence_logs=logging.CRITICAL)
+    cluster = local_cluster(n)
     setups = {"local x1": (1, None), f"local x{n}": (n, None), f"dask x{n}": (n, cluster.scheduler_address),
               f"dask x{n} + start": (n, LOCAL_DASK)}
     wall: dict[str, list[float]] = {k: [] for k in setups}

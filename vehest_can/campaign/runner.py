@@ -123,6 +123,17 @@ def fingerprint(campaign: Campaign) -> str:
     return hashlib.sha256(json.dumps(what, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
+def local_cluster(workers: int):
+    """A Dask LocalCluster on loopback, one single-threaded worker process per core asked for.
+    Its scheduler's HTTP server (/health, /metrics; no dashboard) takes a free port: the default
+    8787 clashes, with a warning, with any other scheduler on the host."""
+    from distributed import LocalCluster
+
+    return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                        dashboard_address="127.0.0.1:0", scheduler_kwargs={"dashboard": False},
+                        silence_logs=logging.CRITICAL)
+
+
 def batches(todo: list[int], workers: int, size: int | None = None) -> list[list[int]]:
     """A few batches per worker: small enough to stream and balance, big enough that a task's
     overhead is small against its runs."""
@@ -161,13 +172,10 @@ def execute(campaign: Campaign, store: Store, *, workers: int, scheduler: str | 
                     f.cancel()
                 raise
     else:
-        from distributed import Client, LocalCluster
+        from distributed import Client
         from distributed import as_completed as dask_completed
 
-        cluster = None
-        if scheduler == LOCAL_DASK:
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                   host="127.0.0.1", dashboard_address=None, silence_logs=logging.CRITICAL)
+        cluster = local_cluster(workers) if scheduler == LOCAL_DASK else None
         client = Client(cluster if cluster is not None else scheduler)
         try:
             tasks = [client.submit(run_batch, campaign, b, pure=False) for b in jobs]
