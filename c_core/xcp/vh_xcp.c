@@ -465,7 +465,7 @@ static bool upload(vh_xcp_t *x, uint8_t n)
             return false;
         }
         r = res_begin(x, (uint8_t)(1u + n));
-        memcpy(&r[1], m, n);
+        memmove(&r[1], m, n); /* memmove: a region may map the slave itself (its counters) */
     }
     x->mta += n;
     return true;
@@ -990,7 +990,9 @@ void vh_xcp_event(vh_xcp_t *x, uint16_t channel)
             }
             for (k = 0; k < o->entry_count; ++k) {
                 const vh_xcp_entry_t *e = &x->entry[o->first_entry + k];
-                memcpy(&f->data[pos], e->mem, e->size); /* fits: checked when the list started */
+                /* fits: checked when the list started; memmove: an entry may sample the slave's
+                 * own memory, this very DTO included (the fuzzer's overlap) */
+                memmove(&f->data[pos], e->mem, e->size);
                 pos = (uint8_t)(pos + e->size);
             }
             f->len = frame_len(x, pos);
