@@ -263,6 +263,21 @@ def test_bad_cli_arguments_are_errors(tmp_path, capsys, argv, problem):
     assert problem in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("argv, problem", [
+    (["tireforce_small", "--runs", "0"], "--runs must be at least 1"),
+    (["tireforce_small", "--repeats", "-1"], "--repeats must be at least 1"),
+    (["tireforce_small", "-j", "0"], "--workers must be at least 1"),
+    (["tireforce_small", "--batch-size", "0"], "--batch-size must be at least 1"),
+    (["no_such_campaign"], "cannot read"),
+])
+def test_bad_bench_arguments_are_errors_before_any_run(capsys, argv, problem):
+    from vehest_can.campaign import bench
+
+    with pytest.raises(SystemExit) as e:
+        bench.main(argv)
+    assert e.value.code == 2 and problem in capsys.readouterr().err
+
+
 def test_a_missing_campaign_file_is_an_error(tmp_path, capsys):
     assert main(["campaign", str(tmp_path / "none.toml")]) == 1
     assert "cannot read" in capsys.readouterr().err

@@ -15,6 +15,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from ..errors import ConfigError
 from .runner import LOCAL_DASK, Store, execute, local_cluster
 from .spec import CAMPAIGNS, load_campaign
 
@@ -62,7 +63,14 @@ def main(argv=None) -> int:
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--batch-size", type=int)
     a = p.parse_args(argv)
-    r = measure(a.spec, a.runs, a.workers, a.repeats, a.batch_size)
+    for flag, value in (("--runs", a.runs), ("--workers", a.workers), ("--repeats", a.repeats),
+                        ("--batch-size", a.batch_size)):
+        if value is not None and value < 1:
+            p.error(f"{flag} must be at least 1")
+    try:
+        r = measure(a.spec, a.runs, a.workers, a.repeats, a.batch_size)
+    except ConfigError as e:
+        p.exit(2, f"error: {e}\n")
     print(f"campaign {r['campaign']}: {r['runs']} runs, median of {r['repeats']} (interleaved)")
     for k, v in r["median_wall_s"].items():
         print(f"  {k:<10} {v:7.2f} s  {r['runs_per_min'][k]:8.1f} runs/min")
