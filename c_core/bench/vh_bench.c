@@ -71,7 +71,7 @@ static int make_chs_frames(vh_frame_t *out, int n)
     return 1;
 }
 
-#define ALL_PER_TICK 5
+#define ALL_PER_TICK 6
 
 /* The chassis and roll nodes' frames of a 5 deg steer ramp at 72 km/h on the 14-DOF plant
  * (open loop: the commands are not fed back), up to ALL_PER_TICK per tick; n_out[i] of tick i. */
@@ -88,6 +88,7 @@ static int make_all_frames(vh_frame_t (*out)[ALL_PER_TICK], size_t *n_out, int n
 
     vh_v14_params_default(&prm);
     vh_chs_config_default(&ccfg);
+    ccfg.ride_period = VH_CHS_RIDE_PERIOD_DEFAULT; /* with ride heights: SKFMEC-A's every path */
     vh_rln_config_default(&rcfg);
     rcfg.mode_active = 1u;
     if (vh_v14_init(&plant, &prm) != VH_OK || vh_v14_set_rolling(&plant, 20.0) != VH_OK ||
@@ -100,7 +101,7 @@ static int make_all_frames(vh_frame_t (*out)[ALL_PER_TICK], size_t *n_out, int n
         in.steer = 0.0873 * (t < 0.5 ? 0.0 : (t < 2.5 ? (t - 0.5) / 2.0 : 1.0));
         vh_rln_actuate(&roll, &plant);
         vh_v14_step(&plant, &in);
-        n_out[i] = vh_chs_step(&chs, &plant.truth, &out[i][0], 1u);
+        n_out[i] = vh_chs_step(&chs, &plant.truth, &out[i][0], 2u);
         n_out[i] += vh_rln_step(&roll, &plant, &out[i][n_out[i]], ALL_PER_TICK - n_out[i]);
     }
     return 1;

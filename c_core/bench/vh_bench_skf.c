@@ -25,6 +25,9 @@
 static double samples[N_SAMPLES];
 static vh_skf_input_t inputs[N_SAMPLES];
 static int32_t qinputs[N_SAMPLES * VH_SKFQ_NU];
+/* the springs' static deflections of the model car in Q.VH_TFA_FH [m]: 0.163 m front, 0.130 m rear */
+static const int32_t ride[4] = {(int32_t)(0.163 * (1 << VH_TFA_FH)), (int32_t)(0.163 * (1 << VH_TFA_FH)),
+                                (int32_t)(0.130 * (1 << VH_TFA_FH)), (int32_t)(0.130 * (1 << VH_TFA_FH))};
 
 int main(int argc, char **argv)
 {
@@ -87,7 +90,7 @@ int main(int argc, char **argv)
         samples[i] = vh_bench_now_ns() - t0;
     }
     vh_bench_report("skfmec_fixed_step", samples, n, clock_ns);
-    /* SKFMEC-A: the same SKFMEC step and vh_tfa_step after it, timed together */
+    /* SKFMEC-A: the same SKFMEC step and vh_tfa_step after it, timed together, with ride heights */
     vh_tfa_config_default(&acfg);
     if (vh_skfq_init(&kq2, &prm) != VH_OK || vh_tfa_params_from_config(&cfg, &acfg, &aprm) != VH_OK ||
         vh_tfa_init(&ka, &aprm) != VH_OK) {
@@ -97,7 +100,7 @@ int main(int argc, char **argv)
         const vh_skfq_input_t *in = vh_skfq_input_row(qinputs, (size_t)i);
         t0 = vh_bench_now_ns();
         sink += vh_skfq_step(&kq2, in, VH_SKF_ALL_VALID);
-        vh_tfa_step(&ka, &kq2, in, VH_SKF_ALL_VALID);
+        vh_tfa_step(&ka, &kq2, in, VH_SKF_ALL_VALID, ride);
         samples[i] = vh_bench_now_ns() - t0;
     }
     vh_bench_report("skfmec_a_fixed_step", samples, n, clock_ns);

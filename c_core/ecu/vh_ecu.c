@@ -59,6 +59,7 @@ static void rx_chs(vh_ecu_t *ecu, const vh_frame_t *f)
     vh_tf_app_rx(&ecu->chs, f);
     vh_roll_app_rx(&ecu->roll, &ecu->cfg.roll, f); /* steer and wheel speeds: the roll UKF's inputs */
 }
+static void rx_chs_ride(vh_ecu_t *ecu, const vh_frame_t *f) { vh_tf_app_rx_ride(&ecu->chs, f); }
 static void rx_roll(vh_ecu_t *ecu, const vh_frame_t *f) { vh_roll_app_rx(&ecu->roll, &ecu->cfg.roll, f); }
 static void rx_cis(vh_ecu_t *ecu, const vh_frame_t *f) { vh_cmb_app_rx(&ecu->cis, &ecu->cnt, f); }
 
@@ -68,6 +69,7 @@ static const struct {
 } RX_TABLE[] = {
     {VH_PT_DLS_SENSORS_FRAME_ID, rx_dls},
     {VH_CH_CHS_SENSORS_FRAME_ID, rx_chs},
+    {VH_CH_CHS_RIDE_HEIGHT_FRAME_ID, rx_chs_ride},
     {VH_PT_CIS_ACCEL_FRAME_ID, rx_cis},
     {VH_CH_ROLL_SENSORS_FRAME_ID, rx_roll},
     {VH_CH_ROLL_YAW_RATE_FRAME_ID, rx_roll},

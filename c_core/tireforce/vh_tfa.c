@@ -18,6 +18,7 @@
 #define FS VH_TFA_FS
 #define FC VH_TFA_FC
 #define FG VH_TFA_FG
+#define FH VH_TFA_FH
 #define FO VH_SKFQ_FO
 #define FW VH_SKFQ_FW
 #define FV 21 /* speeds [m/s] of the differential slip */
@@ -54,7 +55,10 @@ int vh_tfa_check(const vh_tfa_params_t *prm)
         prm->k_inv_svx.m <= 0 || prm->alpha_slip <= 0 || prm->alpha_slip > ONE30 || prm->g_obs <= 0 ||
         prm->g_obs > ONE30 || prm->g_forget <= 0 || prm->g_forget > ONE30 || prm->mu_floor <= 0 ||
         prm->mu_nom < prm->mu_floor || prm->q_gate <= 0 || prm->q_gate >= ONE30 || prm->s_step <= 0 ||
-        prm->ellipse_floor2 <= 0 || prm->ellipse_floor2 > ONE30) {
+        prm->ellipse_floor2 <= 0 || prm->ellipse_floor2 > ONE30 || !k_ok(prm->k_spring[0]) ||
+        !k_ok(prm->k_spring[1]) || !k_ok(prm->k_link[0]) || !k_ok(prm->k_link[1]) || !k_ok(prm->k_ride) ||
+        (prm->ride && (prm->k_spring[0].m <= 0 || prm->k_spring[1].m <= 0 || prm->k_ride.m <= 0 ||
+                       prm->ride_phi <= 0 || prm->ride_unsprung < 0))) {
         return VH_EINVAL;
     }
     for (i = 0; i < NZ * NA; ++i) {
@@ -94,6 +98,8 @@ void vh_tfa_reset(vh_tfa_t *a)
     a->valid_run = 0u;
     a->steps = 0u;
     a->updates = 0u;
+    a->w_lp = 0;
+    a->ride_run = 0u;
     for (i = 0; i < 4; ++i) {
         a->fy[i] = 0;
         a->fz[i] = 0;
@@ -107,13 +113,12 @@ void vh_tfa_reset(vh_tfa_t *a)
     a->health = VH_HEALTH_INIT;
 }
 
-/* One RLS update of y = m a_x in the mass ratio k (adaptive.rls_step): K = P phi / (1 + phi P phi),
- * k += K (y - phi k) (clamped), P = (1 - K phi) P / lambda in [P_floor, P0]. */
-static void rls(vh_tfa_t *a, uint32_t *sat)
+/* One RLS update of y = m phi in the mass ratio k (adaptive.rls_step), both normalised by the
+ * measurement's sigma (ph = m phi / sigma, yv = y / sigma, FQ): K = P ph / (1 + ph P ph),
+ * k += K (yv - ph k) (clamped), P = (1 - K ph) P / lambda in [P_floor, P0]. */
+static void rls(vh_tfa_t *a, int32_t ph, int32_t yv, uint32_t *sat)
 {
     const vh_tfa_params_t *k = &a->prm;
-    const int32_t ph = KM(k->k_phi, a->ax_lp, FA, FQ);
-    const int32_t yv = KM(k->k_y, a->y_lp, FN, FQ);
     const int32_t u = MUL(a->p, FP, ph, FQ, 24);                       /* P phi, Q24 */
     const int32_t s = ADD(INT32_C(1) << 16, MUL(ph, FQ, u, 24, 16));    /* 1 + phi P phi, Q16 */
     const int32_t g = vh_fix_div(u, s, 16, sat);                        /* K, Q24 */
@@ -333,7 +338,24 @@ static void friction_update(vh_tfa_t *a, const vh_skfq_t *f, uint32_t *sat)
     }
 }
 
-void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask)
+/* The sprung weight from the ride heights (adaptive.estimate_mass): sum k_i s_i plus the links' vertical
+ * forces (hf/tf)(Fy2 - Fy1) + (hr/tr)(Fy4 - Fy3) of the SKFMEC's forces [N], low-passed as the balance
+ * (the filter starts at the first usable sample). */
+static void ride_lowpass(vh_tfa_t *a, const vh_skfq_t *f, const int32_t *ride, uint32_t *sat)
+{
+    const vh_tfa_params_t *k = &a->prm;
+    int32_t w = ADD(KM(k->k_link[0], SUB(f->fy[1], f->fy[0]), FN, FN), KM(k->k_link[1], SUB(f->fy[3], f->fy[2]), FN, FN));
+    int i;
+    for (i = 0; i < 4; ++i) {
+        w = ADD(w, KM(k->k_spring[i >> 1], ride[i], FH, FN));
+    }
+    a->w_lp = a->ride_run == 0u ? w : ADD(a->w_lp, MUL(k->alpha_lp, 30, SUB(w, a->w_lp), FN, FN));
+    if (a->ride_run < UINT32_MAX) {
+        ++a->ride_run;
+    }
+}
+
+void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask, const int32_t *ride)
 {
     const vh_tfa_params_t *k = &a->prm;
     uint32_t *sat = &a->sat;
@@ -354,9 +376,18 @@ void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uns
     } else {
         a->valid_run = 0u;
     }
+    if (k->ride && ride != NULL) {
+        ride_lowpass(a, f, ride, sat);
+    } else {
+        a->ride_run = 0u;
+    }
     if (a->steps % k->decim == 0u && a->valid_run > k->valid_min && abs32(a->ax_lp) >= k->ax_gate &&
         abs32(in->ay) <= k->ay_gate && f->x[VH_SKF_VX] >= k->vx_gate) {
-        rls(a, sat);
+        rls(a, KM(k->k_phi, a->ax_lp, FA, FQ), KM(k->k_y, a->y_lp, FN, FQ), sat); /* the balance, y = m a_x */
+    }
+    if (a->steps % k->decim == 0u && a->ride_run > k->ride_min) {
+        /* the ride heights: m = sprung weight / g + the unsprung mass, a regressor of 1 */
+        rls(a, k->ride_phi, ADD(KM(k->k_ride, a->w_lp, FN, FQ), k->ride_unsprung), sat);
     }
     for (i = 0; i < 4; ++i) {
         a->fz[i] = MUL(f->fz[i], FN, a->k, FK, FN);
@@ -391,8 +422,9 @@ int32_t vh_tfa_mass_std(const vh_tfa_t *a)
     return isqrt64(a->p);
 }
 
-void vh_tfa_run(vh_tfa_t *a, vh_skfq_t *f, size_t n, const int32_t *u, const uint8_t *mask, int32_t *fy_out,
-                int32_t *fz_out, int32_t *k_out, int32_t *p_out, uint8_t *health_out)
+void vh_tfa_run(vh_tfa_t *a, vh_skfq_t *f, size_t n, const int32_t *u, const uint8_t *mask, const int32_t *ride,
+                const uint8_t *ride_ok, int32_t *fy_out, int32_t *fz_out, int32_t *k_out, int32_t *p_out,
+                uint8_t *health_out)
 {
     size_t t;
     int i;
@@ -400,7 +432,7 @@ void vh_tfa_run(vh_tfa_t *a, vh_skfq_t *f, size_t n, const int32_t *u, const uin
         const vh_skfq_input_t *in = vh_skfq_input_row(u, t);
         const unsigned m = mask ? mask[t] : (unsigned)VH_SKF_ALL_VALID;
         (void)vh_skfq_step(f, in, m);
-        vh_tfa_step(a, f, in, m);
+        vh_tfa_step(a, f, in, m, ride != NULL && ride_ok != NULL && ride_ok[t] ? &ride[t * 4] : NULL);
         for (i = 0; i < 4; ++i) {
             fy_out[t * 4 + (size_t)i] = a->fy[i];
             fz_out[t * 4 + (size_t)i] = a->fz[i];

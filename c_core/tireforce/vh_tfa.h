@@ -8,8 +8,12 @@
  * (3) the split of each axle's force by the tyre's force table at one slip angle (the exact
  * inverse of the piecewise-linear pair sum), each tyre's curve at its side's friction mu F(alpha / mu)
  * and times the friction ellipse's sqrt(1 - (Fx / mu Dx)^2); (4) each side's mu from the axle's
- * excess differential slip through the combined-slip model's secant table. The same algorithm as
- * vehest_can/systems/tireforce/adaptive.py (double); the constants come from there (host side).
+ * excess differential slip through the combined-slip model's secant table; (5) where ride-height
+ * sensors are fitted, a second measurement of the mass in the same RLS: the sprung weight
+ * sum k_i s_i of the four springs' deflections s_i plus the roll-centre links' vertical forces
+ * (hf/tf)(Fy2 - Fy1) + (hr/tr)(Fy4 - Fy3) of the SKFMEC's forces, low-passed, plus the unsprung
+ * mass. The same algorithm as vehest_can/systems/tireforce/adaptive.py (double); the constants come
+ * from there (host side).
  *
  * Formats: forces FN (vh_skfq.h), a_x FA, k Q2.29, P Q1.30 (in units of k^2), the normalised
  * regressor and output phi = m a_x / sigma, y / sigma in Q10.21, the table's load weights Q15.
@@ -32,6 +36,7 @@
 #define VH_TFA_FS 29 /* Q2.29 slips, the excess differential slip, the friction mu */
 #define VH_TFA_FC 40 /* longitudinal slip compliance 1/C_kappa [1/N] */
 #define VH_TFA_FG 24 /* Q7.24 knot positions (slip angle, normalised slip) and normalised slips */
+#define VH_TFA_FH 29 /* Q2.29 spring deflections from the free length [m] (ride heights) */
 
 typedef struct {
     int32_t table[VH_TFA_NZ * VH_TFA_NA]; /* lateral force of the tyre at (load i, slip angle j), FN */
@@ -65,6 +70,14 @@ typedef struct {
     int32_t mu_nom, mu_floor;   /* FS */
     int32_t s_step;             /* 0.05, Q30 */
     int32_t ellipse_floor2;     /* its square, Q30 */
+    /* the mass from the ride heights (ride: 0 off) */
+    int32_t ride;
+    vh_fix_k_t k_spring[2];     /* spring rate front, rear [N/m]: deflection (FH) -> force (FN) */
+    vh_fix_k_t k_link[2];       /* hf / tf, hr / tr: a force difference (FN) -> the links' vertical force */
+    vh_fix_k_t k_ride;          /* 1 / (g sigma_h): the sprung weight (FN) -> its mass / sigma_h (FN of this header) */
+    int32_t ride_unsprung;      /* (m - ms) / sigma_h, FN of this header */
+    int32_t ride_phi;           /* the regressor m / sigma_h, FN of this header */
+    uint32_t ride_min;          /* usable steps before an update (the low-pass starts at the first sample) */
 } vh_tfa_params_t;
 
 typedef struct {
@@ -74,6 +87,8 @@ typedef struct {
     int32_t k;                  /* Q29 */
     int32_t p;                  /* Q30 */
     uint32_t valid_run, steps, updates;
+    int32_t w_lp;               /* the sprung weight from the ride heights, low-passed, FN */
+    uint32_t ride_run;          /* consecutive steps with usable ride heights */
     int32_t fy[4], fz[4];       /* FN */
     int32_t slip_e[2];          /* the excess differential slip per axle (low-passed), FS */
     int32_t mu[2];              /* friction of the left and right side, FS */
@@ -88,13 +103,16 @@ int vh_tfa_check(const vh_tfa_params_t *prm);
 int vh_tfa_init(vh_tfa_t *a, const vh_tfa_params_t *prm);
 /* Back to the prior: k = 1, P = p0, filters and counters cleared (the constants kept). */
 void vh_tfa_reset(vh_tfa_t *a);
-/* One step after vh_skfq_step(f, in, mask) on the same inputs and mask. */
-void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask);
+/* One step after vh_skfq_step(f, in, mask) on the same inputs and mask; ride: the four springs'
+ * deflections (FH, FL FR RL RR) when ride-height sensors give usable ones this step, else NULL. */
+void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask, const int32_t *ride);
 /* The mass ratio's standard deviation sqrt(P), rounded down, in Q(VH_TFA_FP / 2). */
 int32_t vh_tfa_mass_std(const vh_tfa_t *a);
-/* The array API: n steps of both filters from their current state, inputs as vh_skfq_run. Per step:
- * fy, fz (4 each, FN), k, p, health. */
-void vh_tfa_run(vh_tfa_t *a, vh_skfq_t *f, size_t n, const int32_t *u, const uint8_t *mask, int32_t *fy_out,
-                int32_t *fz_out, int32_t *k_out, int32_t *p_out, uint8_t *health_out);
+/* The array API: n steps of both filters from their current state, inputs as vh_skfq_run; ride (n x 4,
+ * FH) with ride_ok (n: 1 usable) or both NULL (no ride-height sensors). Per step: fy, fz (4 each, FN),
+ * k, p, health. */
+void vh_tfa_run(vh_tfa_t *a, vh_skfq_t *f, size_t n, const int32_t *u, const uint8_t *mask, const int32_t *ride,
+                const uint8_t *ride_ok, int32_t *fy_out, int32_t *fz_out, int32_t *k_out, int32_t *p_out,
+                uint8_t *health_out);
 
 #endif /* VH_TFA_H */

@@ -21,9 +21,10 @@ void vh_tfa_config_default(vh_tfa_config_t *c)
     c->tyre_fz_scale = 1.75;
     c->mu = 1.0;
     memcpy(c->tyre_b, b, sizeof b);
-    c->tau_slip = 0.5; c->fx_gate = 200.0; c->q_gate = 0.85;
-    c->tau_mu = 0.5; c->tau_mu_forget = 3.0; c->mu_floor = 0.1; c->ellipse_floor = 0.2;
+    c->tau_slip = 0.25; c->fx_gate = 200.0; c->q_gate = 0.85;
+    c->tau_mu = 0.25; c->tau_mu_forget = 3.0; c->mu_floor = 0.1; c->ellipse_floor = 0.2;
     c->friction = 1; c->combined = 1;
+    c->ride = 1; c->spring_front = 30000.0; c->spring_rear = 25000.0; c->sigma_ride = 0.01;
 }
 
 /* Bakker-Nyborg-Pacejka 1987 at mu = 1 (adaptive._mf): x in the formula's unit, f in kN / size */
@@ -94,8 +95,9 @@ int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t 
           c->mass_lo > 0.0 && c->mass_hi > c->mass_lo && c->mass_hi < 4.0 && c->mu > 0.0 && c->mu < 4.0 &&
           c->tyre_fz_scale > 0.0 && c->tau_slip > 0.0 && c->tau_mu > 0.0 && c->tau_mu_forget > 0.0 &&
           c->mu_floor > 0.0 && c->mu_floor <= c->mu && c->q_gate > 0.0 && c->q_gate < 1.0 && c->fx_gate >= 0.0 &&
-          c->ellipse_floor > 0.0 && c->ellipse_floor <= 1.0 &&
-          skf->m > 0.0 && skf->ts > 0.0 && s_vx > 0.0)) {
+          c->ellipse_floor > 0.0 && c->ellipse_floor <= 1.0 && c->spring_front > 0.0 && c->spring_rear > 0.0 &&
+          c->sigma_ride > 0.0 && skf->m > 0.0 && skf->ms > 0.0 && skf->ms <= skf->m && skf->g > 0.0 &&
+          skf->tf > 0.0 && skf->tr > 0.0 && skf->ts > 0.0 && s_vx > 0.0)) {
         return VH_EINVAL;
     }
     memset(&z, 0, sizeof z);
@@ -165,6 +167,18 @@ int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t 
     z.mu_floor = vh_skfq_qconst(c->mu_floor, VH_TFA_FS, &ok);
     z.s_step = vh_skfq_qconst(0.05, 30, &ok);
     z.ellipse_floor2 = vh_skfq_qconst(c->ellipse_floor * c->ellipse_floor, 30, &ok);
+    z.ride = c->ride != 0;
+    z.k_spring[0] = vh_skfq_kconst(c->spring_front, &ok);
+    z.k_spring[1] = vh_skfq_kconst(c->spring_rear, &ok);
+    z.k_link[0] = vh_skfq_kconst(skf->hf / skf->tf, &ok);
+    z.k_link[1] = vh_skfq_kconst(skf->hr / skf->tr, &ok);
+    {   /* one ride-height measurement's std sigma_h = sigma_ride m [kg] normalises it */
+        const double sigma_h = c->sigma_ride * skf->m;
+        z.k_ride = vh_skfq_kconst(1.0 / (skf->g * sigma_h), &ok);
+        z.ride_unsprung = vh_skfq_qconst((skf->m - skf->ms) / sigma_h, VH_TFA_FN, &ok);
+        z.ride_phi = vh_skfq_qconst(skf->m / sigma_h, VH_TFA_FN, &ok);
+    }
+    z.ride_min = (uint32_t)floor(c->tau_lp / skf->ts + 0.5);
     if (!ok) {
         return VH_EINVAL;
     }

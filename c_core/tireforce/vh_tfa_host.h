@@ -27,6 +27,9 @@ typedef struct {
     double mu_floor;
     double ellipse_floor;
     int friction, combined;      /* 1: on */
+    int ride;                    /* 1: the mass from the ride heights where they are usable */
+    double spring_front, spring_rear; /* spring rate at the wheel, per corner [N/m] */
+    double sigma_ride;           /* std of one ride-height mass measurement, fraction of the model mass */
 } vh_tfa_config_t;
 
 void vh_tfa_config_default(vh_tfa_config_t *c);

@@ -10,6 +10,8 @@
 
 #define CHS_TIMEOUT_TICKS (VH_CH_CHS_SENSORS_RX_TIMEOUT_CYCLES * (VH_CH_CHS_SENSORS_CYCLE_TIME_US / VH_TICK_US))
 #define CHS_ALL_INPUTS 0x1FF0u /* channels 4..12 of vh_skf_input_t: steer, wheel speeds, torques */
+#define RIDE_TIMEOUT_TICKS \
+    (VH_CH_CHS_RIDE_HEIGHT_RX_TIMEOUT_CYCLES * (VH_CH_CHS_RIDE_HEIGHT_CYCLE_TIME_US / VH_TICK_US))
 
 void vh_tf_app_reset(vh_ecu_chs_t *c)
 {
@@ -21,6 +23,11 @@ void vh_tf_app_reset(vh_ecu_chs_t *c)
     memset(c->tx_counter, 0, sizeof c->tx_counter);
     memset(&c->rx, 0, sizeof c->rx);
     vh_rx_init(&c->rx);
+    memset(c->ride, 0, sizeof c->ride);
+    c->ride_valid = 0u;
+    c->ride_heard = 0u;
+    memset(&c->ride_rx, 0, sizeof c->ride_rx);
+    vh_rx_init(&c->ride_rx);
     (void)vh_skfq_init(&c->skf, &prm); /* validated in vh_ecu_init */
     vh_tfa_reset(&c->tfa);             /* in place: its constants (a 3.7 KB table) are not copied */
 }
@@ -71,13 +78,50 @@ void vh_tf_app_rx(vh_ecu_chs_t *c, const vh_frame_t *f)
     TAKE(wheel_torque_rr, WHEEL_TORQUE_RR, 12, VH_SKFQ_FT);
 }
 
+/* One ride-height channel: valid (qualifier set, not SNA: else counted) into v[i], raw -> Q.FH exactly. */
+#define RIDE(sig, SIG, i)                                                                                 \
+    if (!(m.qf_##sig && m.sig != VH_CH_CHS_RIDE_HEIGHT_##SIG##_SNA_CHOICE)) {                              \
+        vh_rx_count(&c->cnt.signal_invalid);                                                              \
+        ok = 0u;                                                                                          \
+    }                                                                                                     \
+    v[i] = vh_ch_chs_ride_height_##sig##_decode_q(m.sig, VH_TFA_FH, &ignored)
+
+void vh_tf_app_rx_ride(vh_ecu_chs_t *c, const vh_frame_t *f)
+{
+    struct vh_ch_chs_ride_height_t m;
+    uint32_t ignored = 0u;
+    int32_t v[4];
+    unsigned ok = 1u;
+    if ((f->flags & VH_FRAME_EXT) != 0u) {
+        vh_rx_count(&c->cnt.dlc_error);
+        return;
+    }
+    if (!vh_rx_accept(&c->cnt, &c->ride_rx, f, VH_CH_CHS_RIDE_HEIGHT_LENGTH, VH_CH_CHS_RIDE_HEIGHT_E2E_DATA_ID)) {
+        return;
+    }
+    (void)vh_ch_chs_ride_height_unpack(&m, f->data, f->len);
+    c->ride_heard = 1u;
+    RIDE(spring_defl_fl, SPRING_DEFL_FL, 0);
+    RIDE(spring_defl_fr, SPRING_DEFL_FR, 1);
+    RIDE(spring_defl_rl, SPRING_DEFL_RL, 2);
+    RIDE(spring_defl_rr, SPRING_DEFL_RR, 3);
+    c->ride_valid = (uint8_t)ok; /* the four together: the sum needs every corner */
+    if (ok) {
+        memcpy(c->ride, v, sizeof v);
+    }
+}
+
 void vh_tf_app_step(vh_ecu_chs_t *c, unsigned burst_limit)
 {
     vh_skfq_t *f = &c->skf;
     const int fresh = c->rx.fresh;
     const int was_out = c->rx.timed_out;
     const int usable = vh_rx_tick(&c->cnt, &c->rx, CHS_TIMEOUT_TICKS, burst_limit) && fresh;
+    /* the ride heights: held between their 10 ms frames, until their timeout */
+    const int ride_ok = vh_rx_tick(&c->cnt, &c->ride_rx, RIDE_TIMEOUT_TICKS, burst_limit) && c->ride_heard &&
+                        !c->ride_rx.timed_out && c->ride_valid;
     c->rx.fresh = 0u;
+    c->ride_rx.fresh = 0u;
     if (!c->heard) {
         return;
     }
@@ -97,7 +141,7 @@ void vh_tf_app_step(vh_ecu_chs_t *c, unsigned burst_limit)
         if (vh_skfq_step(f, in, mask)) {
             vh_rx_count(&c->cnt.filter_reset);
         }
-        vh_tfa_step(&c->tfa, f, in, mask);
+        vh_tfa_step(&c->tfa, f, in, mask, ride_ok ? c->ride : NULL);
         if (f->sat != sat0 || c->tfa.sat != tsat0) {
             vh_rx_count(&c->cnt.saturation);
         }
@@ -186,7 +230,8 @@ int vh_tf_app_fill_status(vh_ecu_chs_t *c, uint8_t *data)
     m.cnt_saturation = c->cnt.saturation;
     m.cnt_filter_reset = c->cnt.filter_reset;
     m.rx_fault_active = (uint8_t)((c->rx.timed_out || c->rx.resync ? 1u : 0u) |
-                                  ((c->valid & 0x1FFFu) != 0x1FFFu ? 2u : 0u));
+                                  ((c->valid & 0x1FFFu) != 0x1FFFu ? 2u : 0u) |
+                                  (c->ride_heard && (c->ride_rx.timed_out || c->ride_rx.resync || !c->ride_valid) ? 4u : 0u));
     SEND(vehest_chassis_status, VEHEST_CHASSIS_STATUS, 1);
     return 1;
 }

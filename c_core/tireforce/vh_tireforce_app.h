@@ -9,6 +9,11 @@
  * heard (a powertrain-only car sees no chassis frames), each estimate raw by an exact integer
  * scaling (the DBC's fraction, times the filter's scaling S for the states): raw frame to raw
  * frame, no double. Its own counters (VEHEST_ChassisStatus).
+ *
+ * CHS_RideHeight (where the car has ride-height sensors): the same RX checks into the same
+ * counters; its four spring deflections go to SKFMEC-A's mass while the message has not timed out
+ * and all four are valid. A car without them never sends it: not a fault, SKFMEC-A then has the
+ * longitudinal balance alone. RxFaultActive bit 2: heard once, and now timed out or a channel invalid.
  */
 #ifndef VH_TIREFORCE_APP_H
 #define VH_TIREFORCE_APP_H
@@ -27,6 +32,10 @@ typedef struct {
     vh_ecu_rxmsg_t rx;
     vh_skfq_t skf;         /* its integer constants (skf.prm) are set once, at vh_ecu_init */
     vh_tfa_t tfa;          /* SKFMEC-A over it (tfa.prm likewise) */
+    int32_t ride[4];       /* last good CHS_RideHeight: spring deflections, Q.VH_TFA_FH [m] */
+    uint8_t ride_valid;    /* all four channels of it valid */
+    uint8_t ride_heard;    /* a good CHS_RideHeight has arrived since reset: the car has the sensors */
+    vh_ecu_rxmsg_t ride_rx;
     vh_ecu_counters_t cnt;
     uint8_t tx_counter[3]; /* E2E counters: TireForceEst, ChassisStatus, TireForceAdaptive */
 } vh_ecu_chs_t;
@@ -35,6 +44,8 @@ typedef struct {
 void vh_tf_app_reset(vh_ecu_chs_t *c);
 /* One received CHS_Sensors frame, checked and counted. */
 void vh_tf_app_rx(vh_ecu_chs_t *c, const vh_frame_t *f);
+/* One received CHS_RideHeight frame, checked and counted. */
+void vh_tf_app_rx_ride(vh_ecu_chs_t *c, const vh_frame_t *f);
 /* Once per tick: RX timeout/burst and one filter step. */
 void vh_tf_app_step(vh_ecu_chs_t *c, unsigned burst_limit);
 /* 1 if the filter's scaling S (prm->s_num/s_den) times each state's DBC scale is a fraction the

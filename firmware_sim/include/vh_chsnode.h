@@ -2,10 +2,14 @@
  * inertial cluster (a_x, a_y, yaw rate, roll rate), the steering angle, the four wheel speeds
  * and the four wheel torques of the 14-DOF plant, adds each sensor's bias and Gaussian noise,
  * quantises to the DBC resolution through the generated codec (vh_ch.h) and sends one
- * E2E-protected CHS_Sensors frame (dbc/vehest_ch.dbc).
+ * E2E-protected CHS_Sensors frame (dbc/vehest_ch.dbc). Where ride-height sensors are fitted
+ * (ride_period > 0) it also samples the four springs' deflections every ride_period ticks and sends
+ * them in CHS_RideHeight.
  *
- * The noise of all channels is drawn every tick in a fixed order, so changing one channel's
- * standard deviation (or failing it) leaves the other channels' noise sequences unchanged.
+ * The noise of all CHS_Sensors channels is drawn every tick in a fixed order, so changing one
+ * channel's standard deviation (or failing it) leaves the other channels' noise sequences
+ * unchanged; the ride-height channels draw from a stream of their own, so fitting them changes
+ * no CHS_Sensors frame.
  */
 #ifndef VH_CHSNODE_H
 #define VH_CHSNODE_H
@@ -26,24 +30,34 @@ enum {
     VH_CHS_CH_STEER = 4, /* road-wheel steering angle [rad] */
     VH_CHS_CH_W = 5,     /* 5..8 wheel speed FL, FR, RL, RR [rad/s] */
     VH_CHS_CH_T = 9,     /* 9..12 wheel torque FL, FR, RL, RR [Nm] */
-    VH_CHS_NCH = 13
+    VH_CHS_NCH = 13,     /* the channels of CHS_Sensors */
+    VH_CHS_CH_RH = 13,   /* 13..16 spring deflection FL, FR, RL, RR [m] (CHS_RideHeight) */
+    VH_CHS_NCH_ALL = 17
 };
 
+/* CHS_RideHeight every 20 ticks (10 ms, its DBC cycle) where ride-height sensors are fitted */
+#define VH_CHS_RIDE_PERIOD_DEFAULT 20u
+
 typedef struct {
-    double noise_std[VH_CHS_NCH]; /* per channel, in the channel's unit; >= 0 */
-    double bias[VH_CHS_NCH];      /* constant offset per channel, in the channel's unit */
+    double noise_std[VH_CHS_NCH_ALL]; /* per channel, in the channel's unit; >= 0 */
+    double bias[VH_CHS_NCH_ALL];      /* constant offset per channel, in the channel's unit */
     uint64_t seed;                /* of the node's own random stream */
     uint32_t fail_mask;           /* bit (1 << VH_CHS_CH_*): channel sends SNA, qualifier INVALID */
     int accel_gravity;            /* 1: the accelerometers sit on the sprung body and feel gravity
                                    * through its roll and pitch (a_y + g sin phi, a_x - g sin theta);
                                    * 0: the kinematic accelerations of the vehicle frame (the paper) */
+    uint32_t ride_period;         /* ticks between CHS_RideHeight frames; 0 (the default): no
+                                   * ride-height sensors fitted */
 } vh_chs_config_t;
 
 typedef struct {
     vh_chs_config_t cfg;          /* cfg.fail_mask and cfg.bias may be changed between steps */
     vh_rng_t rng;
-    double meas[VH_CHS_NCH];      /* last sample with bias and noise, before quantisation */
-    uint8_t counter;              /* E2E alive counter of the next frame, 0..14 */
+    vh_rng_t rng_ride;            /* the ride-height channels' own stream */
+    double meas[VH_CHS_NCH_ALL];  /* last sample with bias and noise, before quantisation */
+    uint8_t counter;              /* E2E alive counter of the next CHS_Sensors frame, 0..14 */
+    uint8_t counter_ride;         /* and of the next CHS_RideHeight frame */
+    uint32_t tick;                /* steps since reset */
     uint32_t frames;              /* frames sent since reset */
 } vh_chs_t;
 
@@ -51,10 +65,11 @@ void vh_chs_config_default(vh_chs_config_t *cfg);
 /* VH_OK, or VH_EINVAL (nothing changed) for a negative or non-finite noise level or a
  * non-finite bias. */
 int vh_chs_init(vh_chs_t *n, const vh_chs_config_t *cfg);
-/* Counter to 0, random stream restarted from cfg.seed. */
+/* Counters to 0, random streams restarted from cfg.seed. */
 void vh_chs_reset(vh_chs_t *n);
-/* Sample truth and write one CHS_Sensors frame (FD|BRS, 32 bytes) to out[0].
- * Returns the number of frames written: 1, or 0 when cap is 0 or out or truth is NULL. */
+/* Sample truth and write one CHS_Sensors frame (FD|BRS, 32 bytes) to out[0], then, on a ride-height
+ * tick (every ride_period ticks from the first), one CHS_RideHeight frame (12 bytes) to out[1] when
+ * cap >= 2. Returns the number of frames written: 1 or 2, or 0 when cap is 0 or out or truth is NULL. */
 size_t vh_chs_step(vh_chs_t *n, const vh_v14_truth_t *truth, vh_frame_t *out, size_t cap);
 
 #endif /* VH_CHSNODE_H */

@@ -134,6 +134,8 @@ typedef struct {
     double torque[VH_V14_NW];   /* net wheel torque: drive minus the brake torque acting [Nm] */
     double mu[VH_V14_NW];       /* road friction applied */
     double zu[VH_V14_NW];       /* unsprung heave [m] */
+    double spring_defl[VH_V14_NW]; /* spring deflection from its free length, compression + [m]:
+                                    * k times it is the spring's force (the ride-height sensors) */
     double fyf, fyr;            /* mean tyre lateral force per axle, (Fy1 + Fy2)/2, (Fy3 + Fy4)/2 [N] */
     int substeps;               /* sub-steps of the last step */
 } vh_v14_truth_t;

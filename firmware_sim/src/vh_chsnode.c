@@ -13,6 +13,7 @@
 /* One channel: raw = round(phys / scale) clamped to the DBC range (the generated encoder), or
  * the signal's SNA value when the sensor failed; and its qualifier. */
 #define CHAN(sig, SIG, c) VH_NODE_CHANNEL(m, ch, CH, chs_sensors, CHS_SENSORS, sig, SIG, ok[c], n->meas[c])
+#define RIDE(sig, SIG, c) VH_NODE_CHANNEL(m, ch, CH, chs_ride_height, CHS_RIDE_HEIGHT, sig, SIG, ok[c], meas[c])
 
 void vh_chs_config_default(vh_chs_config_t *cfg)
 {
@@ -30,21 +31,62 @@ void vh_chs_config_default(vh_chs_config_t *cfg)
         cfg->noise_std[VH_CHS_CH_W + i] = 0.1;
         cfg->noise_std[VH_CHS_CH_T + i] = 2.0;
     }
-    for (i = 0; i < VH_CHS_NCH; ++i) {
+    /* ride-height sensors (angle sensors on the control arms): 0.1 mm at the wheel */
+    for (i = 0; i < 4; ++i) {
+        cfg->noise_std[VH_CHS_CH_RH + i] = 1e-4;
+    }
+    for (i = 0; i < VH_CHS_NCH_ALL; ++i) {
         cfg->bias[i] = 0.0;
     }
     cfg->seed = 0x434853u; /* "CHS" */
     cfg->fail_mask = 0u;
     cfg->accel_gravity = 0;
+    cfg->ride_period = 0u;
 }
 
-VH_NODE_LIFECYCLE(chs, VH_CHS_NCH, cfg->bias)
+int vh_chs_init(vh_chs_t *n, const vh_chs_config_t *cfg)
+{
+    if (n == NULL || cfg == NULL || vh_node_check(cfg->noise_std, cfg->bias, VH_CHS_NCH_ALL) != VH_OK) {
+        return VH_EINVAL;
+    }
+    n->cfg = *cfg;
+    vh_chs_reset(n);
+    return VH_OK;
+}
+
+void vh_chs_reset(vh_chs_t *n)
+{
+    vh_node_restart(&n->rng, n->cfg.seed, n->meas, VH_CHS_NCH_ALL);
+    vh_rng_seed(&n->rng_ride, n->cfg.seed ^ UINT64_C(0x5249444548474854)); /* "RIDEHGHT" */
+    n->counter = 0u;
+    n->counter_ride = 0u;
+    n->tick = 0u;
+    n->frames = 0u;
+}
+
+/* CHS_RideHeight: the four springs' deflections, sampled now, into f. */
+static void ride_frame(vh_chs_t *n, const vh_v14_truth_t *truth, vh_frame_t *f)
+{
+    struct vh_ch_chs_ride_height_t m;
+    double *meas = &n->meas[VH_CHS_CH_RH];
+    uint8_t ok[4];
+    vh_node_sample(&n->rng_ride, truth->spring_defl, &n->cfg.bias[VH_CHS_CH_RH], &n->cfg.noise_std[VH_CHS_CH_RH], 4,
+                   meas);
+    vh_node_qualify(meas, n->cfg.fail_mask >> VH_CHS_CH_RH, 4, ok);
+    (void)vh_ch_chs_ride_height_init(&m);
+    VH_NODE_CORNERS(RIDE, spring_defl, SPRING_DEFL, 0);
+    vh_node_frame_init(f, VH_CH_CHS_RIDE_HEIGHT_FRAME_ID, VH_CH_CHS_RIDE_HEIGHT_LENGTH);
+    (void)vh_ch_chs_ride_height_pack(f->data, &m, VH_CH_CHS_RIDE_HEIGHT_LENGTH);
+    vh_e2e_p01_protect(f->data, VH_CH_CHS_RIDE_HEIGHT_LENGTH, VH_CH_CHS_RIDE_HEIGHT_E2E_DATA_ID, &n->counter_ride);
+    vh_node_count(&n->frames);
+}
 
 size_t vh_chs_step(vh_chs_t *n, const vh_v14_truth_t *truth, vh_frame_t *out, size_t cap)
 {
     struct vh_ch_chs_sensors_t m;
     double phys[VH_CHS_NCH];
     uint8_t ok[VH_CHS_NCH];
+    size_t k;
     int i;
 
     if (out == NULL || cap == 0u || truth == NULL) {
@@ -80,5 +122,11 @@ size_t vh_chs_step(vh_chs_t *n, const vh_v14_truth_t *truth, vh_frame_t *out, si
     (void)vh_ch_chs_sensors_pack(out->data, &m, VH_CH_CHS_SENSORS_LENGTH);
     vh_e2e_p01_protect(out->data, VH_CH_CHS_SENSORS_LENGTH, VH_CH_CHS_SENSORS_E2E_DATA_ID, &n->counter);
     vh_node_count(&n->frames);
-    return 1u;
+    k = 1u;
+    if (n->cfg.ride_period > 0u && n->tick % n->cfg.ride_period == 0u && cap >= 2u) {
+        ride_frame(n, truth, &out[1]);
+        k = 2u;
+    }
+    ++n->tick;
+    return k;
 }

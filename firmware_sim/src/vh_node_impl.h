@@ -7,7 +7,7 @@
 
 #include "vh_node_common.h"
 
-/* Init and reset of a one-frame sensor node (vh_dlsnode.c, vh_chsnode.c). The node type vh_<node>_t
+/* Init and reset of a one-frame sensor node with one random stream (vh_dlsnode.c). The node type vh_<node>_t
  * has cfg, rng, meas[NCH], counter and frames; its config vh_<node>_config_t has noise_std[NCH] and
  * seed. BIAS is the config's bias array as an expression of cfg, or NULL for a node without bias.
  * init: VH_EINVAL (nothing changed) for NULL or a configuration vh_node_check refuses, else the

@@ -288,6 +288,10 @@ static void fill_truth(vh_v14_t *p, const ctx_t *c, const double *dx, const aux_
         t->torque[i] = aux->torque[i];
         t->mu[i] = c->mu[i];
         t->zu[i] = x[VH_V14_X_ZU + i];
+        /* spring deflection from its free length: the static one of this car's sprung weight plus
+         * the compression zu - z_s,i of the dynamics (small angles, as in the derivative) */
+        t->spring_defl[i] = p->fs0[i] / (i < 2 ? p->prm.k_f : p->prm.k_r) + x[VH_V14_X_ZU + i] -
+                            (t->z + p->cy[i] * t->phi - p->cx[i] * t->theta);
         /* peak slips at the truth loads, held for the rest of the step; slip stiffness for the
          * next step's sub-step count */
         p->ck[i] = aux->ck[i];

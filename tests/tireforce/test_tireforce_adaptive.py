@@ -67,31 +67,94 @@ def pct(sc):
 
 def test_paper_scenario_within_seven_percent_and_the_mass_within_five():
     """+200 kg, mu 1.1 -> 0.2: per tyre <= 7 % of peak (SKFMEC 12.0 / 3.3 / 12.7 / 4.0), axles <= 5 %;
-    DEGRADED until the mass estimate has converged (after the brakes come on at 1 s)."""
+    DEGRADED until the mass estimate has converged (the ride heights' first update after 0.2 s of them)."""
     a, base, true, run = pct(load_tireforce_scenario("chassis_paper_mu_drop"))
     print("\nSKFMEC-A", a["rms_pct"], "SKFMEC", base["rms_pct"], "mass", a["mass"])
     assert all(a["rms_pct"][w] <= 7.0 for w in tf.WHEELS)
     assert a["rms_pct"]["front"] <= 5.0 and a["rms_pct"]["rear"] <= 5.0
     assert abs(a["mass"]["final_kg"] / true - 1) <= 0.05
-    assert 1.0 < a["mass"]["converged_s"] < 3.0
-    t1 = int(1.0 / 5e-4)
-    assert np.all(run.health[400:t1] == A.H_DEGRADED) and np.all(run.health[-1000:] == A.H_OK)
+    assert 0.2 < a["mass"]["converged_s"] < 0.22
+    assert np.all(run.health[:400] != A.H_OK) and np.all(run.health[440:] == A.H_OK)
     for w in ("FR", "RR", "front", "rear"):  # no regression where the SKFMEC is good
         assert a["rms_pct"][w] <= base["rms_pct"][w] + 0.5
 
 
 def test_relation_run_within_eight_percent():
-    """70 km/h, steer 0 -> 4 deg (to 0.73 g), nominal mass, no longitudinal excitation: the mass stays
-    at the model's (DEGRADED: not converged), the split alone brings RL from 12.5 % to under 8 %."""
+    """70 km/h, steer 0 -> 4 deg (to 0.73 g), nominal mass, no longitudinal excitation: the ride heights
+    find the (nominal) mass in cornering up to 0.73 g, the split brings RL from 12.5 % to under 8 %."""
     a, base, true, run = pct(load_tireforce_scenario("chassis_relation_70kph"))
     assert all(a["rms_pct"][w] <= 8.0 for w in tf.WHEELS)
-    assert a["mass"]["converged_s"] is None and a["mass"]["final_kg"] == true
+    assert 0.2 < a["mass"]["converged_s"] < 0.22 and abs(run.mass[440:] / true - 1).max() <= 0.01
     assert np.all(run.mu == 1.0)  # no wheel force, no slip: the friction is unobservable, the nominal
     for w in ("FR", "RR", "front", "rear"):
         assert a["rms_pct"][w] <= base["rms_pct"][w] + 0.5
 
 
-@pytest.mark.parametrize("name", ["stress_highway_step_payload", "stress_payload_p400kg", "stress_payload_m100kg"])
+def test_without_ride_heights_the_balance_alone():
+    """A car without ride-height sensors ([sensors] ride_height = false: no CHS_RideHeight at all) is
+    SKFMEC-A on the longitudinal balance alone, step for step the run with the ride heights ignored:
+    on the relation run (no longitudinal excitation) the mass stays at the model's, DEGRADED."""
+    from vehest_can.schema import read_toml
+    from vehest_can.systems.tireforce.scenario import tireforce_scenario_from_dict, tireforce_scenario_path
+
+    path = tireforce_scenario_path("chassis_relation_70kph")
+    doc = read_toml(path)
+    doc.setdefault("sensors", {})["ride_height"] = False
+    _, dec, runs = tr.simulate(tireforce_scenario_from_dict(doc, path), variants=(A.ADAPTIVE,))
+    assert dec.ride is None
+    _, dec_r, _ = tr.simulate(load_tireforce_scenario("chassis_relation_70kph"), variants=())
+    ignored = A.AdaptiveSkfmec().with_options(ride=False).run(dec_r.for_filter(), dec_r.mask, dec_r.ride)
+    run = runs[A.ADAPTIVE]
+    assert np.array_equal(run.fy, ignored.fy) and np.array_equal(run.mass, ignored.mass)
+    assert np.all(run.mass == tf.SkfConfig.default().m) and np.all(run.health[400:] == A.H_DEGRADED)
+
+
+def test_ride_heights_lost_hold_the_mass_and_resume():
+    """Ride heights unusable for 2 s in the middle (NaN rows: timed out or a channel invalid) on the
+    +200 kg paper run: the estimate holds (the braking balance alone moves it), then the ride
+    heights come back and need 0.2 s before they update again; never a NaN."""
+    _, dec, _ = tr.simulate(load_tireforce_scenario("chassis_paper_mu_drop"), variants=())
+    ride = dec.ride.copy()
+    ride[6000:10000] = np.nan
+    u = dec.for_filter()
+    for run in (A.AdaptiveSkfmec().run(u, dec.mask, ride), A.AdaptiveFixed().run(u, dec.mask, ride)):
+        assert np.all(np.isfinite(run.mass)) and np.all(np.isfinite(run.fy))
+        assert abs(run.mass[-1] / 2014.0 - 1) < 0.01
+    with pytest.raises(Exception, match="shape"):
+        A.AdaptiveSkfmec().run(u, dec.mask, ride[:10])
+
+
+@pytest.mark.parametrize("delta", [-100.0, 0.0, 200.0, 400.0])
+def test_ride_height_mass_from_the_springs_alone(delta):
+    """The ride-height measurement itself against the plant: on a steady corner (60 km/h, 3 deg, the
+    power-on run before its drive, no longitudinal excitation at all), sum k_i s_i + the links'
+    vertical forces over g plus the unsprung mass is the car's mass within 1 %, for payloads
+    -100 ... +400 kg, and SKFMEC-A's estimate within 2 % from 0.22 s on."""
+    from vehest_can.schema import read_toml
+    from vehest_can.systems.tireforce.scenario import tireforce_scenario_from_dict
+
+    path = STRESS / "stress_power_on_cornering.toml"
+    doc = read_toml(path)
+    doc["vehicle"]["mass_delta_kg"] = delta
+    doc["duration_s"] = 4.0
+    sc = tireforce_scenario_from_dict(doc, path)
+    truth, dec, runs = tr.simulate(sc, variants=(tf.SKFMEC, A.ADAPTIVE))
+    cfg, skf = A.AdaptiveConfig(), tf.SkfConfig.default()
+    k = np.array([cfg.spring_front] * 2 + [cfg.spring_rear] * 2)
+    fy = truth["fy"]
+    w = dec.ride @ k + skf.hf / skf.tf * (fy[:, 1] - fy[:, 0]) + skf.hr / skf.tr * (fy[:, 3] - fy[:, 2])
+    m = w / skf.g + (skf.m - skf.ms)
+    true = skf.m + delta
+    ok = np.all(np.isfinite(dec.ride), axis=1)
+    assert ok[2:].all()
+    assert abs(np.nanmean(m[ok]) / true - 1) < 0.01
+    mass = runs[A.ADAPTIVE].mass
+    assert np.abs(mass[440:] / true - 1).max() < 0.02, (mass[440:].min(), mass[440:].max(), true)
+
+
+@pytest.mark.parametrize("name", ["stress_highway_step_payload", "stress_payload_p400kg", "stress_payload_m100kg",
+                                  "stress_step_steer_p400kg_no_excitation", "stress_sine_steer_m100kg_no_excitation",
+                                  "stress_split_mu_outer_low_p300"])
 def test_stress_within_ten_percent_and_the_mass_within_five(name):
     a, base, true, _ = pct(load_tireforce_scenario(STRESS / f"{name}.toml"))
     assert all(a["rms_pct"][w] <= 10.0 for w in tf.WHEELS), a["rms_pct"]
@@ -111,13 +174,21 @@ def test_split_mu_braking_within_ten_percent():
     assert np.all(run.mu[:int(1.0 / 5e-4)] == 1.0)  # no braking yet: not observable, the nominal
 
 
-@pytest.mark.xfail(strict=True, reason="known shortfall: on power-on cornering (400 Nm per FRONT wheel, +200 kg) "
-                   "RL misses by 10.8 % (SKFMEC 22.7 %): the rear axle estimate is 6.2 % off, mostly before the drive "
-                   "at 4 s while the payload is unobservable (RL 12.9 % to 4.36 s, 8.9 % after); the split of the "
-                   "true axle forces is 1.0 % on RL, so no split can close it")
-def test_power_on_cornering_within_ten_percent():
-    a, _, _, _ = pct(load_tireforce_scenario(STRESS / "stress_power_on_cornering.toml"))
+@pytest.mark.xfail(strict=True, reason="known shortfall: split-mu with the low side (0.3) inside a left curve, +100 kg: "
+                   "FL 10.8 % (SKFMEC 10.7 %); the inner tyre saturates on mu 0.3 before the brake at 1 s, where no "
+                   "slip shows it, and the friction estimate needs ~1 s to settle after it")
+def test_split_mu_inner_low_within_ten_percent():
+    a, _, _, _ = pct(load_tireforce_scenario(STRESS / "stress_split_mu_inner_low_p100.toml"))
     assert all(a["rms_pct"][w] <= 10.0 for w in tf.WHEELS), a["rms_pct"]
+
+
+def test_power_on_cornering_within_ten_percent():
+    """400 Nm per front wheel out of a steady corner, +200 kg: the payload is unobservable to the
+    longitudinal balance until the drive at 4 s; the ride heights give it from 0.2 s (without them RL
+    was 10.8 %, SKFMEC 22.7 %)."""
+    a, _, true, _ = pct(load_tireforce_scenario(STRESS / "stress_power_on_cornering.toml"))
+    assert all(a["rms_pct"][w] <= 10.0 for w in tf.WHEELS), a["rms_pct"]
+    assert abs(a["mass"]["final_kg"] / true - 1) <= 0.05 and a["mass"]["converged_s"] < 0.22
 
 
 def test_friction_similarity_is_the_magic_formula_at_that_friction():
@@ -178,8 +249,8 @@ def test_fixed_point_matches_double(name):
     sc = load_tireforce_scenario(tireforce_scenario_dir() / f"{name}.toml")
     truth, dec, _ = tr.simulate(sc, variants=())
     u = dec.for_filter()
-    dbl = A.AdaptiveSkfmec().run(u, dec.mask)
-    fix = A.AdaptiveFixed().run(u, dec.mask)
+    dbl = A.AdaptiveSkfmec().run(u, dec.mask, dec.ride)
+    fix = A.AdaptiveFixed().run(u, dec.mask, dec.ride)
     sel = truth["t"] >= truth["t"][0] + 0.2
     peak = np.abs(truth["fy"]).max(0)
     diff = 100 * np.sqrt(((fix.fy - dbl.fy)[sel] ** 2).mean(0)) / peak
@@ -187,7 +258,7 @@ def test_fixed_point_matches_double(name):
     assert np.all(diff <= 0.5) and fix.saturations == 0
     assert np.array_equal(fix.health, dbl.health)
     assert np.abs(fix.mass - dbl.mass).max() < 0.1
-    again = A.AdaptiveFixed().run(u, dec.mask)
+    again = A.AdaptiveFixed().run(u, dec.mask, dec.ride)
     assert np.array_equal(again.fy, fix.fy) and np.array_equal(again.mass, fix.mass)
 
 

@@ -27,6 +27,9 @@ DB = database("ch")
 CHS = DB.get_message_by_name("CHS_Sensors")
 TFE = DB.get_message_by_name("VEHEST_TireForceEst")
 CST = DB.get_message_by_name("VEHEST_ChassisStatus")
+RIDE = DB.get_message_by_name("CHS_RideHeight")
+TFA = DB.get_message_by_name("VEHEST_TireForceAdaptive")
+GOLDEN_OUT = (TFE.frame_id, CST.frame_id, TFA.frame_id)  # the ECU frames the golden log pins
 PAPER = load_tireforce_scenario("chassis_paper_mu_drop")
 GOLDEN = Path(__file__).parent / "data"
 TFE_EVERY = TFE.dbc.attributes["CycleTimeUs"].value // lib.VH_TICK_US  # ticks between two estimate frames
@@ -205,24 +208,28 @@ def test_lockstep_over_multicast_equals_inprocess_and_replays(tmp_path):
 
 
 def golden_inputs():
-    """CHS_Sensors of the paper scenario from 3.0 s to 3.3 s (cornering, braking)."""
+    """CHS_Sensors and CHS_RideHeight of the paper scenario from 3.0 s to 3.3 s (cornering, braking)."""
     s = run_inprocess(ChassisCar(PAPER, 3.3), Ecu())
-    sel = (s.frames["id"] == CHS.frame_id) & (s.frame_tick >= 6000)
-    return [can.Message(timestamp=float(k) * 5e-4, arbitration_id=CHS.frame_id, is_extended_id=False, is_fd=True,
+    sel = np.isin(s.frames["id"], (CHS.frame_id, RIDE.frame_id)) & (s.frame_tick >= 6000)
+    return [can.Message(timestamp=float(k) * 5e-4, arbitration_id=int(f["id"]), is_extended_id=False, is_fd=True,
                         bitrate_switch=True, data=bytes(f["data"][: f["len"]]), channel="vcan0")
             for f, k in zip(s.frames[sel], s.frame_tick[sel])]
 
 
 def test_golden_log_gives_the_golden_estimates():
-    """A small candump log of sensor frames and the ECU's expected tyre-force frames: the
-    fixed-point path is bit-exact across builds and machines. Regenerate both with
+    """A small candump log of sensor frames and the ECU's expected tyre-force frames (SKFMEC, status,
+    SKFMEC-A: its ride-height mass updates from 3.2 s, 0.2 s into the log): the fixed-point path is
+    bit-exact across builds and machines. Regenerate both with
     `python tests/tireforce/test_tireforce_ecu.py` only when the filter is meant to change."""
     r = replay(read_log(GOLDEN / "chassis_golden.log"))
     got = [f"{m.arbitration_id:03X}#{bytes(m.data).hex().upper()}" for m in r.produced
-           if m.arbitration_id in (TFE.frame_id, CST.frame_id)]
+           if m.arbitration_id in GOLDEN_OUT]
     expected = (GOLDEN / "chassis_golden_expected.txt").read_text().split()
-    assert len(expected) == 180 and got == expected
+    assert len(expected) == 210 and got == expected
     assert any(TFE.decode(bytes.fromhex(x[4:]))["SkfmecQ_Valid"] == "VALID" for x in expected if x.startswith("190"))
+    masses = [TFA.decode(bytes.fromhex(x[4:]))["EstMass"] for x in expected if x.startswith(f"{TFA.frame_id:03X}")]
+    masses = [m for m in masses if m != "SNA"]  # SNA while the SKFMEC starts (INIT)
+    assert masses[0] == 1814.0 and abs(masses[-1] - 2014.0) < 20  # the model's, then the ride heights' mass
     # and the log is still what the plant and sensor node produce
     assert [bytes(m.data) for m in read_log(GOLDEN / "chassis_golden.log")] == [bytes(m.data) for m in golden_inputs()]
 
@@ -234,23 +241,25 @@ if __name__ == "__main__":
             w.on_message_received(m)
     r = replay(read_log(GOLDEN / "chassis_golden.log"))
     lines = [f"{m.arbitration_id:03X}#{bytes(m.data).hex().upper()}" for m in r.produced
-             if m.arbitration_id in (TFE.frame_id, CST.frame_id)]
+             if m.arbitration_id in GOLDEN_OUT]
     (GOLDEN / "chassis_golden_expected.txt").write_text("\n".join(lines) + "\n")
     print(len(msgs), "sensor frames,", len(lines), "expected frames")
 
-
-TFA = DB.get_message_by_name("VEHEST_TireForceAdaptive")
 
 
 def test_ecu_adaptive_equals_its_array_api_bit_for_bit(paper_session):
     """SKFMEC-A in the ECU (VEHEST_TireForceAdaptive, every 10 ms): its forces, mass and mass std
     equal the fixed-point array API (systems.tireforce.adaptive.AdaptiveFixed) on the same decoded
-    samples, raw for raw; DEGRADED until the mass has converged, then OK; the mass within 5 %."""
+    samples (the ride heights of CHS_RideHeight held between its frames), raw for raw; DEGRADED until
+    the mass has converged, then OK; the mass within 5 %."""
     from vehest_can.systems.tireforce.adaptive import AdaptiveFixed
+    from vehest_can.systems.tireforce.report import decode_inputs
 
     ticks, raw = decoded(paper_session, TFA, scaling=False)
     assert len(raw) == PAPER.n_steps // 20
-    ref = AdaptiveFixed().run(inputs_of(paper_session))
+    ride = decode_inputs(paper_session.messages()).ride
+    assert np.isfinite(ride[2:]).all()
+    ref = AdaptiveFixed().run(inputs_of(paper_session), None, ride)
     health = np.array([e["SkfmecA_Health"] for e in raw])
     assert np.array_equal(health, ref.health[ticks])
     ok = (health == 1) | (health == 2)

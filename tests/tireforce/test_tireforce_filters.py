@@ -461,8 +461,8 @@ def test_fixed_point_units_need_no_soft_float_on_cortex_m(tmp_path):
     for src in srcs:
         assert arm_soft_float_symbols(src, tmp_path, inc) == [], src.name
     calls = {s for s in undefined(tmp_path / "vh_tireforce_app.arm.o", "arm-none-eabi-nm") if s.startswith("vh_ch_")}
-    assert calls == {"vh_ch_chs_sensors_unpack", "vh_ch_vehest_tire_force_est_pack", "vh_ch_vehest_chassis_status_pack",
-                     "vh_ch_vehest_tire_force_adaptive_pack"}
+    assert calls == {"vh_ch_chs_sensors_unpack", "vh_ch_chs_ride_height_unpack", "vh_ch_vehest_tire_force_est_pack",
+                     "vh_ch_vehest_chassis_status_pack", "vh_ch_vehest_tire_force_adaptive_pack"}
     obj = tmp_path / "vh_ch.arm.o"
     subprocess.run(["arm-none-eabi-gcc", "-std=c99", "-ffreestanding", "-O2", "-mcpu=cortex-m3", "-mthumb",
                     "-mfloat-abi=soft", "-ffunction-sections", *(f"-I{d}" for d in inc), "-c", str(codec), "-o", str(obj)],

@@ -257,8 +257,8 @@ def test_masked_rows_reach_the_filter_as_degraded_steps():
     from vehest_can.systems.tireforce.scenario import load_tireforce_scenario
 
     sc = load_tireforce_scenario("chassis_paper_mu_drop")
-    truth, payloads = sc.run_with_frames(ffi, lib)
-    payloads = payloads[:2000]
+    truth, frames = sc.run_with_frames(ffi, lib)
+    payloads = [p for i, p in frames if i == 0x110][:2000]
     k = 1500
     bad = bytearray(payloads[k])
     bad[2] ^= 0xFF                                      # corrupt: E2E refuses the frame

@@ -15,7 +15,8 @@ from .scenario import list_tireforce_scenarios, load_tireforce_scenario, tirefor
 ABLATIONS = {"SKFMEC (paper)": None, "SKFMEC-A": {}, "  - no mass estimate": {"mass": False},
              "  - no load-sensitive split": {"split": False}, "  - no per-side friction": {"friction": False},
              "  - no combined-slip capacity": {"combined": False},
-             "  - neither (the split of before)": {"friction": False, "combined": False}}
+             "  - neither (the split of before)": {"friction": False, "combined": False},
+             "  - no ride heights (the balance alone)": {"ride": False}}
 
 
 def ablation(sc) -> dict:
@@ -23,13 +24,13 @@ def ablation(sc) -> dict:
     each addition switched off in turn, and the mass estimate at the end against the truth."""
     from ...native import ffi, lib
 
-    truth, payloads = sc.run_with_frames(ffi, lib)
-    dec = decode_inputs(payloads)
+    truth, frames = sc.run_with_frames(ffi, lib)
+    dec = decode_inputs(frames)
     u = dec.for_filter()
     runs: dict[str, tf.TireForceRun] = {}
     for label, opts in ABLATIONS.items():
         runs[label] = (tf.estimator(tf.SKFMEC).run(u, dec.mask) if opts is None
-                       else AdaptiveSkfmec().with_options(**opts).run(u, dec.mask))
+                       else AdaptiveSkfmec().with_options(**opts).run(u, dec.mask, dec.ride))
     true = true_mass(sc)
     m = evaluate(truth, runs, true_mass_kg=true)
     mass = m["variants"]["SKFMEC-A"]["mass"]

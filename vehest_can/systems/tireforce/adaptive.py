@@ -23,7 +23,16 @@ the SKFMEC unchanged and adds, per step (docs/skfmec.md, "SKFMEC-A"):
    inverted through the combined-slip model's similarity in μ; each tyre's curve at its side's μ,
    μ F(α/μ) (``estimate_friction``, ``slip_observation``);
 6. **combined-slip capacity**: each tyre's curve times the friction ellipse's √(1 − (Fx/μDx)²)
-   with its eq.-30 Fx (``ellipse``).
+   with its eq.-30 Fx (``ellipse``);
+7. **mass from the ride heights** (where the car has ride-height sensors, ``CHS_RideHeight``): the
+   sprung mass carries its weight on the four springs in any manoeuvre (the anti-roll bars' forces
+   cancel per axle, the dampers' and the heave's average out), so m_s g = Σ k_i s_i + the roll-centre
+   links' vertical forces (h_f/t_f)(Fy2 − Fy1) + (h_r/t_r)(Fy4 − Fy3) (docs/chassis_plant.md; from
+   the SKFMEC's forces), s_i each spring's deflection from its free length. Low-passed like the
+   balance (the filter starting at the first sample, updates after one time constant), it is a
+   second measurement of m (= it/g + the unsprung mass, a regressor of 1, std ``sigma_ride``) in
+   the same RLS: the mass is then known from 0.2 s on, in steady cornering too, where the balance
+   sees nothing.
 
 Health: INIT while the SKFMEC is, DEGRADED until the mass estimate has converged (its standard
 deviation below ``mass_sigma_ok`` of the model mass) or whenever the SKFMEC is DEGRADED; FAULT with it.
@@ -35,6 +44,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ...errors import ConfigError
 from ...native import check, ffi, lib
 from . import api as tf
 
@@ -68,10 +78,10 @@ class AdaptiveConfig:
     # of the same data sheet, the differential slip's low-pass, the gates, the estimate's time
     # constants (towards an observation; back to ``mu`` when there is none) and its floor
     tyre_b: tuple = (1.65, -21.3, 1144.0, 49.6, 226.0, 0.069, -0.006, 0.056, 0.486)
-    tau_slip: float = 0.5        # low-pass of the excess differential slip [s]
+    tau_slip: float = 0.25       # low-pass of the excess differential slip [s]
     fx_gate: float = 200.0       # |Fx| of both wheels of the axle at least this [N]
     q_gate: float = 0.85         # secant/linear slip stiffness below this: the tyre is nonlinear
-    tau_mu: float = 0.5          # the side's estimate follows its observations [s]
+    tau_mu: float = 0.25         # the side's estimate follows its observations [s]
     tau_mu_forget: float = 3.0   # and returns to ``mu`` without them [s]
     mu_floor: float = 0.1
     ellipse_floor: float = 0.2   # the friction ellipse's factor never below this
@@ -79,6 +89,10 @@ class AdaptiveConfig:
     split: bool = True
     friction: bool = True        # per-side friction estimate
     combined: bool = True        # lateral capacity reduced by the wheel's Fx (friction ellipse)
+    ride: bool = True            # the mass from the ride heights, where they are usable
+    spring_front: float = 30000.0  # spring rate at the wheel per corner [N/m] (the car's, docs/chassis_plant.md)
+    spring_rear: float = 25000.0
+    sigma_ride: float = 0.01     # std of one ride-height mass measurement, fraction of the model mass
 
 
 @dataclass
@@ -243,8 +257,9 @@ def rls_step(m_hat: float, p: float, phi: float, y: float, r_y: float, forget: f
 
 
 def estimate_mass(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf: tf.SkfConfig,
-                  cfg: AdaptiveConfig) -> tuple[np.ndarray, np.ndarray]:
-    """m̂ and its std per step (held between the 100 Hz updates)."""
+                  cfg: AdaptiveConfig, ride: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """m̂ and its std per step (held between the 100 Hz updates). ``ride``: (n, 4) the springs'
+    deflections [m] where usable, NaN rows elsewhere (None: no ride-height sensors)."""
     n = len(u)
     m0 = skf.m
     ts = skf.ts
@@ -260,7 +275,22 @@ def estimate_mass(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf: tf
     yf = phif = 0.0
     all_valid = int(lib.VH_SKF_ALL_VALID)
     valid_run = 0
+    springs = np.array([cfg.spring_front, cfg.spring_front, cfg.spring_rear, cfg.spring_rear])
+    # usable ride heights per step (none without the sensors or with item 8 off)
+    ride_ok = np.all(np.isfinite(ride), axis=1) if cfg.ride and ride is not None else np.zeros(n, bool)
+    r_ride = (cfg.sigma_ride * m0) ** 2
+    ride_min = math.floor(cfg.tau_lp / ts + 0.5)  # the ride heights' low-pass starts at their first sample
+    w_lp, ride_run = 0.0, 0
     for k in range(n):
+        if ride_ok[k]:
+            assert ride is not None
+            # the sprung weight: the springs' forces and the roll-centre links' vertical forces
+            fy = base.fy[k]
+            w_k = (float(springs @ ride[k]) + skf.hf / skf.tf * (fy[1] - fy[0]) + skf.hr / skf.tr * (fy[3] - fy[2]))
+            w_lp = w_k if ride_run == 0 else w_lp + alpha_lp * (w_k - w_lp)
+            ride_run += 1
+        else:
+            ride_run = 0
         w = u.omega[k]
         ok = (int(mask[k]) & all_valid) == all_valid and np.all(np.isfinite(w)) and math.isfinite(u.ax[k])
         if ok:
@@ -282,6 +312,9 @@ def estimate_mass(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf: tf
                      and abs(u.ay[k]) <= cfg.ay_gate and base.x[k, 0] >= cfg.vx_gate)
             if gated:
                 m_hat, p = rls_step(m_hat, p, phif, yf, r_y, cfg.forget, p_floor, p_ceil)
+                m_hat = min(hi, max(lo, m_hat))
+            if ride_run > ride_min:  # m = sprung weight / g + the unsprung mass
+                m_hat, p = rls_step(m_hat, p, 1.0, w_lp / skf.g + (m0 - skf.ms), r_ride, cfg.forget, p_floor, p_ceil)
                 m_hat = min(hi, max(lo, m_hat))
         mass[k], std[k] = m_hat, math.sqrt(p)
     return mass, std
@@ -404,13 +437,15 @@ class AdaptiveSkfmec:
     def with_options(self, **kw) -> AdaptiveSkfmec:
         return AdaptiveSkfmec(self.config, replace(self.adaptive, **kw))
 
-    def run(self, inputs: tf.Inputs, mask=None) -> AdaptiveRun:
+    def run(self, inputs: tf.Inputs, mask=None, ride: np.ndarray | None = None) -> AdaptiveRun:
+        """``ride``: (n, 4) the springs' deflections [m] usable at each step, NaN rows elsewhere
+        (:attr:`~vehest_can.systems.tireforce.report.DecodedInputs.ride`); None: no ride-height sensors."""
         cfg, skf = self.adaptive, self.config
         n = len(inputs)
         m = np.full(n, int(lib.VH_SKF_ALL_VALID), np.uint8) if mask is None else np.asarray(mask, np.uint8)
         base = tf.estimator(tf.SKFMEC, skf).run(inputs, m)
         if cfg.mass:
-            mass, std = estimate_mass(inputs, base, m, skf, cfg)
+            mass, std = estimate_mass(inputs, base, m, skf, cfg, _ride(ride, n))
         else:
             mass, std = np.full(n, skf.m), np.zeros(n)
         k = (mass / skf.m)[:, None]
@@ -440,6 +475,15 @@ class AdaptiveSkfmec:
 STRESS_DIR = "stress"  # firmware_sim/scenarios/chassis/stress/: scenarios of SKFMEC-A, not in any tuning
 
 
+def _ride(ride, n: int) -> np.ndarray | None:
+    if ride is None:
+        return None
+    r = np.asarray(ride, dtype=np.float64)
+    if r.shape != (n, 4):
+        raise ConfigError(f"ride must have shape ({n}, 4), got {r.shape}")
+    return r
+
+
 # ---- fixed point (c_core/tireforce/vh_tfa.c): its constants, made here (the host side) -----------
 
 def config_to_c(cfg: AdaptiveConfig):
@@ -447,7 +491,8 @@ def config_to_c(cfg: AdaptiveConfig):
     c = ffi.new("vh_tfa_config_t *")
     for name in ("cda", "rho", "tau_lp", "decim", "ax_gate", "ay_gate", "vx_gate", "forget", "sigma_y",
                  "mass_sigma0", "mass_sigma_floor", "mass_sigma_ok", "tyre_fz_scale", "mu", "tau_slip", "fx_gate",
-                 "q_gate", "tau_mu", "tau_mu_forget", "mu_floor", "ellipse_floor", "friction", "combined"):
+                 "q_gate", "tau_mu", "tau_mu_forget", "mu_floor", "ellipse_floor", "friction", "combined", "ride",
+                 "spring_front", "spring_rear", "sigma_ride"):
         setattr(c, name, getattr(cfg, name))
     c.mass_lo, c.mass_hi = cfg.mass_range
     for i, v in enumerate(cfg.tyre_a):
@@ -480,17 +525,24 @@ class AdaptiveFixed:
     def saturations(self) -> int:
         return int(self._a.sat) + self._skf.saturations
 
-    def run(self, inputs: tf.Inputs, mask=None) -> AdaptiveRun:
+    def run(self, inputs: tf.Inputs, mask=None, ride: np.ndarray | None = None) -> AdaptiveRun:
+        """As AdaptiveSkfmec.run; the ride heights quantised to Q.VH_TFA_FH (round half up, as the ECU's
+        exact decoding of the raw signal)."""
         q = np.ascontiguousarray(self._skf.quantise(inputs), dtype=np.int32)
         n = len(q)
         m = np.full(n, int(lib.VH_SKF_ALL_VALID), np.uint8) if mask is None else np.array(mask, np.uint8)
         m[~np.all(np.isfinite(inputs.matrix()), axis=1)] = 0  # an integer cannot carry NaN (as TireForceFixed)
+        r = _ride(ride, n)
+        ride_ok = None if r is None else np.ascontiguousarray(np.all(np.isfinite(r), axis=1), np.uint8)
+        rq = None if r is None else np.ascontiguousarray(
+            np.floor(np.nan_to_num(r) * 2.0 ** lib.VH_TFA_FH + 0.5), dtype=np.int32)
         fy, fz = np.empty((n, 4), np.int32), np.empty((n, 4), np.int32)
         k, p, health = np.empty(n, np.int32), np.empty(n, np.int32), np.empty(n, np.uint8)
         sat0 = self.saturations
         ptr = tf._ptr
-        lib.vh_tfa_run(self._a, self._skf._f, n, ptr(q, "int32_t *"), ptr(m, "uint8_t *"), ptr(fy, "int32_t *"),
-                       ptr(fz, "int32_t *"), ptr(k, "int32_t *"), ptr(p, "int32_t *"), ptr(health, "uint8_t *"))
+        lib.vh_tfa_run(self._a, self._skf._f, n, ptr(q, "int32_t *"), ptr(m, "uint8_t *"), ptr(rq, "int32_t *"),
+                       ptr(ride_ok, "uint8_t *"), ptr(fy, "int32_t *"), ptr(fz, "int32_t *"), ptr(k, "int32_t *"),
+                       ptr(p, "int32_t *"), ptr(health, "uint8_t *"))
         fn = 2.0 ** -lib.VH_SKFQ_FN
         m0 = self.config.m
         return AdaptiveRun(x=np.zeros((n, 7)), fy=fy * fn, fz=fz * fn, health=health, resets=0,

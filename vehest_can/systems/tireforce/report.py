@@ -23,6 +23,7 @@ import numpy as np
 from ...errors import ConfigError, ScenarioError
 from ...plotting import Figures, pyplot
 from ...sim.report import verdict_word, write_metrics
+from ...sim.scenario import DT
 from . import api as tf
 from .adaptive import ADAPTIVE, AdaptiveConfig, AdaptiveRun, AdaptiveSkfmec
 
@@ -65,6 +66,10 @@ class DecodedInputs:
     mask: np.ndarray              # (n,) uint8
     invalid: dict[str, int]       # samples per signal that were SNA or qualifier-INVALID
     e2e_rejected: int = 0         # frames refused by the E2E check (wrong CRC, repeated counter, short)
+    #: (n, 4) the springs' deflections [m] SKFMEC-A may use at each row (``CHS_RideHeight``, held
+    #: between its frames as the ECU holds them); a row of NaN where they are not usable (never
+    #: heard, timed out, a channel invalid). None: no CHS_RideHeight in the frames at all.
+    ride: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.mask)
@@ -94,10 +99,51 @@ class DecodedInputs:
         return out
 
 
-def _chs_message():
+def _chs_message(name: str = "CHS_Sensors"):
     from ...bus.frames import database
 
-    return database("ch").get_message_by_name("CHS_Sensors")
+    return database("ch").get_message_by_name(name)
+
+
+RIDE_SIGNALS = tuple(f"SpringDefl{w}" for w in WHEELS)
+
+
+def _ride_heights(events: list[tuple[int, bytes]], n: int, e2e: bool) -> tuple[np.ndarray | None, int]:
+    """The ``CHS_RideHeight`` frames as the ECU uses them (vh_tireforce_app.c): (row, payload) in the
+    order received, each at the row of the ``CHS_Sensors`` frame of its tick. Returns ((n, 4) the
+    deflections usable at each row, NaN elsewhere; None without any frame) and the frames E2E refused.
+    Usable: the last good frame had all four channels valid and is younger than its timeout."""
+    from ...bus.frames import e2e_data_id
+    from ...native import ffi, lib
+
+    if not events:
+        return None, 0
+    msg = _chs_message("CHS_RideHeight")
+    attrs = msg.dbc.attributes if msg.dbc else {}
+    timeout = int(attrs["RxTimeoutCycles"].value) * int(round(msg.cycle_time * 1e-3 / DT))  # in ticks
+    sigs = [msg.get_signal_by_name(s) for s in RIDE_SIGNALS]
+    rx = ffi.new("vh_e2e_rx_t *")
+    lib.vh_e2e_rx_init(rx)
+    good = (lib.VH_E2E_OK, lib.VH_E2E_INITIAL, lib.VH_E2E_SKIPPED)
+    out = np.full((n, 4), np.nan)
+    rejected = 0
+    last_row, value = None, None
+    events = sorted(events, key=lambda e: e[0])  # stable: arrival order within a row
+    k = 0
+    for r in range(n):
+        while k < len(events) and events[k][0] <= r:
+            p = events[k][1]
+            k += 1
+            if len(p) != msg.length or (e2e and lib.vh_e2e_p01_check(rx, p, len(p), e2e_data_id(msg)) not in good):
+                rejected += 1
+                continue
+            d = msg.decode(p, decode_choices=False, scaling=False)
+            ok = all(d[f"Qf_{s.name}"] == 1 and d[s.name] != _sna_raw(s) for s in sigs)
+            last_row = r
+            value = np.array([d[s.name] * s.scale + s.offset for s in sigs]) if ok else None
+        if last_row is not None and value is not None and r - last_row < timeout:
+            out[r] = value
+    return out, rejected
 
 
 def _sna_raw(sig) -> int | None:
@@ -130,25 +176,37 @@ def _assemble(values: dict[str, np.ndarray], qualifiers: dict[str, np.ndarray], 
 
 
 def decode_inputs(frames, *, e2e: bool = True) -> DecodedInputs:
-    """``CHS_Sensors`` payloads (bytes) or ``can.Message`` objects -> :class:`DecodedInputs`.
+    """The chassis sensor node's frames -> :class:`DecodedInputs`: ``can.Message`` objects, (frame ID,
+    payload) pairs or bare payloads (bytes, taken as ``CHS_Sensors``), in the order received.
 
-    Messages with another arbitration ID are skipped (a bus log may hold anything); payloads are
-    taken as ``CHS_Sensors``. With ``e2e`` every frame is checked by the firmware's own E2E P01 check
-    in order; a wrong CRC, a repeated counter or a short frame makes the whole row invalid (a
-    skipped counter is frames lost on the way: the data is used, as the ECU does)."""
+    One row per ``CHS_Sensors`` frame; ``CHS_RideHeight`` frames give ``ride`` (held between them, as
+    the ECU holds them); other IDs and extended-ID frames are skipped (a bus log may hold anything).
+    With ``e2e`` every frame is checked by the firmware's own E2E P01 check in order; a wrong CRC, a
+    repeated counter or a short frame makes the whole row invalid (a skipped counter is frames lost
+    on the way: the data is used, as the ECU does)."""
     from ...bus.frames import e2e_data_id
     from ...native import ffi, lib
 
     msg = _chs_message()
-    payloads = []
+    ride_id = _chs_message("CHS_RideHeight").frame_id
+    payloads: list[bytes] = []
+    ride_events: list[tuple[int, bytes]] = []
     for f in frames:
         if isinstance(f, (bytes, bytearray, memoryview)):
-            payloads.append(bytes(f))
+            fid, data = msg.frame_id, bytes(f)
+        elif isinstance(f, tuple) and len(f) == 2:
+            fid, data = int(f[0]), bytes(f[1])
         elif hasattr(f, "arbitration_id"):
-            if f.arbitration_id == msg.frame_id and not f.is_extended_id:
-                payloads.append(bytes(f.data))
+            if f.is_extended_id:
+                continue
+            fid, data = f.arbitration_id, bytes(f.data)
         else:
-            raise ConfigError(f"decode_inputs: expected payload bytes or can.Message, not {type(f).__name__}")
+            raise ConfigError(f"decode_inputs: expected payload bytes, (ID, payload) or can.Message, "
+                              f"not {type(f).__name__}")
+        if fid == msg.frame_id:
+            payloads.append(data)
+        elif fid == ride_id:
+            ride_events.append((max(len(payloads) - 1, 0), data))
     n = len(payloads)
     sigs = [s for s in msg.signals if s.name in _INPUT_SIGNALS]
     raw = {s.name: np.zeros(n) for s in sigs}
@@ -179,7 +237,10 @@ def decode_inputs(frames, *, e2e: bool = True) -> DecodedInputs:
         if sna is not None:
             v[raw[s.name] == sna] = np.nan
         values[s.name] = v
-    return _assemble(values, qual, ok, rejected)
+    dec = _assemble(values, qual, ok, rejected)
+    dec.ride, ride_rejected = _ride_heights(ride_events, n, e2e)
+    dec.e2e_rejected += ride_rejected
+    return dec
 
 
 def _qualifier(q) -> int:
@@ -221,15 +282,15 @@ def decode_signals(rows: list[dict]) -> DecodedInputs:
 ALL_VARIANTS = (*tf.VARIANTS, ADAPTIVE)
 
 
-def _run(v: str, u: tf.Inputs, mask) -> tf.TireForceRun:
-    return AdaptiveSkfmec().run(u, mask) if v == ADAPTIVE else tf.estimator(v).run(u, mask)
+def _run(v: str, u: tf.Inputs, dec: DecodedInputs) -> tf.TireForceRun:
+    return AdaptiveSkfmec().run(u, dec.mask, dec.ride) if v == ADAPTIVE else tf.estimator(v).run(u, dec.mask)
 
 
 def run_estimators(decoded: DecodedInputs, variants=ALL_VARIANTS) -> dict[str, tf.TireForceRun]:
     """Each estimator variant (fresh instance, default configuration) over the decoded drive:
-    the paper's three and SKFMEC-A (adaptive.py)."""
+    the paper's three and SKFMEC-A (adaptive.py, with the ride heights where the car has them)."""
     u = decoded.for_filter()
-    return {v: _run(v, u, decoded.mask) for v in variants}
+    return {v: _run(v, u, decoded) for v in variants}
 
 
 def scenario(name: str, *, mass_delta_kg: float | None = None):
@@ -252,16 +313,16 @@ def simulate(sc, variants=ALL_VARIANTS, progress=None):
     from ...native import ffi, lib
 
     steps = 2 + len(variants)
-    truth, payloads = sc.run_with_frames(ffi, lib)
+    truth, frames = sc.run_with_frames(ffi, lib)
     if progress:
         progress(1, steps)
-    dec = decode_inputs(payloads)
+    dec = decode_inputs(frames)
     if progress:
         progress(2, steps)
     u = dec.for_filter()
     runs = {}
     for i, v in enumerate(variants):
-        runs[v] = _run(v, u, dec.mask)
+        runs[v] = _run(v, u, dec)
         if progress:
             progress(3 + i, steps)
     return truth, dec, runs

@@ -104,7 +104,10 @@ _SENSORS = {
     "steer_bias_rad": ("bias", (4,), Num(-0.1, 0.1)),
     "wheel_speed_bias_rad_s": ("bias", (5, 6, 7, 8), Num(-10.0, 10.0)),
     "wheel_torque_bias_nm": ("bias", (9, 10, 11, 12), Num(-1000.0, 1000.0)),
+    "ride_height_std_m": ("noise_std", (13, 14, 15, 16), Num(0.0, 0.01)),
+    "ride_height_bias_m": ("bias", (13, 14, 15, 16), Num(-0.05, 0.05)),
 }
+_FLAGS = ("accel_gravity", "ride_height")  # [sensors] booleans
 
 
 @dataclass(frozen=True)
@@ -121,6 +124,7 @@ class TireForceScenario(ScenarioBase, node="vh_chs", truth="vh_v14_truth_t", see
     tyre: tuple[tuple[str, Any], ...] = ()
     sensors: tuple[tuple[str, float], ...] = ()  # only the keys written
     accel_gravity: bool = False
+    ride_height: bool = True                     # the car's ride-height sensors (CHS_RideHeight) fitted
     path: Path | None = None
 
     # ---- time and inputs ----
@@ -186,6 +190,7 @@ class TireForceScenario(ScenarioBase, node="vh_chs", truth="vh_v14_truth_t", see
     def node_config(self, ffi, lib):
         cfg = super().node_config(ffi, lib)
         cfg.accel_gravity = int(self.accel_gravity)
+        cfg.ride_period = lib.VH_CHS_RIDE_PERIOD_DEFAULT if self.ride_height else 0
         return cfg
 
     def make_plant(self, ffi, lib):
@@ -202,19 +207,20 @@ class TireForceScenario(ScenarioBase, node="vh_chs", truth="vh_v14_truth_t", see
         lib.vh_v14_run(plant, n, self.inputs(ffi), out)
 
     def run_with_frames(self, ffi, lib):
-        """Plant and sensor node tick by tick: (truth record array, list of CHS_Sensors payloads)."""
+        """Plant and sensor node tick by tick: (truth record array, the node's frames in the order sent
+        as (frame ID, payload): CHS_Sensors every tick, CHS_RideHeight every 10 ms where fitted)."""
         p, node = self.make_plant(ffi, lib), self.make_node(ffi, lib)
         n = self.n_steps
         inputs = self.inputs(ffi)
         out = ffi.new("vh_v14_truth_t[]", n)
-        frame = ffi.new("vh_frame_t[1]")
-        payloads = []
+        frame = ffi.new("vh_frame_t[2]")
+        frames = []
         for k in range(n):
             lib.vh_v14_step(p, inputs + k)
             out[k] = p.truth
-            lib.vh_chs_step(node, ffi.addressof(p, "truth"), frame, 1)
-            payloads.append(bytes(ffi.buffer(frame[0].data, frame[0].len)))
-        return truth_to_numpy(ffi, out, n), payloads
+            for i in range(lib.vh_chs_step(node, ffi.addressof(p, "truth"), frame, 2)):
+                frames.append((int(frame[i].id), bytes(ffi.buffer(frame[i].data, frame[i].len))))
+        return truth_to_numpy(ffi, out, n), frames
 
 
 class ChassisCar:
@@ -231,7 +237,7 @@ class ChassisCar:
         self.n = sc.car_steps(duration_s)
         self.truth_dtype = truth_dtype(ffi)
         self._inputs = sc.inputs(ffi)
-        self._out = ffi.new("vh_frame_t[1]")
+        self._out = ffi.new("vh_frame_t[2]")
         self.reset()
 
     def reset(self) -> None:
@@ -240,7 +246,7 @@ class ChassisCar:
 
     def tick(self, k: int) -> list:
         self._lib.vh_v14_step(self._plant, self._inputs + k)
-        n = self._lib.vh_chs_step(self._node, self._ffi.addressof(self._plant, "truth"), self._out, 1)
+        n = self._lib.vh_chs_step(self._node, self._ffi.addressof(self._plant, "truth"), self._out, 2)
         return [self._out[i] for i in range(n)]
 
     def truth(self) -> np.void:
@@ -324,21 +330,21 @@ def tireforce_scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> 
         else:
             tyre.append((k, c.number(v, f"tyre.{k}", _TYRE[k][1])))
 
-    sensors_doc = c.table(doc.get("sensors", {}), "sensors", set(_SENSORS) | {"accel_gravity"})
-    accel_gravity = False
+    sensors_doc = c.table(doc.get("sensors", {}), "sensors", set(_SENSORS) | set(_FLAGS))
+    flags = {"accel_gravity": False, "ride_height": True}
     sensors = []
     for k, v in sensors_doc.items():
-        if k == "accel_gravity":
+        if k in _FLAGS:
             if not isinstance(v, bool):
-                c.fail("sensors.accel_gravity", f"must be true or false, not {type_name(v)}")
-            accel_gravity = v
+                c.fail(f"sensors.{k}", f"must be true or false, not {type_name(v)}")
+            flags[k] = v
         else:
             sensors.append((k, c.number(v, f"sensors.{k}", _SENSORS[k][2])))
 
     sc = TireForceScenario(**top, steer_deg=steer, drive_nm=drive, brake_nm=brake,
                          mu_left=mu_l, mu_right=mu_r, mass_delta_kg=mass_delta, vehicle=tuple(sorted(vehicle)),
                          tyre=tuple(sorted(tyre)), sensors=tuple(sorted(sensors)),
-                         accel_gravity=accel_gravity, path=Path(path))
+                         accel_gravity=flags["accel_gravity"], ride_height=flags["ride_height"], path=Path(path))
     prm = sc.plant_params(ffi, lib)
     if not prm.ms > 0:
         c.fail("vehicle.mass_delta_kg", f"leaves a sprung mass of {prm.ms:g} kg")

@@ -5,7 +5,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ...bus.frames import database
 from ...sim.report import decode
 from .. import Registration, Setup
 from . import api as tf
@@ -30,8 +29,7 @@ class TireForce(Registration):
         """Against the plant: the ECU's fixed-point estimates from the bus, and the double SKFMEC and
         the paper's plain EKF re-run off-line on the same decoded CHS_Sensors samples."""
         sc = scenario
-        chs = database("ch").get_message_by_name("CHS_Sensors")
-        dec = report.decode_inputs(m for m in session.messages() if m.arbitration_id == chs.frame_id)
+        dec = report.decode_inputs(session.messages())
         runs = report.run_estimators(dec)
         est = decode(session, "VEHEST_TireForceEst")
         on = est["SkfmecQ_Health"] > 0  # published (NaN elsewhere) and past INIT: SNA before
@@ -42,7 +40,7 @@ class TireForce(Registration):
         # SKFMEC-A in the ECU (VEHEST_TireForceAdaptive, every 10 ms) against its fixed-point array API
         ada = decode(session, "VEHEST_TireForceAdaptive")
         on_a = ada["SkfmecA_Health"] > 0
-        ref_a = AdaptiveFixed().run(dec.for_filter(), dec.mask)
+        ref_a = AdaptiveFixed().run(dec.for_filter(), dec.mask, dec.ride)
         bus_a = np.column_stack([ada[f"FyA{i}"] for i in range(1, 5)] + [ada["EstMass"]])[on_a]
         mass_a = np.asarray(ref_a.mass)
         want_a = np.column_stack([np.floor(ref_a.fy / 0.5 + 0.5) * 0.5, np.floor(mass_a / 0.5 + 0.5) * 0.5])[on_a]
