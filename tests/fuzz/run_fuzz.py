@@ -36,9 +36,10 @@ OPT = ["-O1"]
 #: coverage guidance there and no result (no -ffast-math, no FMA contraction on plain x86-64), and
 #: the roll UKF and tyre-force steps are the maths of every tick
 KERNEL_OPT = ["-O3"]
-# the harness's RX table: DLS_Sensors, CIS_Accel, CHS_Sensors, ROLL_Sensors/_YawRate/_ActuatorStatus/_ModeCmd
-RX_INDEX = {0x100: 0, 0x200: 1, 0x110: 2, 0x120: 3, 0x121: 4, 0x122: 5, 0x123: 6}
-FIRST_ROLL = 3
+# the harness's RX table: DLS_Sensors, CIS_Accel, CHS_Sensors, ROLL_Sensors/_YawRate/_ActuatorStatus/_ModeCmd,
+# CHS_RideHeight
+RX_INDEX = {0x100: 0, 0x200: 1, 0x110: 2, 0x120: 3, 0x121: 4, 0x122: 5, 0x123: 6, 0x111: 7}
+FIRST_ROLL, N_ROLL = 3, 4  # RX_INDEX 3..6: the roll node's frames (op 6 secures them)
 # the first byte of an input: bit 0 SecOC on, bit 1 XCP MAX_CTO 64
 PLAIN, SECOC, CTO64 = 0, 1, 2
 TICKS = bytes([2, 0x60])       # op 2: one tick at capacity 6
@@ -161,7 +162,7 @@ def seed_corpus(out: Path, frames_per_seed: int = 64) -> int:
     for k, start in enumerate(range(0, min(len(roll), 4 * frames_per_seed), frames_per_seed)):
         part = roll[start:start + frames_per_seed]
         (out / f"roll_{k:03d}").write_bytes(bytes([PLAIN]) + b"".join(_raw(i, d) + TICKS for i, d in part))
-        secured = b"".join(((bytes([6, RX_INDEX[i] - FIRST_ROLL, 1]) + d[2:]) if RX_INDEX[i] >= FIRST_ROLL
+        secured = b"".join(((bytes([6, RX_INDEX[i] - FIRST_ROLL, 1]) + d[2:]) if FIRST_ROLL <= RX_INDEX[i] < FIRST_ROLL + N_ROLL
                             else _raw(i, d)) + TICKS for i, d in part)
         (out / f"roll_secoc_{k:03d}").write_bytes(bytes([SECOC]) + secured)
         n += 2
