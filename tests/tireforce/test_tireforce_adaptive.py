@@ -182,6 +182,37 @@ def test_split_mu_inner_low_within_ten_percent():
     assert all(a["rms_pct"][w] <= 10.0 for w in tf.WHEELS), a["rms_pct"]
 
 
+def known_shortfall(a, documented: dict, reason: str):
+    """Every tyre within 10 %, or the documented shortfall and no worse (+0.3 points): an xfail that
+    still fails on a regression."""
+    over = {w: a["rms_pct"][w] for w in tf.WHEELS if a["rms_pct"][w] > 10.0}
+    if over:
+        assert set(over) <= set(documented), a["rms_pct"]
+        assert all(over[w] <= documented[w] + 0.3 for w in over), (over, documented)
+        pytest.xfail(reason)
+
+
+def test_low_mu_corner_known_shortfall():
+    """A steady corner at the limit of a mu 0.5 road, +200 kg (a probe written after the design, run
+    once): no wheel slips, so the split assumes mu 1 and its linear-range stiffness ratio, where the
+    saturated axle shares by load; the inner FL is short (SKFMEC 10.0 %), the rest within 10 %."""
+    a, base, true, _ = pct(load_tireforce_scenario(STRESS / "stress_low_mu_corner_p200.toml"))
+    assert abs(a["mass"]["final_kg"] / true - 1) <= 0.05
+    for w in ("FR", "RR", "front", "rear"):
+        assert a["rms_pct"][w] <= base["rms_pct"][w] + 0.5
+    known_shortfall(a, {"FL": 13.30}, "known shortfall: FL (inner) 13.3 % on a mu 0.5 corner (SKFMEC 10.0 %)")
+
+
+def test_step_steer_4deg_heavy_known_shortfall():
+    """A 4 deg step steer at 80 km/h, +400 kg (0.8 g; a probe written after the design, run once):
+    better than the paper on every tyre, the light inner tyres just over 10 %."""
+    a, base, true, _ = pct(load_tireforce_scenario(STRESS / "stress_step_steer_4deg_p400.toml"))
+    assert abs(a["mass"]["final_kg"] / true - 1) <= 0.05
+    assert all(a["rms_pct"][w] < base["rms_pct"][w] for w in (*tf.WHEELS, "front", "rear"))
+    known_shortfall(a, {"FL": 10.08, "RL": 10.35},
+                    "known shortfall: inner FL 10.1 % / RL 10.4 % on a 4 deg step with +400 kg (SKFMEC 17.9 / 26.4 %)")
+
+
 def test_power_on_cornering_within_ten_percent():
     """400 Nm per front wheel out of a steady corner, +200 kg: the payload is unobservable to the
     longitudinal balance until the drive at 4 s; the ride heights give it from 0.2 s (without them RL
