@@ -15,7 +15,7 @@ import pytest
 from daemonproc import start_daemon, stop_daemon
 
 from vehest_can.bus.bus import open_bus, private_multicast
-from vehest_can.bus.frames import database, unused_frame_id
+from vehest_can.bus.frames import BUSES, database, unused_frame_id
 from vehest_can.bus.log import read_log
 from vehest_can.service.daemon import EcuDaemon
 from vehest_can.service.replay import replay
@@ -151,3 +151,31 @@ def test_udp_multicast_sessions_on_other_groups_do_not_hear_each_other():
     finally:
         for x in (a, b, c):
             x.shutdown()
+
+
+@pytest.mark.multicast
+@pytest.mark.parametrize("name", ["chassis_relation_70kph", "roll_paper_72kph_active"])
+def test_sim_verb_drives_any_systems_car_in_lockstep(name, tmp_path):
+    """`vehest-can sim` takes every system's scenario (the 14-DOF chassis car, the roll car with its
+    actuators), not only the driveline's: against a lockstep daemon its log holds the ECU's frames
+    of the in-process run, bit for bit."""
+    from vehest_can.bus.bus import cli_args
+    from vehest_can.systems import load_any_scenario
+
+    config = group()
+    proc = start_daemon(config, "--mode", "lockstep", "--idle-timeout", "30", tmp_path=tmp_path)
+    try:
+        sim = subprocess.run([sys.executable, "-m", "vehest_can.cli", "sim", name, "--mode", "lockstep",
+                              "--duration", "0.5", "--log", str(tmp_path / "sim.log"), *cli_args(config)],
+                             capture_output=True, text=True, timeout=120)
+    finally:
+        rc, err = stop_daemon(proc)
+    assert sim.returncode == 0, sim.stderr
+    assert rc == 0, err
+    system, sc = load_any_scenario(name)
+    local = run_inprocess(system.car(sc, 0.5), Ecu())
+    ecu = {m.frame_id for db in BUSES for m in database(db).messages
+           if "VEHEST" in m.senders and m.name != "VEHEST_SyncAck"}
+    want = [(int(f["id"]), bytes(f["data"][:f["len"]])) for f in local.frames if int(f["id"]) in ecu]
+    got = [(m.arbitration_id, bytes(m.data)) for m in read_log(tmp_path / "sim.log") if m.arbitration_id in ecu]
+    assert len(want) > 500 and got == want

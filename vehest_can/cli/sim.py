@@ -6,8 +6,8 @@ import sys
 from ..bus import bus as busmod
 from ..errors import ConfigError
 from ..progress import Progress
-from ..sim.scenario import load_scenario
-from ..sim.session import CAR_NODES, SimMaster, drive_from_scenario
+from ..sim.session import CAR_NODES, SimMaster
+from ..systems import load_any_scenario
 from ._common import add_log_arguments, check_log_arguments, check_seconds, open_session_log
 
 
@@ -15,7 +15,8 @@ def add_subparser(subparsers) -> None:
     p = subparsers.add_parser("sim", help="run the simulated car and sensor nodes on a bus",
                               description="Run a scenario's car on a python-can bus, against an ECU (daemon or "
                                           "real) on the same bus.")
-    p.add_argument("scenario", metavar="SCENARIO", help="scenario file, or the name of a shipped one")
+    p.add_argument("scenario", metavar="SCENARIO", help="scenario file, or the name of a shipped one (any "
+                                                        "system's car: driveline, camber, tyre force, roll)")
     p.add_argument("--mode", choices=("realtime", "lockstep"), default="realtime",
                    help="realtime: 2 kHz wall clock (default); lockstep: drive an ECU daemon in --mode lockstep")
     p.add_argument("--duration", type=float, metavar="S", help="run S seconds (repeats the driver profile)")
@@ -27,16 +28,16 @@ def add_subparser(subparsers) -> None:
 
 
 def run(args) -> int:
-    sc = load_scenario(args.scenario)
+    system, sc = load_any_scenario(args.scenario)
     if args.pose is not None:
-        if sc.camber is None:
+        if getattr(sc, "camber", None) is None:
             raise ConfigError(f"{args.scenario}: --pose needs a scenario with a [camber] table")
         from dataclasses import replace
 
         sc = replace(sc, camber=replace(sc.camber, pose=args.pose))
     check_seconds(args.duration, "--duration")
     check_log_arguments(args)
-    drive = drive_from_scenario(sc, duration_s=args.duration)
+    drive = system.car(sc, args.duration)
     config = busmod.bus_config(args)
     bus = busmod.open_bus(config)
     writer = open_session_log(args, CAR_NODES)
