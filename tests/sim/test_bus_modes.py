@@ -15,7 +15,7 @@ import pytest
 from daemonproc import start_daemon, stop_daemon
 
 from vehest_can.bus.bus import open_bus, private_multicast
-from vehest_can.bus.frames import BUSES, database, unused_frame_id
+from vehest_can.bus.frames import database, message, sent_by, unused_frame_id
 from vehest_can.bus.log import read_log
 from vehest_can.service.daemon import EcuDaemon
 from vehest_can.service.replay import replay
@@ -174,8 +174,7 @@ def test_sim_verb_drives_any_systems_car_in_lockstep(name, tmp_path):
     assert rc == 0, err
     system, sc = load_any_scenario(name)
     local = run_inprocess(system.car(sc, 0.5), Ecu())
-    ecu = {m.frame_id for db in BUSES for m in database(db).messages
-           if "VEHEST" in m.senders and m.name != "VEHEST_SyncAck"}
+    ecu = sent_by({"VEHEST"}) - {message("VEHEST_SyncAck").frame_id}  # both buses' ECU frames
     want = [(int(f["id"]), bytes(f["data"][:f["len"]])) for f in local.frames if int(f["id"]) in ecu]
     got = [(m.arbitration_id, bytes(m.data)) for m in read_log(tmp_path / "sim.log") if m.arbitration_id in ecu]
     assert len(want) > 500 and got == want
