@@ -58,7 +58,14 @@ int vh_tfa_check(const vh_tfa_params_t *prm)
         prm->ellipse_floor2 <= 0 || prm->ellipse_floor2 > ONE30 || !k_ok(prm->k_spring[0]) ||
         !k_ok(prm->k_spring[1]) || !k_ok(prm->k_link[0]) || !k_ok(prm->k_link[1]) || !k_ok(prm->k_ride) ||
         (prm->ride && (prm->k_spring[0].m <= 0 || prm->k_spring[1].m <= 0 || prm->k_ride.m <= 0 ||
-                       prm->ride_phi <= 0 || prm->ride_unsprung < 0))) {
+                       prm->ride_phi <= 0 || prm->ride_unsprung < 0)) ||
+        !k_ok(prm->k_roll[0]) || !k_ok(prm->k_roll[1]) || !k_ok(prm->k_wheelbase) || !k_ok(prm->k_knot) || !k_ok(prm->k_kin) || !k_ok(prm->k_kin_dh) ||
+        (prm->road && (prm->alpha_kin <= 0 || prm->alpha_kin > ONE30 || prm->ay_kin_gate < 0 || prm->fx_free < 0 ||
+                       prm->k_wheelbase.m <= 0 || prm->k_knot.m <= 0 || prm->k_kin.m <= 0 || prm->k_kin_dh.m <= 0 ||
+                       prm->kin_dh_max <= 0 || prm->kin_dh_max > (INT32_C(1000) << FQ) || prm->kin_dmu <= 0 ||
+                       prm->kin_q <= 0 || prm->kin_p0 < prm->kin_q || prm->kin_side_min < 0 ||
+                       /* 1 + H P H within Q16 */
+                       (int64_t)((((int64_t)prm->kin_dh_max * prm->kin_dh_max) >> (2 * FQ)) * prm->kin_p0 >> 30) > 16000))) {
         return VH_EINVAL;
     }
     for (i = 0; i < NZ * NA; ++i) {
@@ -109,25 +116,37 @@ void vh_tfa_reset(vh_tfa_t *a)
         a->mu[i] = a->prm.mu_nom;
         a->alpha[i] = 0;
     }
+    a->z_lp = 0;
+    a->kin_run = 0u;
+    a->mu_road = a->prm.mu_nom;
+    a->p_road = a->prm.kin_p0;
     a->sat = 0u;
     a->health = VH_HEALTH_INIT;
 }
 
-/* One RLS update of y = m phi in the mass ratio k (adaptive.rls_step), both normalised by the
- * measurement's sigma (ph = m phi / sigma, yv = y / sigma, FQ): K = P ph / (1 + ph P ph),
- * k += K (yv - ph k) (clamped), P = (1 - K ph) P / lambda in [P_floor, P0]. */
-static void rls(vh_tfa_t *a, int32_t ph, int32_t yv, uint32_t *sat)
+/* One RLS update of y = x phi (adaptive.rls_step), both normalised by the measurement's sigma
+ * (ph = phi / sigma, yv = y / sigma, FQ; x in Q29, its variance p in Q30): K = P ph / (1 + ph P ph),
+ * x += K (yv - ph x) clamped to [x_lo, x_hi], P = (1 - K ph) P / lambda in [p_lo, p_hi]. The mass
+ * ratio's (k, P) and the road friction's (mu, P). */
+static void rls(int32_t *x, int32_t *pv, int32_t ph, int32_t yv, int32_t inv_forget, int32_t p_lo, int32_t p_hi,
+                int32_t x_lo, int32_t x_hi, uint32_t *sat)
 {
-    const vh_tfa_params_t *k = &a->prm;
-    const int32_t u = MUL(a->p, FP, ph, FQ, 24);                       /* P phi, Q24 */
+    const int32_t u = MUL(*pv, FP, ph, FQ, 24);                         /* P phi, Q24 */
     const int32_t s = ADD(INT32_C(1) << 16, MUL(ph, FQ, u, 24, 16));    /* 1 + phi P phi, Q16 */
     const int32_t g = vh_fix_div(u, s, 16, sat);                        /* K, Q24 */
-    const int32_t e = SUB(yv, MUL(ph, FQ, a->k, FK, FQ));               /* y - phi k, Q21 */
-    const int64_t kn = (int64_t)a->k + vh_fix_asr64((int64_t)g * e + (INT64_C(1) << 15), 16); /* Q29 */
+    const int32_t e = SUB(yv, MUL(ph, FQ, *x, FK, FQ));                 /* y - phi x, Q21 */
+    const int64_t xn = (int64_t)*x + vh_fix_asr64((int64_t)g * e + (INT64_C(1) << 15), 16); /* Q29 */
     const int32_t kp = MUL(g, 24, ph, FQ, 30);                          /* K phi in [0, 1), Q30 */
-    int32_t p = MUL(MUL(a->p, FP, SUB(ONE30, kp), 30, FP), FP, k->inv_forget, 30, FP);
-    a->k = kn > k->k_hi ? k->k_hi : (kn < k->k_lo ? k->k_lo : (int32_t)kn);
-    a->p = p > k->p0 ? k->p0 : (p < k->p_floor ? k->p_floor : p);
+    int32_t p = MUL(MUL(*pv, FP, SUB(ONE30, kp), 30, FP), FP, inv_forget, 30, FP);
+    *x = xn > x_hi ? x_hi : (xn < x_lo ? x_lo : (int32_t)xn);
+    *pv = p > p_hi ? p_hi : (p < p_lo ? p_lo : p);
+}
+
+/* The mass ratio's update (the balance, or the ride heights). */
+static void mass_rls(vh_tfa_t *a, int32_t ph, int32_t yv, uint32_t *sat)
+{
+    const vh_tfa_params_t *k = &a->prm;
+    rls(&a->k, &a->p, ph, yv, k->inv_forget, k->p_floor, k->p0, k->k_lo, k->k_hi, sat);
     ++a->updates;
 }
 
@@ -189,8 +208,6 @@ static int32_t ellipse(const vh_tfa_params_t *k, int32_t fx, int32_t fz, int32_t
     return isqrt64((int64_t)v << 30);
 }
 
-/* An axle's 2 F_axle (FN) to its two tyres: the first slip-angle knot where the pair's sum reaches
- * it, linear between that knot and the one before; beyond the pair's peak, the share at the peak. */
 /* The tyre's curve at its load, friction mu (FS) and ellipse factor cap (Q30) at every slip-angle
  * knot (adaptive.load_sensitive_split): cap mu F(alpha_j / mu), alpha_j / mu linear between the knots. */
 static void curve(const vh_tfa_params_t *k, int32_t fz, int32_t mu, int32_t cap, int32_t out[NA], uint32_t *sat)
@@ -198,7 +215,7 @@ static void curve(const vh_tfa_params_t *k, int32_t fz, int32_t mu, int32_t cap,
     int32_t g[NA];
     int j;
     row_at(k, k->table, NA, fz, g, sat);
-    if (!k->friction || mu == (INT32_C(1) << FS)) {
+    if (mu == (INT32_C(1) << FS)) {
         for (j = 0; j < NA; ++j) {
             out[j] = g[j];
         }
@@ -227,8 +244,11 @@ static void curve(const vh_tfa_params_t *k, int32_t fz, int32_t mu, int32_t cap,
     }
 }
 
+/* An axle's 2 F_axle (FN) to its two tyres: the first slip-angle knot where the pair's sum reaches
+ * it, linear between that knot and the one before; beyond the pair's peak, the share at the peak.
+ * alpha: the axle's slip angle (knots, FG); peak (if not NULL): the pair's largest sum (FN). */
 static void split(const vh_tfa_params_t *k, const int32_t *fz, const int32_t *mu, const int32_t *cap, int32_t two_axle,
-                  int32_t *out, int32_t *alpha, uint32_t *sat)
+                  int32_t *out, int32_t *alpha, int32_t *peak, uint32_t *sat)
 {
     int32_t f0[NA], f1[NA], tot[NA];
     const int32_t want = abs32(two_axle);
@@ -259,6 +279,9 @@ static void split(const vh_tfa_params_t *k, const int32_t *fz, const int32_t *mu
     }
     out[0] = MUL(two_axle, FN, share, 30, FN);
     out[1] = SUB(two_axle, out[0]);
+    if (peak != NULL) {
+        *peak = tot[top];
+    }
 }
 
 /* The friction under the tyre that slips ex (FS, > 0) more than its linear slip (adaptive.slip_observation):
@@ -338,6 +361,84 @@ static void friction_update(vh_tfa_t *a, const vh_skfq_t *f, uint32_t *sat)
     }
 }
 
+/* The kinematic coupling alpha_f - alpha_r = delta - L r / v [knots, FG], low-passed (adaptive.estimate_friction):
+ * v from a free-rolling axle's wheels (|Fx| <= fx_free on both), the rear's mean speed, else the front's over
+ * cos delta; none (or v below the gate): not measured this step. */
+static void road_lowpass(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uint32_t *sat)
+{
+    const vh_tfa_params_t *k = &a->prm;
+    int32_t v, z;
+    if (abs32(f->fx[2]) <= k->fx_free && abs32(f->fx[3]) <= k->fx_free) {
+        v = KM(k->k_rw, vh_fix_rshift_rnd((int64_t)in->omega[2] + in->omega[3], 1, sat), FO, FV);
+    } else if (abs32(f->fx[0]) <= k->fx_free && abs32(f->fx[1]) <= k->fx_free && f->cs_delta[0] > 0) {
+        v = vh_fix_div(KM(k->k_rw, vh_fix_rshift_rnd((int64_t)in->omega[0] + in->omega[1], 1, sat), FO, FV),
+                       f->cs_delta[0], FD, sat);
+    } else {
+        a->kin_run = 0u;
+        return;
+    }
+    if (v < k->v_gate) {
+        a->kin_run = 0u;
+        return;
+    }
+    z = KM(k->k_knot, SUB(vh_fix_rshift_rnd(in->delta, FD - FG, sat),
+                          vh_fix_div(KM(k->k_wheelbase, in->r, FW, FV), v, FG, sat)), FG, FG);
+    a->z_lp = a->kin_run == 0u ? z : ADD(a->z_lp, MUL(k->alpha_kin, 30, SUB(z, a->z_lp), FG, FG));
+    if (a->kin_run < UINT32_MAX) {
+        ++a->kin_run;
+    }
+}
+
+/* The split's alpha_f - alpha_r (each axle's slip angle signed as its force; knots, FG) on a road of friction
+ * mu (FS) under all four tyres (adaptive.kinematic_model); peak (if not NULL): the pairs' largest sums. */
+static int32_t kin_model(const vh_tfa_t *a, const vh_skfq_t *f, const int32_t *two, int32_t mu, int32_t *peak,
+                         uint32_t *sat)
+{
+    const vh_tfa_params_t *k = &a->prm;
+    int32_t mu4[4], cap[4], fy[2], al[2];
+    int i, ax;
+    for (i = 0; i < 4; ++i) {
+        mu4[i] = mu;
+        cap[i] = k->combined ? ellipse(k, f->fx[i], a->fz[i], mu, sat) : ONE30;
+    }
+    for (ax = 0; ax < 2; ++ax) {
+        split(k, &a->fz[2 * ax], &mu4[2 * ax], &cap[2 * ax], two[ax], fy, &al[ax], peak != NULL ? &peak[ax] : NULL, sat);
+        al[ax] = two[ax] < 0 ? -al[ax] : (two[ax] == 0 ? 0 : al[ax]);
+    }
+    return SUB(al[0], al[1]);
+}
+
+/* At an update: the road's friction by the scalar EKF (adaptive.estimate_friction): the random walk, then
+ * the RLS's update on the linearised y = z - h(mu^) + H mu^ = H mu (H by a finite difference, bounded),
+ * kept where the pairs' peaks carry the axle forces; without an observation back to mu_nom. */
+static void road_update(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, const int32_t *two, uint32_t *sat)
+{
+    const vh_tfa_params_t *k = &a->prm;
+    const int32_t q = ADD(a->p_road, k->kin_q);
+    a->p_road = q > k->kin_p0 ? k->kin_p0 : q;
+    if (a->valid_run > k->valid_min && a->kin_run > k->kin_min && abs32(in->ay) >= k->ay_kin_gate &&
+        a->mu[0] >= k->kin_side_min && a->mu[1] >= k->kin_side_min) {
+        const int32_t mu = a->mu_road;
+        int32_t peak[2], h0, dh, carried = 0;
+        int ax;
+        h0 = kin_model(a, f, two, mu, peak, sat);
+        dh = KM(k->k_kin_dh, SUB(kin_model(a, f, two, ADD(mu, k->kin_dmu), NULL, sat), h0), FG, FQ);
+        dh = dh > k->kin_dh_max ? k->kin_dh_max : (dh < -k->kin_dh_max ? -k->kin_dh_max : dh);
+        for (ax = 0; ax < 2; ++ax) { /* mu times the axle force over the pair's peak (FG), at least 1 N */
+            const int32_t c = MUL(mu, FS, vh_fix_div(abs32(two[ax]), peak[ax] > (INT32_C(1) << FN) ? peak[ax] :
+                                                     (INT32_C(1) << FN), FG, sat), FG, FS);
+            carried = c > carried ? c : carried;
+        }
+        rls(&a->mu_road, &a->p_road, dh, ADD(KM(k->k_kin, SUB(a->z_lp, h0), FG, FQ), MUL(dh, FQ, mu, FS, FQ)), ONE30,
+            k->kin_q, k->kin_p0, k->mu_floor, k->mu_nom, sat);
+        if (carried > a->mu_road) {
+            a->mu_road = carried > k->mu_nom ? k->mu_nom : carried;
+        }
+    } else {
+        a->mu_road = ADD(a->mu_road, MUL(k->g_forget, 30, SUB(k->mu_nom, a->mu_road), FS, FS));
+    }
+}
+
 /* The sprung weight from the ride heights (adaptive.estimate_mass): sum k_i s_i plus the links' vertical
  * forces (hf/tf)(Fy2 - Fy1) + (hr/tr)(Fy4 - Fy3) of the SKFMEC's forces [N], low-passed as the balance
  * (the filter starts at the first usable sample). */
@@ -359,6 +460,7 @@ void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uns
 {
     const vh_tfa_params_t *k = &a->prm;
     uint32_t *sat = &a->sat;
+    int32_t two[2];
     int i;
     ++a->steps;
     if ((mask & VH_SKF_ALL_VALID) == VH_SKF_ALL_VALID) {
@@ -383,14 +485,28 @@ void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uns
     }
     if (a->steps % k->decim == 0u && a->valid_run > k->valid_min && abs32(a->ax_lp) >= k->ax_gate &&
         abs32(in->ay) <= k->ay_gate && f->x[VH_SKF_VX] >= k->vx_gate) {
-        rls(a, KM(k->k_phi, a->ax_lp, FA, FQ), KM(k->k_y, a->y_lp, FN, FQ), sat); /* the balance, y = m a_x */
+        mass_rls(a, KM(k->k_phi, a->ax_lp, FA, FQ), KM(k->k_y, a->y_lp, FN, FQ), sat); /* the balance, y = m a_x */
     }
     if (a->steps % k->decim == 0u && a->ride_run > k->ride_min) {
         /* the ride heights: m = sprung weight / g + the unsprung mass, a regressor of 1 */
-        rls(a, k->ride_phi, ADD(KM(k->k_ride, a->w_lp, FN, FQ), k->ride_unsprung), sat);
+        mass_rls(a, k->ride_phi, ADD(KM(k->k_ride, a->w_lp, FN, FQ), k->ride_unsprung), sat);
     }
     for (i = 0; i < 4; ++i) {
         a->fz[i] = MUL(f->fz[i], FN, a->k, FK, FN);
+    }
+    two[0] = MUL(ADD(f->fy[0], f->fy[1]), FN, a->k, FK, FN); /* 2 F_axle, mass-corrected */
+    two[1] = MUL(ADD(f->fy[2], f->fy[3]), FN, a->k, FK, FN);
+    if (k->transfer && ride != NULL) {
+        /* adaptive.ride_transfer: at the axle's mean load, -+ (1/2)((k + 2 k_arb / 4t^2)(s_R - s_L) + (h/t) 2 F_axle) */
+        int ax;
+        for (ax = 0; ax < 2; ++ax) {
+            const int l = 2 * ax, r = l + 1;
+            const int32_t mean = vh_fix_rshift_rnd((int64_t)a->fz[l] + a->fz[r], 1, sat);
+            const int32_t d = vh_fix_rshift_rnd((int64_t)KM(k->k_roll[ax], SUB(ride[r], ride[l]), FH, FN) +
+                                                    KM(k->k_link[ax], two[ax], FN, FN), 1, sat);
+            a->fz[l] = SUB(mean, d);
+            a->fz[r] = ADD(mean, d);
+        }
     }
     if (k->friction) {
         if ((mask & VH_SKF_ALL_VALID) == VH_SKF_ALL_VALID && f->x[VH_SKF_VX] >= k->vx_gate) {
@@ -400,16 +516,26 @@ void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uns
             friction_update(a, f, sat);
         }
     }
+    if (k->road) {
+        if ((mask & VH_SKF_ALL_VALID) == VH_SKF_ALL_VALID) {
+            road_lowpass(a, f, in, sat);
+        } else {
+            a->kin_run = 0u;
+        }
+        if (a->steps % k->decim == 0u) {
+            road_update(a, f, in, two, sat);
+        }
+    }
     {
+        /* each tyre at its side's friction, or the road's where lower while no side has seen a split */
+        const int uniform = k->road && a->mu[0] >= k->kin_side_min && a->mu[1] >= k->kin_side_min;
         int32_t mu4[4], cap[4];
         for (i = 0; i < 4; ++i) {
-            mu4[i] = k->friction ? a->mu[i & 1] : k->mu_nom;
+            mu4[i] = uniform && a->mu_road < a->mu[i & 1] ? a->mu_road : a->mu[i & 1];
             cap[i] = k->combined ? ellipse(k, f->fx[i], a->fz[i], mu4[i], sat) : ONE30;
         }
-        split(k, &a->fz[0], &mu4[0], &cap[0], MUL(ADD(f->fy[0], f->fy[1]), FN, a->k, FK, FN), &a->fy[0], &a->alpha[0],
-              sat);
-        split(k, &a->fz[2], &mu4[2], &cap[2], MUL(ADD(f->fy[2], f->fy[3]), FN, a->k, FK, FN), &a->fy[2], &a->alpha[1],
-              sat);
+        split(k, &a->fz[0], &mu4[0], &cap[0], two[0], &a->fy[0], &a->alpha[0], NULL, sat);
+        split(k, &a->fz[2], &mu4[2], &cap[2], two[1], &a->fy[2], &a->alpha[1], NULL, sat);
     }
     a->health = f->health;
     if (a->health == VH_HEALTH_OK && a->p > k->p_ok) {

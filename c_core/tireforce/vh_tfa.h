@@ -12,7 +12,11 @@
  * sensors are fitted, a second measurement of the mass in the same RLS: the sprung weight
  * sum k_i s_i of the four springs' deflections s_i plus the roll-centre links' vertical forces
  * (hf/tf)(Fy2 - Fy1) + (hr/tr)(Fy4 - Fy3) of the SKFMEC's forces, low-passed, plus the unsprung
- * mass. The same algorithm as vehest_can/systems/tireforce/adaptive.py (double); the constants come
+ * mass; (6) the road's friction by a scalar EKF on the kinematic coupling alpha_f - alpha_r = delta -
+ * L r / v (v from a free-rolling axle's wheels) against the split's at that friction, used where it is
+ * lower than a side's while neither side has seen a split; (7) where the ride heights are usable, each
+ * axle's lateral load transfer from them: (1/2)((k + 2 k_arb / 4t^2)(s_R - s_L) + (h/t) 2 F_axle).
+ * The same algorithm as vehest_can/systems/tireforce/adaptive.py (double); the constants come
  * from there (host side).
  *
  * Formats: forces FN (vh_skfq.h), a_x FA, k Q2.29, P Q1.30 (in units of k^2), the normalised
@@ -78,6 +82,24 @@ typedef struct {
     int32_t ride_unsprung;      /* (m - ms) / sigma_h, FN of this header */
     int32_t ride_phi;           /* the regressor m / sigma_h, FN of this header */
     uint32_t ride_min;          /* usable steps before an update (the low-pass starts at the first sample) */
+    /* the road's friction from the kinematic slip-angle coupling (road: 0 off) */
+    int32_t road;
+    int32_t alpha_kin;          /* Ts / (tau_kin + Ts), Q30 */
+    uint32_t kin_min;           /* measured steps before an update */
+    int32_t ay_kin_gate;        /* FA */
+    int32_t fx_free;            /* FN */
+    int32_t v_gate;             /* the free-rolling axle's speed at least this [m/s], FV (Q21) */
+    vh_fix_k_t k_wheelbase;     /* lf + lr: r (FW) -> L r [m/s] Q21 */
+    vh_fix_k_t k_knot;          /* 1 / 0.25 deg: an angle [rad] (FG) -> slip-angle knots (FG) */
+    vh_fix_k_t k_kin;           /* 1 / sigma_z: knots (FG) -> normalised (FN of this header) */
+    vh_fix_k_t k_kin_dh;        /* 1 / (dmu sigma_z): a difference of knots (FG) -> normalised derivative */
+    int32_t kin_dh_max;         /* that derivative's bound, normalised (FN of this header) */
+    int32_t kin_dmu;            /* FS */
+    int32_t kin_q, kin_p0;      /* Q30: the random walk's variance per update (and the floor), the prior (ceiling) */
+    int32_t kin_side_min;       /* FS */
+    /* each axle's lateral load transfer from the ride heights (transfer: 0 off) */
+    int32_t transfer;
+    vh_fix_k_t k_roll[2];       /* k + 2 k_arb / (4 t^2) front, rear: a compression difference (FH) -> force (FN) */
 } vh_tfa_params_t;
 
 typedef struct {
@@ -93,6 +115,10 @@ typedef struct {
     int32_t slip_e[2];          /* the excess differential slip per axle (low-passed), FS */
     int32_t mu[2];              /* friction of the left and right side, FS */
     int32_t alpha[2];           /* each axle's slip angle in the last split, knots FG */
+    int32_t z_lp;               /* delta - L r / v, low-passed, knots FG */
+    uint32_t kin_run;           /* consecutive steps with it measured */
+    int32_t mu_road;            /* the road's friction, FS */
+    int32_t p_road;             /* its variance, Q30 */
     uint32_t sat;               /* saturations since init */
     uint8_t health;             /* vh_health_t */
 } vh_tfa_t;

@@ -25,6 +25,10 @@ void vh_tfa_config_default(vh_tfa_config_t *c)
     c->tau_mu = 0.25; c->tau_mu_forget = 3.0; c->mu_floor = 0.1; c->ellipse_floor = 0.2;
     c->friction = 1; c->combined = 1;
     c->ride = 1; c->spring_front = 30000.0; c->spring_rear = 25000.0; c->sigma_ride = 0.01;
+    c->road = 1; c->tau_kin = 0.05; c->ay_kin_gate = 1.0; c->fx_free = 400.0;
+    c->kin_q = 0.02; c->kin_r_deg = 0.1; c->kin_sigma0 = 0.2; c->kin_dmu = 0.05; c->kin_dh_max = 30.0;
+    c->kin_side_min = 0.95;
+    c->transfer = 1; c->tyre_kz = 250000.0;
 }
 
 /* Bakker-Nyborg-Pacejka 1987 at mu = 1 (adaptive._mf): x in the formula's unit, f in kN / size */
@@ -97,7 +101,13 @@ int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t 
           c->mu_floor > 0.0 && c->mu_floor <= c->mu && c->q_gate > 0.0 && c->q_gate < 1.0 && c->fx_gate >= 0.0 &&
           c->ellipse_floor > 0.0 && c->ellipse_floor <= 1.0 && c->spring_front > 0.0 && c->spring_rear > 0.0 &&
           c->sigma_ride > 0.0 && skf->m > 0.0 && skf->ms > 0.0 && skf->ms <= skf->m && skf->g > 0.0 &&
-          skf->tf > 0.0 && skf->tr > 0.0 && skf->ts > 0.0 && s_vx > 0.0)) {
+          skf->tf > 0.0 && skf->tr > 0.0 && skf->ts > 0.0 && s_vx > 0.0 && c->tau_kin > 0.0 &&
+          c->ay_kin_gate >= 0.0 && c->fx_free >= 0.0 && c->kin_q > 0.0 && c->kin_r_deg > 0.0 &&
+          c->kin_sigma0 >= c->kin_q && c->kin_dmu > 0.0 && c->kin_dh_max > 0.0 && c->kin_side_min >= 0.0 &&
+          skf->lf + skf->lr > 0.0 && c->tyre_kz > 0.0 &&
+          /* the normalised derivative and 1 + H P H in the RLS's formats (Q10.21, Q15.16) */
+          c->kin_dh_max / c->kin_r_deg <= 1000.0 &&
+          c->kin_sigma0 * c->kin_sigma0 * (c->kin_dh_max / c->kin_r_deg) * (c->kin_dh_max / c->kin_r_deg) <= 16000.0)) {
         return VH_EINVAL;
     }
     memset(&z, 0, sizeof z);
@@ -179,6 +189,36 @@ int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t 
         z.ride_phi = vh_skfq_qconst(skf->m / sigma_h, VH_TFA_FN, &ok);
     }
     z.ride_min = (uint32_t)floor(c->tau_lp / skf->ts + 0.5);
+    z.road = c->road != 0;
+    z.alpha_kin = vh_skfq_qconst(skf->ts / (c->tau_kin + skf->ts), 30, &ok);
+    z.kin_min = (uint32_t)floor(5.0 * c->tau_kin / skf->ts + 0.5);
+    z.ay_kin_gate = vh_skfq_qconst(c->ay_kin_gate, VH_SKFQ_FA, &ok);
+    z.fx_free = vh_skfq_qconst(c->fx_free, VH_SKFQ_FN, &ok);
+    z.v_gate = vh_skfq_qconst(c->vx_gate, 21, &ok);
+    z.k_wheelbase = vh_skfq_kconst(skf->lf + skf->lr, &ok);
+    {   /* angles in slip-angle knots of 0.25 deg; the measurement's std sigma_z in them */
+        const double knot = 0.25 * 3.14159265358979323846 / 180.0, sigma_z = c->kin_r_deg / 0.25;
+        z.k_knot = vh_skfq_kconst(1.0 / knot, &ok);
+        z.k_kin = vh_skfq_kconst(1.0 / sigma_z, &ok);
+        z.k_kin_dh = vh_skfq_kconst(1.0 / (c->kin_dmu * sigma_z), &ok);
+        z.kin_dh_max = vh_skfq_qconst(c->kin_dh_max / c->kin_r_deg, VH_TFA_FN, &ok);
+    }
+    z.kin_dmu = vh_skfq_qconst(c->kin_dmu, VH_TFA_FS, &ok);
+    z.kin_q = vh_skfq_qconst(c->kin_q * c->kin_q, 30, &ok);
+    z.kin_p0 = vh_skfq_qconst(c->kin_sigma0 * c->kin_sigma0, 30, &ok);
+    z.kin_side_min = vh_skfq_qconst(c->kin_side_min, VH_TFA_FS, &ok);
+    z.transfer = c->transfer != 0;
+    {   /* adaptive.bar_rates: the bar is what the springs leave of the suspension's roll stiffness */
+        const double kphi[2] = {skf->kphif, skf->kphir}, t[2] = {skf->tf, skf->tr};
+        const double k[2] = {c->spring_front, c->spring_rear};
+        for (i = 0; i < 2; ++i) {
+            const double inv = 1.0 / kphi[i] - 1.0 / (2.0 * c->tyre_kz * t[i] * t[i]);
+            if (!(inv > 0.0)) {
+                return VH_EINVAL;
+            }
+            z.k_roll[i] = vh_skfq_kconst(k[i] + 2.0 * ((1.0 / inv - 2.0 * k[i] * t[i] * t[i]) / (4.0 * t[i] * t[i])), &ok);
+        }
+    }
     if (!ok) {
         return VH_EINVAL;
     }

@@ -30,6 +30,18 @@ typedef struct {
     int ride;                    /* 1: the mass from the ride heights where they are usable */
     double spring_front, spring_rear; /* spring rate at the wheel, per corner [N/m] */
     double sigma_ride;           /* std of one ride-height mass measurement, fraction of the model mass */
+    int road;                    /* 1: the road's friction from the kinematic slip-angle coupling */
+    int transfer;                /* 1: each axle's lateral load transfer from the ride heights */
+    double tyre_kz;              /* the tyre's vertical stiffness [N/m] (the bars' rate from k_phi) */
+    double tau_kin;              /* low-pass of delta - L r / v [s] */
+    double ay_kin_gate;          /* |a_y| at least this [m/s^2] */
+    double fx_free;              /* |Fx| of both wheels of an axle at most this: free-rolling [N] */
+    double kin_q;                /* std of the road friction's random walk per update */
+    double kin_r_deg;            /* std of the measured alpha_f - alpha_r [deg] */
+    double kin_sigma0;           /* prior std of the road friction (its ceiling) */
+    double kin_dmu;              /* the finite difference of the derivative in mu */
+    double kin_dh_max;           /* that derivative's bound [deg per unit mu] */
+    double kin_side_min;         /* used while both sides' estimates are at least this */
 } vh_tfa_config_t;
 
 void vh_tfa_config_default(vh_tfa_config_t *c);

@@ -1,6 +1,6 @@
 """SKFMEC-A against the SKFMEC on every shipped and stress scenario, with each of its additions
 switched off in turn (the ablation table of docs/skfmec.md):
-``python -m vehest_can.systems.tireforce.ablation [SCENARIO ...]``."""
+``python -m vehest_can.systems.tireforce.ablation [--markdown] [SCENARIO ...]``."""
 from __future__ import annotations
 
 import argparse
@@ -12,11 +12,12 @@ from .adaptive import STRESS_DIR, AdaptiveSkfmec
 from .report import decode_inputs, evaluate, true_mass
 from .scenario import list_tireforce_scenarios, load_tireforce_scenario, tireforce_scenario_dir
 
-ABLATIONS = {"SKFMEC (paper)": None, "SKFMEC-A": {}, "  - no mass estimate": {"mass": False},
-             "  - no load-sensitive split": {"split": False}, "  - no per-side friction": {"friction": False},
-             "  - no combined-slip capacity": {"combined": False},
-             "  - neither (the split of before)": {"friction": False, "combined": False},
-             "  - no ride heights (the balance alone)": {"ride": False}}
+ABLATIONS = {"SKFMEC (paper)": None, "SKFMEC-A": {}, "  - no mass estimate (items 1-3)": {"mass": False},
+             "  - no load-sensitive split (4)": {"split": False}, "  - no per-side friction (6)": {"friction": False},
+             "  - no combined-slip capacity (7)": {"combined": False},
+             "  - neither 6 nor 7": {"friction": False, "combined": False},
+             "  - no ride-height mass (8)": {"ride": False}, "  - no road friction (9)": {"road": False},
+             "  - no ride-height load transfer (10)": {"transfer": False}}
 
 
 def ablation(sc) -> dict:
@@ -43,10 +44,27 @@ def ablation_table(m: dict) -> str:
     conv = f"converged at {mass['converged_s']:.2f} s" if mass["converged_s"] is not None else "not converged"
     lines = [f"== {m['scenario']}: RMS error after 0.2 s, % of peak |Fy|; mass {mass['final_kg']:.0f} kg, truth "
              f"{m['true_mass_kg']:.0f} kg ({m['mass_error_pct']:+.1f} %), {conv}",
-             f"{'':<28}" + "".join(f"{c:>8}" for c in cols)]
+             f"{'':<38}" + "".join(f"{c:>8}" for c in cols)]
     for v, vm in m["variants"].items():
-        lines.append(f"{v:<28}" + "".join(f"{vm['rms_pct'][c]:>8.2f}" for c in cols))
+        lines.append(f"{v:<38}" + "".join(f"{vm['rms_pct'][c]:>8.2f}" for c in cols))
     return "\n".join(lines)
+
+
+def markdown_row(m: dict) -> str:
+    """One scenario as a row of docs/skfmec.md's ablation table: per variant FL / FR / RL / RR; front / rear."""
+    mass = m["variants"]["SKFMEC-A"]["mass"]
+    conv = f"converged at {mass['converged_s']:.2f} s" if mass["converged_s"] is not None else "not converged"
+    cells = [" / ".join(f"{vm['rms_pct'][w]:.2f}" for w in ("FL", "FR", "RL", "RR")) + "; "
+             + " / ".join(f"{vm['rms_pct'][a]:.2f}" for a in ("front", "rear")) for vm in m["variants"].values()]
+    return (f"| `{m['scenario']}` | " + " | ".join(cells) + f" | {mass['final_kg']:.0f} kg ({m['true_mass_kg']:.0f}: "
+            f"{m['mass_error_pct']:+.1f} %), {conv} |")
+
+
+def markdown_header() -> str:
+    labels = [v.strip().removeprefix("- ").replace("no ", "− ", 1).replace("neither 6 nor 7", "− 6 and 7")
+              for v in ABLATIONS]
+    return ("| run | " + " | ".join(labels) + " | mass at the end (truth) |\n"
+            + "|---" * (len(labels) + 2) + "|")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -55,13 +73,16 @@ def main(argv: list[str] | None = None) -> int:
                                  description="SKFMEC-A against the SKFMEC, with its ablations")
     ap.add_argument("scenarios", nargs="*", help="scenario files or shipped names (default: the shipped ones "
                                                  "and the stress scenarios)")
+    ap.add_argument("--markdown", action="store_true", help="one table row per scenario (docs/skfmec.md's table)")
     args = ap.parse_args(argv)
     names = args.scenarios or [*list_tireforce_scenarios(),
                                *sorted(str(p) for p in (tireforce_scenario_dir() / STRESS_DIR).glob("*.toml"))]
     try:
+        if args.markdown:
+            print(markdown_header())
         for name in names:
-            print(ablation_table(ablation(load_tireforce_scenario(name))))
-            print()
+            m = ablation(load_tireforce_scenario(name))
+            print(markdown_row(m) if args.markdown else ablation_table(m) + "\n", flush=True)
     except ScenarioError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1

@@ -18,13 +18,13 @@ the SKFMEC unchanged and adds, per step (docs/skfmec.md, "SKFMEC-A"):
    the tyres' Magic Formula forces (Bakker, Nyborg & Pacejka 1987, from a table over slip angle
    and load) that add up to the axle's: small forces share as the cornering stiffnesses
    Cα(Fz) = a3 sin(a4 atan(a5 Fz)), which grow less than the load, large ones as the friction limits;
-5. **per-side friction**: each side's μ from the axle's excess differential slip (the wheels' slip
+6. **per-side friction**: each side's μ from the axle's excess differential slip (the wheels' slip
    difference beyond the one their linear stiffnesses give; the absolute slip is not observable),
    inverted through the combined-slip model's similarity in μ; each tyre's curve at its side's μ,
    μ F(α/μ) (``estimate_friction``, ``slip_observation``);
-6. **combined-slip capacity**: each tyre's curve times the friction ellipse's √(1 − (Fx/μDx)²)
+7. **combined-slip capacity**: each tyre's curve times the friction ellipse's √(1 − (Fx/μDx)²)
    with its eq.-30 Fx (``ellipse``);
-7. **mass from the ride heights** (where the car has ride-height sensors, ``CHS_RideHeight``): the
+8. **mass from the ride heights** (where the car has ride-height sensors, ``CHS_RideHeight``): the
    sprung mass carries its weight on the four springs in any manoeuvre (the anti-roll bars' forces
    cancel per axle, the dampers' and the heave's average out), so m_s g = Σ k_i s_i + the roll-centre
    links' vertical forces (h_f/t_f)(Fy2 − Fy1) + (h_r/t_r)(Fy4 − Fy3) (docs/chassis_plant.md; from
@@ -33,8 +33,13 @@ the SKFMEC unchanged and adds, per step (docs/skfmec.md, "SKFMEC-A"):
    second measurement of m (= it/g + the unsprung mass, a regressor of 1, std ``sigma_ride``) in
    the same RLS: the mass is then known from 0.2 s on, in steady cornering too, where the balance
    sees nothing.
+9. **the road's friction** from the axles' kinematic slip-angle coupling α_f − α_r = δ − L r / v_x
+   (v_x from a free-rolling axle) against the split's at one friction: a scalar EKF, used where it is
+   lower than a side's while no side has seen a split (``estimate_friction``, ``kinematic_model``);
+10. **each axle's lateral load transfer from the ride heights** (``ride_transfer``): the springs',
+   bars' and links' forces, in place of eq. 39's transfer where the ride heights are usable.
 
-Health: INIT while the SKFMEC is, DEGRADED until the mass estimate has converged (its standard
+Health (item 5): INIT while the SKFMEC is, DEGRADED until the mass estimate has converged (its standard
 deviation below ``mass_sigma_ok`` of the model mass) or whenever the SKFMEC is DEGRADED; FAULT with it.
 """
 from __future__ import annotations
@@ -90,9 +95,24 @@ class AdaptiveConfig:
     friction: bool = True        # per-side friction estimate
     combined: bool = True        # lateral capacity reduced by the wheel's Fx (friction ellipse)
     ride: bool = True            # the mass from the ride heights, where they are usable
+    road: bool = True            # the road's friction from the axles' kinematic slip-angle coupling
+    transfer: bool = True        # each axle's lateral load transfer from the ride heights, where they are usable
     spring_front: float = 30000.0  # spring rate at the wheel per corner [N/m] (the car's, docs/chassis_plant.md)
     spring_rear: float = 25000.0
     sigma_ride: float = 0.01     # std of one ride-height mass measurement, fraction of the model mass
+    tyre_kz: float = 250000.0    # the tyre's vertical stiffness [N/m] (the car's data sheet: the bars' rate from k_phi)
+    # the road's friction (docs/skfmec.md, "road friction"): the measurement's low-pass, its gates (the
+    # lateral excitation; the free-rolling axle whose wheels give v_x), the scalar EKF's noises, prior
+    # and finite difference, and the side estimates above which it is used (no split seen)
+    tau_kin: float = 0.05        # low-pass of delta - L r / v_x [s]
+    ay_kin_gate: float = 1.0     # |a_y| at least this [m/s^2]
+    fx_free: float = 400.0       # |Fx| of both wheels of an axle at most this: free-rolling [N]
+    kin_q: float = 0.02          # std of the friction's random walk per update
+    kin_r_deg: float = 0.1       # std of the measured alpha_f - alpha_r [deg]
+    kin_sigma0: float = 0.2      # prior std of the road's friction (and its ceiling)
+    kin_dmu: float = 0.05        # the finite difference of the measurement's derivative in mu
+    kin_dh_max: float = 30.0     # that derivative bounded to this [deg per unit mu]
+    kin_side_min: float = 0.95   # used (and updated) only while both sides' estimates are at least this
 
 
 @dataclass
@@ -103,6 +123,7 @@ class AdaptiveRun(tf.TireForceRun):
     mass_std: np.ndarray | None = None  # (n,) its standard deviation [kg]
     raw: dict | None = None             # fixed point: the integers (fy, fz FN; k Q2.29; p Q1.30)
     mu: np.ndarray | None = None        # (n, 4) the friction each tyre's split assumed (None: ``mu``)
+    road_mu: np.ndarray | None = None   # (n,) the road's friction from the kinematic coupling (None: off)
 
 
 def lateral_force(alpha_deg: np.ndarray, fz: np.ndarray, cfg: AdaptiveConfig) -> np.ndarray:
@@ -198,7 +219,8 @@ def force_table(cfg: AdaptiveConfig) -> np.ndarray:
 
 def load_sensitive_split(axle: np.ndarray, fz: np.ndarray, cfg: AdaptiveConfig,
                          table: np.ndarray | None = None, mu: np.ndarray | None = None,
-                         cap: np.ndarray | None = None, alpha: np.ndarray | None = None) -> np.ndarray:
+                         cap: np.ndarray | None = None, alpha: np.ndarray | None = None,
+                         peak: np.ndarray | None = None) -> np.ndarray:
     """Per-tyre forces from the (n, 2) axle means and (n, 4) loads: the one slip angle α per axle at
     which the two tyres' forces add up to the axle's, each tyre's force at it. The tyre's force is
     the table of its Magic Formula, linear between the knots (in load, then in α), so the pair's
@@ -211,7 +233,8 @@ def load_sensitive_split(axle: np.ndarray, fz: np.ndarray, cfg: AdaptiveConfig,
     μ F(α/μ) (D times μ, B over μ: the slip stiffness kept; exact for this formula), sampled at the
     knots (α/μ linear between the table's knots, held beyond its last); with ``cap`` (n, 4) it is
     scaled by the friction ellipse's factor. ``alpha`` (n, 2), if given, receives each axle's slip
-    angle [deg] (the knots' position where the pair's sum is reached; the peak's beyond it)."""
+    angle [deg] (the knots' position where the pair's sum is reached; the peak's beyond it), ``peak``
+    (n, 2) the pair's largest sum at the knots [N] (twice the axle force it can carry)."""
     tab = force_table(cfg) if table is None else table
     out = np.empty_like(fz)
     rows = np.arange(len(fz))
@@ -244,6 +267,8 @@ def load_sensitive_split(axle: np.ndarray, fz: np.ndarray, cfg: AdaptiveConfig,
         out[:, j] = 2.0 * axle[:, a] - out[:, i]
         if alpha is not None:
             alpha[:, a] = np.where(k > 0, kk - 1 + np.clip(t, 0.0, 1.0), top) * ALPHA_STEP_DEG
+        if peak is not None:
+            peak[:, a] = tot[rows, top]
     return out
 
 
@@ -320,6 +345,39 @@ def estimate_mass(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf: tf
     return mass, std
 
 
+def bar_rates(skf: tf.SkfConfig, cfg: AdaptiveConfig) -> tuple[float, float]:
+    """Each axle's anti-roll bar as a force per compression difference [N/m], k_arb / (4 t²) (the car's data
+    sheet, docs/chassis_plant.md): the suspension's roll stiffness is what k_φ leaves after the tyres in
+    series, k_susp = 1/(1/k_φ − 1/(2 k_t t²)), and the bar what the springs leave of it, k_susp − 2 k t²."""
+    out = []
+    for kphi, k, t in ((skf.kphif, cfg.spring_front, skf.tf), (skf.kphir, cfg.spring_rear, skf.tr)):
+        inv = 1.0 / kphi - 1.0 / (2.0 * cfg.tyre_kz * t * t)
+        if inv <= 0.0:
+            raise ConfigError(f"k_phi {kphi} Nm/rad: the tyres alone ({cfg.tyre_kz} N/m) are softer in roll")
+        out.append((1.0 / inv - 2.0 * k * t * t) / (4.0 * t * t))
+    return out[0], out[1]
+
+
+def ride_transfer(fz: np.ndarray, axle: np.ndarray, ride: np.ndarray, skf: tf.SkfConfig,
+                  cfg: AdaptiveConfig) -> np.ndarray:
+    """(n, 4) the loads with each axle's lateral load transfer from the ride heights where they are usable
+    (item 10; rows of ``ride`` NaN elsewhere: the model's kept): the tyre carries its corner's spring, bar
+    and link forces (and its unsprung weight, the same on both sides), so at the axle's mean load
+    F̄z the right tyre has F̄z + ΔF and the left F̄z − ΔF with
+    ΔF = ½ ((k + 2 k_arb/(4t²)) (s_R − s_L) + (h/t) 2 F_y,axle) (the link term: the roll centre's
+    vertical forces ∓F_y h/t of both tyres, from the axle force, not the split; dampers and the
+    unsprung dynamics left out)."""
+    out = fz.copy()
+    usable = np.all(np.isfinite(ride), axis=1)
+    bars = bar_rates(skf, cfg)
+    for a, (i, j, k, h, t) in enumerate(((0, 1, cfg.spring_front, skf.hf, skf.tf),
+                                         (2, 3, cfg.spring_rear, skf.hr, skf.tr))):
+        mean = 0.5 * (fz[usable, i] + fz[usable, j])
+        d = 0.5 * ((k + 2.0 * bars[a]) * (ride[usable, j] - ride[usable, i]) + h / t * 2.0 * axle[usable, a])
+        out[usable, i], out[usable, j] = mean - d, mean + d
+    return out
+
+
 def wheel_forces(u: tf.Inputs, mask: np.ndarray, skf: tf.SkfConfig) -> np.ndarray:
     """(n, 4) eq. 30's Fxi = (Ti − Iw ω̇i)/rw as the SKFMEC computes them (its filtered ω̇, updated
     on steps whose inputs are valid, held otherwise)."""
@@ -370,32 +428,84 @@ def slip_observation(ex: float, fx_low: float, fz_low: float, alpha_deg: float, 
     return min(cfg.mu, max(cfg.mu_floor, math.hypot(xk, xa) / s_n))
 
 
+def effective_mu(side: np.ndarray, road: np.ndarray, cfg: AdaptiveConfig) -> np.ndarray:
+    """(n, 4) the friction each tyre's curve is taken at: its side's estimate, and the road's where it
+    is lower while neither side has seen a split (both at least ``kin_side_min``)."""
+    side, road = np.atleast_2d(side), np.atleast_1d(road)
+    mu = side[:, [0, 1, 0, 1]]
+    uniform = (side.min(1) >= cfg.kin_side_min)[:, None]
+    return np.where(uniform, np.minimum(mu, road[:, None]), mu)
+
+
+def kinematic_model(axle: np.ndarray, fz: np.ndarray, fx: np.ndarray, mu: float, tabs: dict,
+                    cfg: AdaptiveConfig) -> tuple[float, np.ndarray]:
+    """The split's α_f − α_r [deg] (each axle's slip angle signed as its force) on a road of friction
+    ``mu`` under all four tyres, and the pairs' largest sums (2,) [N]; axle (1, 2), fz and fx (1, 4)."""
+    mu4 = np.full((1, 4), mu)
+    cap = ellipse(fx, fz, mu4, tabs, cfg) if cfg.combined else None
+    alpha, peak = np.zeros((1, 2)), np.zeros((1, 2))
+    load_sensitive_split(axle, fz, cfg, mu=mu4, cap=cap, alpha=alpha, peak=peak)
+    return float(np.sign(axle[0, 0]) * alpha[0, 0] - np.sign(axle[0, 1]) * alpha[0, 1]), peak[0]
+
+
+def free_rolling_speed(omega: np.ndarray, fx: np.ndarray, delta: float, rw: float, fx_free: float) -> float | None:
+    """v_x [m/s] from an axle whose wheels neither brake nor drive (|Fx| ≤ fx_free on both: their slip is
+    below ~0.3 %): the rear's mean r_w (ω3 + ω4)/2, else the front's over cos δ (the yaw terms ∓ r t
+    cancel in the mean); None when neither rolls free."""
+    if max(abs(fx[2]), abs(fx[3])) <= fx_free:
+        return rw * 0.5 * (omega[2] + omega[3])
+    if max(abs(fx[0]), abs(fx[1])) <= fx_free and math.cos(delta) > 0.0:
+        return rw * 0.5 * (omega[0] + omega[1]) / math.cos(delta)
+    return None
+
+
 def estimate_friction(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf: tf.SkfConfig,
                       cfg: AdaptiveConfig, fx: np.ndarray, fz: np.ndarray, axle: np.ndarray,
-                      tabs: dict) -> np.ndarray:
-    """(n, 2) friction of the left and right side (held between the 100 Hz updates). Per axle, the
-    excess differential slip e = (κR − κL) − (FxR/CκR − FxL/CκL), low-passed (the wheel-speed
-    difference at the yaw-corrected wheel speeds vx ∓ r t: an error of vx is common to both and
-    cancels); the side that slips more than its linear slip is the low-μ side, its μ from
-    ``slip_observation`` with the axle's slip angle of the previous step's split. Gated: inputs
-    valid, vx ≥ vx_gate, |Fx| ≥ fx_gate on both wheels in one direction. Without an observation a
-    side returns to ``mu`` (time constant tau_mu_forget); never below mu_floor."""
+                      tabs: dict) -> tuple[np.ndarray, np.ndarray]:
+    """(n, 2) friction of the left and right side and (n,) the road's (held between the 100 Hz updates).
+
+    **Per side** (item 6, ``friction``): per axle, the excess differential slip e = (κR − κL) −
+    (FxR/CκR − FxL/CκL), low-passed (the wheel-speed difference at the yaw-corrected wheel speeds
+    vx ∓ r t: an error of vx is common to both and cancels); the side that slips more than its
+    linear slip is the low-μ side, its μ from ``slip_observation`` with the axle's slip angle of the
+    previous step's split. Gated: inputs valid, vx ≥ vx_gate, |Fx| ≥ fx_gate on both wheels in one
+    direction. Without an observation a side returns to ``mu`` (time constant tau_mu_forget); never
+    below mu_floor.
+
+    **The road** (item 9, ``road``): the kinematic coupling of the axles' slip angles
+    α_f − α_r = δ − (l_f + l_r) r / v_x (no v_y in it), with v_x from a free-rolling axle's wheel
+    speeds (``free_rolling_speed``), low-passed (τ_kin), against the split's α_f − α_r at
+    one friction μ̂ under all four tyres: a scalar EKF on μ̂ (random walk kin_q per update, R =
+    kin_r_deg², H by a finite difference kin_dmu, bounded by kin_dh_max), so that it moves only as far as the coupling
+    can see μ (near saturation; on a dry road at small slip angles H is ~0). Gated: inputs valid
+    for 5τ_lp, the measurement for 5τ_kin, |a_y| ≥ ay_kin_gate, v_x ≥ vx_gate, and neither side
+    estimate below kin_side_min (one μ under the axle: the model's assumption). Kept at least at
+    the friction whose pair peaks carry the axle forces, at most ``mu``; without an update it
+    returns to ``mu`` (tau_mu_forget) and its variance grows to the prior."""
     n, ts = len(u), skf.ts
     a_lp = ts / (cfg.tau_slip + ts)
+    a_kin = ts / (cfg.tau_kin + ts)
+    kin_min = math.floor(5.0 * cfg.tau_kin / ts + 0.5)
     g_obs = cfg.decim * ts / cfg.tau_mu
     g_fgt = cfg.decim * ts / cfg.tau_mu_forget
     half = np.array([skf.tf, skf.tr])
+    wheelbase = skf.lf + skf.lr
     comp = _at_load(tabs["compliance"], fz)  # (n, 4)
     mu_side = np.array([cfg.mu, cfg.mu])
-    out = np.empty((n, 2))
+    p_road_max = cfg.kin_sigma0 ** 2
+    mu_road, p_road = cfg.mu, p_road_max
+    q_road, r_road = cfg.kin_q ** 2, cfg.kin_r_deg ** 2
+    out, road = np.empty((n, 2)), np.empty(n)
     e = np.zeros(2)
+    z_lp, kin_run = 0.0, 0
     all_valid = int(lib.VH_SKF_ALL_VALID)
     valid_run = 0
     alpha = np.zeros((1, 2))
     for k in range(n):
         vx = base.x[k, 0]
-        if (int(mask[k]) & all_valid) == all_valid:
-            if vx >= cfg.vx_gate:
+        valid = (int(mask[k]) & all_valid) == all_valid
+        if valid:
+            if cfg.friction and vx >= cfg.vx_gate:
                 for a in range(2):
                     i, j = 2 * a, 2 * a + 1
                     rt = u.r[k] * half[a]
@@ -404,10 +514,17 @@ def estimate_friction(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf
             valid_run += 1
         else:
             valid_run = 0
+        v_free = free_rolling_speed(u.omega[k], fx[k], u.delta[k], skf.rw, cfg.fx_free) if valid and cfg.road else None
+        if v_free is not None and v_free >= cfg.vx_gate:
+            z = math.degrees(u.delta[k] - wheelbase * u.r[k] / v_free)
+            z_lp = z if kin_run == 0 else z_lp + a_kin * (z - z_lp)
+            kin_run += 1
+        else:
+            kin_run = 0
         if (k + 1) % cfg.decim == 0:
             seen = [False, False]
-            if valid_run > 5 * cfg.tau_lp / ts and vx >= cfg.vx_gate and k > 0:
-                mu4 = np.array([[mu_side[0], mu_side[1], mu_side[0], mu_side[1]]])
+            if cfg.friction and valid_run > 5 * cfg.tau_lp / ts and vx >= cfg.vx_gate and k > 0:
+                mu4 = effective_mu(mu_side, np.array([mu_road]), cfg)
                 cap = ellipse(fx[k - 1:k], fz[k - 1:k], mu4, tabs, cfg) if cfg.combined else None
                 load_sensitive_split(axle[k - 1:k], fz[k - 1:k], cfg, mu=mu4, cap=cap, alpha=alpha)
                 for a in range(2):
@@ -423,8 +540,22 @@ def estimate_friction(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf
             for side in range(2):
                 if not seen[side]:
                     mu_side[side] += g_fgt * (cfg.mu - mu_side[side])
+            if (cfg.road and valid_run > 5 * cfg.tau_lp / ts and kin_run > kin_min and abs(u.ay[k]) >= cfg.ay_kin_gate
+                    and mu_side.min() >= cfg.kin_side_min):
+                p_road = min(p_road_max, p_road + q_road)
+                h0, peak = kinematic_model(axle[k:k + 1], fz[k:k + 1], fx[k:k + 1], mu_road, tabs, cfg)
+                h1, _ = kinematic_model(axle[k:k + 1], fz[k:k + 1], fx[k:k + 1], mu_road + cfg.kin_dmu, tabs, cfg)
+                dh = min(cfg.kin_dh_max, max(-cfg.kin_dh_max, (h1 - h0) / cfg.kin_dmu))
+                carried = mu_road * float(np.max(2.0 * np.abs(axle[k]) / np.maximum(peak, 1.0)))
+                # the EKF's update is the RLS's on the linearised y = z - h(mu^) + H mu^ = H mu, without forgetting
+                mu_road, p_road = rls_step(mu_road, p_road, dh, z_lp - h0 + dh * mu_road, r_road, 1.0, q_road, p_road_max)
+                mu_road = min(cfg.mu, max(cfg.mu_floor, carried, mu_road))
+            else:
+                mu_road += g_fgt * (cfg.mu - mu_road)
+                p_road = min(p_road_max, p_road + q_road)
         out[k] = mu_side
-    return out
+        road[k] = mu_road
+    return out, road
 
 
 class AdaptiveSkfmec:
@@ -444,20 +575,23 @@ class AdaptiveSkfmec:
         n = len(inputs)
         m = np.full(n, int(lib.VH_SKF_ALL_VALID), np.uint8) if mask is None else np.asarray(mask, np.uint8)
         base = tf.estimator(tf.SKFMEC, skf).run(inputs, m)
+        ride_n = _ride(ride, n)
         if cfg.mass:
-            mass, std = estimate_mass(inputs, base, m, skf, cfg, _ride(ride, n))
+            mass, std = estimate_mass(inputs, base, m, skf, cfg, ride_n)
         else:
             mass, std = np.full(n, skf.m), np.zeros(n)
         k = (mass / skf.m)[:, None]
         axle = np.c_[base.fy[:, :2].mean(1), base.fy[:, 2:].mean(1)] * k
         fz = base.fz * k
-        mu = None
-        if cfg.split and (cfg.friction or cfg.combined):
+        if cfg.transfer and ride_n is not None:
+            fz = ride_transfer(fz, axle, ride_n, skf, cfg)
+        mu = road = None
+        if cfg.split and (cfg.friction or cfg.combined or cfg.road):
             tabs = friction_tables(cfg)
             fx = wheel_forces(inputs, m, skf)
-            if cfg.friction:
-                side = estimate_friction(inputs, base, m, skf, cfg, fx, fz, axle, tabs)
-                mu = side[:, [0, 1, 0, 1]]
+            if cfg.friction or cfg.road:
+                side, road = estimate_friction(inputs, base, m, skf, cfg, fx, fz, axle, tabs)
+                mu = effective_mu(side, road, cfg)
             mu4 = np.full((n, 4), cfg.mu) if mu is None else mu
             cap = ellipse(fx, fz, mu4, tabs, cfg) if cfg.combined else None
             fy = load_sensitive_split(axle, fz, cfg, mu=mu, cap=cap)
@@ -469,7 +603,7 @@ class AdaptiveSkfmec:
         unconverged = (std > cfg.mass_sigma_ok * skf.m) & (health == H_OK) & cfg.mass
         health[unconverged] = H_DEGRADED
         return AdaptiveRun(x=base.x, fy=fy, fz=fz, health=health, resets=base.resets, mass=mass, mass_std=std,
-                           mu=mu)
+                           mu=mu, road_mu=road)
 
 
 STRESS_DIR = "stress"  # firmware_sim/scenarios/chassis/stress/: scenarios of SKFMEC-A, not in any tuning
@@ -492,7 +626,8 @@ def config_to_c(cfg: AdaptiveConfig):
     for name in ("cda", "rho", "tau_lp", "decim", "ax_gate", "ay_gate", "vx_gate", "forget", "sigma_y",
                  "mass_sigma0", "mass_sigma_floor", "mass_sigma_ok", "tyre_fz_scale", "mu", "tau_slip", "fx_gate",
                  "q_gate", "tau_mu", "tau_mu_forget", "mu_floor", "ellipse_floor", "friction", "combined", "ride",
-                 "spring_front", "spring_rear", "sigma_ride"):
+                 "spring_front", "spring_rear", "sigma_ride", "road", "tau_kin", "ay_kin_gate", "fx_free", "kin_q",
+                 "kin_r_deg", "kin_sigma0", "kin_dmu", "kin_dh_max", "kin_side_min", "transfer", "tyre_kz"):
         setattr(c, name, getattr(cfg, name))
     c.mass_lo, c.mass_hi = cfg.mass_range
     for i, v in enumerate(cfg.tyre_a):
