@@ -340,10 +340,23 @@ def test_fixed_point_refuses_bad_constants():
     p = A.fixed_params(tf.SkfConfig.default(), A.AdaptiveConfig())
     a = ffi.new("vh_tfa_t *")
     assert lib.vh_tfa_init(a, p) == lib.VH_OK
-    for field, bad in (("decim", 0), ("p_floor", 0), ("k_hi", p.k_lo), ("inv_forget", 2**29)):
+    for field, bad in (("decim", 0), ("p_floor", 0), ("k_hi", p.k_lo), ("inv_forget", 2**29), ("kin_p0", 0),
+                       ("kin_dh_max", 0), ("alpha_kin", 0), ("kin_dh_max", 1001 << lib.VH_TFA_FN)):
         q = ffi.new("vh_tfa_params_t *", p[0])
         setattr(q, field, bad)
         assert lib.vh_tfa_init(a, q) == lib.VH_EINVAL, field
+    # a configuration the host refuses, and the double version with it: tyres softer in roll than k_phi,
+    # a zero measurement noise, and a derivative bound whose 1 + H P H would not fit its format
+    from vehest_can.errors import ConfigError
+    from vehest_can.native import NativeError
+
+    for bad in (dict(tyre_kz=1000.0), dict(kin_r_deg=0.0), dict(kin_dh_max=300.0)):
+        with pytest.raises(NativeError, match="SKFMEC-A constants"):
+            A.fixed_params(tf.SkfConfig.default(), A.AdaptiveConfig(**bad))
+        with pytest.raises(NativeError, match="SKFMEC-A constants"):
+            A.AdaptiveSkfmec(adaptive=A.AdaptiveConfig(**bad))
+    with pytest.raises(ConfigError, match="softer in roll"):
+        A.bar_rates(tf.SkfConfig.default(), A.AdaptiveConfig(tyre_kz=1000.0))
 
 
 def test_nan_inputs_are_masked_not_used():

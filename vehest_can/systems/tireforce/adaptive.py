@@ -564,6 +564,7 @@ class AdaptiveSkfmec:
     def __init__(self, config: tf.SkfConfig | None = None, adaptive: AdaptiveConfig | None = None):
         self.config = config or tf.SkfConfig.default(tf.SKFMEC)
         self.adaptive = adaptive or AdaptiveConfig()
+        fixed_params(self.config, self.adaptive)  # the one validator of a configuration: the C host's
 
     def with_options(self, **kw) -> AdaptiveSkfmec:
         return AdaptiveSkfmec(self.config, replace(self.adaptive, **kw))
