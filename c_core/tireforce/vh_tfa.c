@@ -60,6 +60,7 @@ int vh_tfa_check(const vh_tfa_params_t *prm)
         (prm->ride && (prm->k_spring[0].m <= 0 || prm->k_spring[1].m <= 0 || prm->k_ride.m <= 0 ||
                        prm->ride_phi <= 0 || prm->ride_unsprung < 0)) ||
         !k_ok(prm->k_roll[0]) || !k_ok(prm->k_roll[1]) || !k_ok(prm->k_wheelbase) || !k_ok(prm->k_knot) || !k_ok(prm->k_kin) || !k_ok(prm->k_kin_dh) ||
+        prm->alpha_vyd <= 0 || prm->alpha_vyd > ONE30 || prm->vyd_gate <= 0 ||
         (prm->road && (prm->alpha_kin <= 0 || prm->alpha_kin > ONE30 || prm->ay_kin_gate < 0 || prm->fx_free < 0 ||
                        prm->k_wheelbase.m <= 0 || prm->k_knot.m <= 0 || prm->k_kin.m <= 0 || prm->k_kin_dh.m <= 0 ||
                        prm->kin_dh_max <= 0 || prm->kin_dh_max > (INT32_C(1000) << FQ) || prm->kin_dmu <= 0 ||
@@ -120,6 +121,8 @@ void vh_tfa_reset(vh_tfa_t *a)
     a->kin_run = 0u;
     a->mu_road = a->prm.mu_nom;
     a->p_road = a->prm.kin_p0;
+    a->vyd_lp = 0;
+    a->implausible = 0u;
     a->sat = 0u;
     a->health = VH_HEALTH_INIT;
 }
@@ -439,6 +442,25 @@ static void road_update(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *
     }
 }
 
+/* adaptive.implausible: the fastest wheel's speed v and a_y - r v low-passed; outside the model (v below the
+ * gate, or |a_y - r v| beyond vyd_gate: the body sliding sideways) restarts the hold. */
+static void plausibility(vh_tfa_t *a, const vh_skfq_input_t *in, uint32_t *sat)
+{
+    const vh_tfa_params_t *k = &a->prm;
+    int32_t w = in->omega[0], v;
+    int i;
+    for (i = 1; i < 4; ++i) {
+        w = in->omega[i] > w ? in->omega[i] : w;
+    }
+    v = KM(k->k_rw, w, FO, FV);
+    a->vyd_lp = ADD(a->vyd_lp, MUL(k->alpha_vyd, 30, SUB(SUB(in->ay, MUL(in->r, FW, v, FV, FA)), a->vyd_lp), FA, FA));
+    if (v < k->v_gate || abs32(a->vyd_lp) > k->vyd_gate) {
+        a->implausible = k->hold_implausible;
+    } else if (a->implausible > 0u) {
+        --a->implausible;
+    }
+}
+
 /* The sprung weight from the ride heights (adaptive.estimate_mass): sum k_i s_i plus the links' vertical
  * forces (hf/tf)(Fy2 - Fy1) + (hr/tr)(Fy4 - Fy3) of the SKFMEC's forces [N], low-passed as the balance
  * (the filter starts at the first usable sample). */
@@ -472,6 +494,7 @@ void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uns
                           2 * (int64_t)MUL(f->cs_delta[1], FD, fyf, FN, FN) - KM(k->k_drag, vx2, FX, FN);
         a->y_lp = ADD(a->y_lp, MUL(k->alpha_lp, 30, SUB(vh_fix_sat32(y, sat), a->y_lp), FN, FN));
         a->ax_lp = ADD(a->ax_lp, MUL(k->alpha_lp, 30, SUB(in->ax, a->ax_lp), FA, FA));
+        plausibility(a, in, sat);
         if (a->valid_run < UINT32_MAX) {
             ++a->valid_run;
         }
@@ -538,8 +561,8 @@ void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uns
         split(k, &a->fz[2], &mu4[2], &cap[2], two[1], &a->fy[2], &a->alpha[1], NULL, sat);
     }
     a->health = f->health;
-    if (a->health == VH_HEALTH_OK && a->p > k->p_ok) {
-        a->health = VH_HEALTH_DEGRADED; /* the mass estimate has not converged */
+    if (a->health == VH_HEALTH_OK && (a->p > k->p_ok || a->implausible > 0u)) {
+        a->health = VH_HEALTH_DEGRADED; /* the mass estimate has not converged, or the car is outside the model */
     }
 }
 

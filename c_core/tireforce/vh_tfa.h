@@ -16,6 +16,8 @@
  * L r / v (v from a free-rolling axle's wheels) against the split's at that friction, used where it is
  * lower than a side's while neither side has seen a split; (7) where the ride heights are usable, each
  * axle's lateral load transfer from them: (1/2)((k + 2 k_arb / 4t^2)(s_R - s_L) + (h/t) 2 F_axle).
+ * Health: the SKFMEC's, DEGRADED until the mass has converged and while the car is outside the model
+ * (its fastest wheel slower than vx_gate, or a_y - r v beyond vyd_gate: sliding sideways).
  * The same algorithm as vehest_can/systems/tireforce/adaptive.py (double); the constants come
  * from there (host side).
  *
@@ -100,6 +102,10 @@ typedef struct {
     /* each axle's lateral load transfer from the ride heights (transfer: 0 off) */
     int32_t transfer;
     vh_fix_k_t k_roll[2];       /* k + 2 k_arb / (4 t^2) front, rear: a compression difference (FH) -> force (FN) */
+    /* plausibility: the car outside the model (health DEGRADED) */
+    int32_t alpha_vyd;          /* Ts / (tau_vyd + Ts), Q30 */
+    int32_t vyd_gate;           /* FA */
+    uint32_t hold_implausible;  /* steps */
 } vh_tfa_params_t;
 
 typedef struct {
@@ -119,6 +125,8 @@ typedef struct {
     uint32_t kin_run;           /* consecutive steps with it measured */
     int32_t mu_road;            /* the road's friction, FS */
     int32_t p_road;             /* its variance, Q30 */
+    int32_t vyd_lp;             /* a_y - r v low-passed, FA */
+    uint32_t implausible;       /* steps left of DEGRADED after the last implausible step */
     uint32_t sat;               /* saturations since init */
     uint8_t health;             /* vh_health_t */
 } vh_tfa_t;

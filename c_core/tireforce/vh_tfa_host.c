@@ -29,6 +29,7 @@ void vh_tfa_config_default(vh_tfa_config_t *c)
     c->kin_q = 0.02; c->kin_r_deg = 0.1; c->kin_sigma0 = 0.2; c->kin_dmu = 0.05; c->kin_dh_max = 30.0;
     c->kin_side_min = 0.95;
     c->transfer = 1; c->tyre_kz = 250000.0;
+    c->tau_vyd = 0.1; c->vyd_gate = 4.0; c->hold_implausible = 0.5;
 }
 
 /* Bakker-Nyborg-Pacejka 1987 at mu = 1 (adaptive._mf): x in the formula's unit, f in kN / size */
@@ -104,7 +105,8 @@ int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t 
           skf->tf > 0.0 && skf->tr > 0.0 && skf->ts > 0.0 && s_vx > 0.0 && c->tau_kin > 0.0 &&
           c->ay_kin_gate >= 0.0 && c->fx_free >= 0.0 && c->kin_q > 0.0 && c->kin_r_deg > 0.0 &&
           c->kin_sigma0 >= c->kin_q && c->kin_dmu > 0.0 && c->kin_dh_max > 0.0 && c->kin_side_min >= 0.0 &&
-          skf->lf + skf->lr > 0.0 && c->tyre_kz > 0.0 &&
+          skf->lf + skf->lr > 0.0 && c->tyre_kz > 0.0 && c->tau_vyd > 0.0 && c->vyd_gate > 0.0 &&
+          c->hold_implausible >= 0.0 && c->hold_implausible < 1e5 &&
           /* the normalised derivative and 1 + H P H in the RLS's formats (Q10.21, Q15.16) */
           c->kin_dh_max / c->kin_r_deg <= 1000.0 &&
           c->kin_sigma0 * c->kin_sigma0 * (c->kin_dh_max / c->kin_r_deg) * (c->kin_dh_max / c->kin_r_deg) <= 16000.0)) {
@@ -208,6 +210,9 @@ int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t 
     z.kin_p0 = vh_skfq_qconst(c->kin_sigma0 * c->kin_sigma0, 30, &ok);
     z.kin_side_min = vh_skfq_qconst(c->kin_side_min, VH_TFA_FS, &ok);
     z.transfer = c->transfer != 0;
+    z.alpha_vyd = vh_skfq_qconst(skf->ts / (c->tau_vyd + skf->ts), 30, &ok);
+    z.vyd_gate = vh_skfq_qconst(c->vyd_gate, VH_SKFQ_FA, &ok);
+    z.hold_implausible = (uint32_t)floor(c->hold_implausible / skf->ts + 0.5);
     {   /* adaptive.bar_rates: the bar is what the springs leave of the suspension's roll stiffness */
         const double kphi[2] = {skf->kphif, skf->kphir}, t[2] = {skf->tf, skf->tr};
         const double k[2] = {c->spring_front, c->spring_rear};

@@ -33,6 +33,9 @@ typedef struct {
     int road;                    /* 1: the road's friction from the kinematic slip-angle coupling */
     int transfer;                /* 1: each axle's lateral load transfer from the ride heights */
     double tyre_kz;              /* the tyre's vertical stiffness [N/m] (the bars' rate from k_phi) */
+    double tau_vyd;              /* low-pass of a_y - r v (the body's sideways sliding) [s] */
+    double vyd_gate;             /* beyond this, implausible [m/s^2] */
+    double hold_implausible;     /* DEGRADED this long after the last implausible step [s] */
     double tau_kin;              /* low-pass of delta - L r / v [s] */
     double ay_kin_gate;          /* |a_y| at least this [m/s^2] */
     double fx_free;              /* |Fx| of both wheels of an axle at most this: free-rolling [N] */

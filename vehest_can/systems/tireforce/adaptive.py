@@ -40,7 +40,8 @@ the SKFMEC unchanged and adds, per step (docs/skfmec.md, "SKFMEC-A"):
    bars' and links' forces, in place of eq. 39's transfer where the ride heights are usable.
 
 Health (item 5): INIT while the SKFMEC is, DEGRADED until the mass estimate has converged (its standard
-deviation below ``mass_sigma_ok`` of the model mass) or whenever the SKFMEC is DEGRADED; FAULT with it.
+deviation below ``mass_sigma_ok`` of the model mass), whenever the SKFMEC is DEGRADED, and while the car
+is outside the model (slower than vx_gate, or sliding sideways: ``implausible``); FAULT with the SKFMEC.
 """
 from __future__ import annotations
 
@@ -101,6 +102,10 @@ class AdaptiveConfig:
     spring_rear: float = 25000.0
     sigma_ride: float = 0.01     # std of one ride-height mass measurement, fraction of the model mass
     tyre_kz: float = 250000.0    # the tyre's vertical stiffness [N/m] (the car's data sheet: the bars' rate from k_phi)
+    # plausibility (health): the body's sideways sliding a_y - r v low-passed, its gate, the hold after
+    tau_vyd: float = 0.1         # [s]
+    vyd_gate: float = 4.0        # [m/s^2]
+    hold_implausible: float = 0.5  # DEGRADED this long after the last implausible step [s]
     # the road's friction (docs/skfmec.md, "road friction"): the measurement's low-pass, its gates (the
     # lateral excitation; the free-rolling axle whose wheels give v_x), the scalar EKF's noises, prior
     # and finite difference, and the side estimates above which it is used (no split seen)
@@ -558,6 +563,31 @@ def estimate_friction(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf
     return out, road
 
 
+def implausible(u: tf.Inputs, mask: np.ndarray, skf: tf.SkfConfig, cfg: AdaptiveConfig) -> np.ndarray:
+    """(n,) True where the car is outside what the estimator's model describes, and for ``hold_implausible``
+    after: slower than vx_gate by its fastest wheel (v = r_w max ω_i), or sliding sideways, the body's
+    lateral acceleration relative to its axes v̇_y = a_y − r v_x (the plant's own equation,
+    docs/chassis_plant.md) beyond ``vyd_gate`` after a low-pass (τ_vyd): the single-track model's
+    quasi-steady cornering (|v̇_y| ≤ 2.7 m/s² on every shipped and stress run, 0.8 g steps included)
+    against a car that spins (> 4 m/s² at a sideslip of 3°). Updated on steps whose inputs are valid."""
+    n, ts = len(u), skf.ts
+    a = ts / (cfg.tau_vyd + ts)
+    hold = math.floor(cfg.hold_implausible / ts + 0.5)
+    out = np.zeros(n, bool)
+    all_valid = int(lib.VH_SKF_ALL_VALID)
+    vyd, left = 0.0, 0
+    for k in range(n):
+        if (int(mask[k]) & all_valid) == all_valid:
+            v = skf.rw * float(np.max(u.omega[k]))
+            vyd += a * (u.ay[k] - u.r[k] * v - vyd)
+            if v < cfg.vx_gate or abs(vyd) > cfg.vyd_gate:
+                left = hold
+            elif left > 0:
+                left -= 1
+        out[k] = left > 0
+    return out
+
+
 class AdaptiveSkfmec:
     """SKFMEC-A over a drive (double): the SKFMEC (default configuration) and what it adds."""
 
@@ -603,6 +633,7 @@ class AdaptiveSkfmec:
         health = base.health.copy()
         unconverged = (std > cfg.mass_sigma_ok * skf.m) & (health == H_OK) & cfg.mass
         health[unconverged] = H_DEGRADED
+        health[(health == H_OK) & implausible(inputs, m, skf, cfg)] = H_DEGRADED
         return AdaptiveRun(x=base.x, fy=fy, fz=fz, health=health, resets=base.resets, mass=mass, mass_std=std,
                            mu=mu, road_mu=road)
 
@@ -628,7 +659,7 @@ def config_to_c(cfg: AdaptiveConfig):
                  "mass_sigma0", "mass_sigma_floor", "mass_sigma_ok", "tyre_fz_scale", "mu", "tau_slip", "fx_gate",
                  "q_gate", "tau_mu", "tau_mu_forget", "mu_floor", "ellipse_floor", "friction", "combined", "ride",
                  "spring_front", "spring_rear", "sigma_ride", "road", "tau_kin", "ay_kin_gate", "fx_free", "kin_q",
-                 "kin_r_deg", "kin_sigma0", "kin_dmu", "kin_dh_max", "kin_side_min", "transfer", "tyre_kz"):
+                 "kin_r_deg", "kin_sigma0", "kin_dmu", "kin_dh_max", "kin_side_min", "transfer", "tyre_kz", "tau_vyd", "vyd_gate", "hold_implausible"):
         setattr(c, name, getattr(cfg, name))
     c.mass_lo, c.mass_hi = cfg.mass_range
     for i, v in enumerate(cfg.tyre_a):
