@@ -659,7 +659,8 @@ def config_to_c(cfg: AdaptiveConfig):
                  "mass_sigma0", "mass_sigma_floor", "mass_sigma_ok", "tyre_fz_scale", "mu", "tau_slip", "fx_gate",
                  "q_gate", "tau_mu", "tau_mu_forget", "mu_floor", "ellipse_floor", "friction", "combined", "ride",
                  "spring_front", "spring_rear", "sigma_ride", "road", "tau_kin", "ay_kin_gate", "fx_free", "kin_q",
-                 "kin_r_deg", "kin_sigma0", "kin_dmu", "kin_dh_max", "kin_side_min", "transfer", "tyre_kz", "tau_vyd", "vyd_gate", "hold_implausible"):
+                 "kin_r_deg", "kin_sigma0", "kin_dmu", "kin_dh_max", "kin_side_min", "transfer", "tyre_kz",
+                 "tau_vyd", "vyd_gate", "hold_implausible"):
         setattr(c, name, getattr(cfg, name))
     c.mass_lo, c.mass_hi = cfg.mass_range
     for i, v in enumerate(cfg.tyre_a):
