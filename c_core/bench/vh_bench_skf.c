@@ -122,5 +122,22 @@ int main(int argc, char **argv)
         }
         printf("skfmec_fixed_checksum %u 0 0\n", (unsigned)h);
     }
+    { /* the same of SKFMEC-A's state: mass, loads, forces, the frictions (the road's updates from step 2000 on) */
+        uint32_t h = 2166136261u;
+        const int32_t scalars[4] = {ka.k, ka.p, ka.mu_road, ka.p_road};
+        const int32_t *parts[5] = {ka.fy, ka.fz, ka.mu, scalars, &ka.z_lp};
+        const int len[5] = {4, 4, 2, 4, 1};
+        int a, b;
+        for (a = 0; a < 5; ++a) {
+            for (b = 0; b < len[a]; ++b) {
+                const uint32_t v = (uint32_t)parts[a][b];
+                int byte;
+                for (byte = 0; byte < 4; ++byte) {
+                    h = (h ^ ((v >> (8 * byte)) & 0xffu)) * 16777619u;
+                }
+            }
+        }
+        printf("skfmec_a_fixed_checksum %u 0 0\n", (unsigned)h);
+    }
     return sink == 0 ? 0 : 2;
 }
