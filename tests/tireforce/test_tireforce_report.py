@@ -360,7 +360,7 @@ def test_plots_and_command_line_write_files(paper, relation, tmp_path, capsys):
     files = tr.plots("forces", truth, runs, tmp_path / "f", title="paper")
     files += tr.plots("relations", relation[0], None, tmp_path / "r")
     assert {p.name for p in files} == {"fig5_inner_front.png", "fig6_outer_front.png", "error_per_tire.png",
-                                        "fig3_zeta.png", "fig4_share.png", "mass.png"}
+                                        "fig3_zeta.png", "fig4_share.png", "mass.png", "friction.png"}
     for p in files:
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 10_000
     with pytest.raises(ConfigError):
@@ -372,7 +372,7 @@ def test_plots_and_command_line_write_files(paper, relation, tmp_path, capsys):
     metrics = json.loads((tmp_path / "cli" / "metrics.json").read_text())
     assert metrics[0]["scenario"] == "chassis_relation_70kph"
     assert set(metrics[0]["variants"]) == set(tr.ALL_VARIANTS)
-    assert len(metrics[0]["plots"]) == 6 and all((tmp_path / "cli").joinpath(p).exists() for p in metrics[0]["plots"])
+    assert len(metrics[0]["plots"]) == 7 and all((tmp_path / "cli").joinpath(p).exists() for p in metrics[0]["plots"])
 
 
 def test_skfmec_a_acceptance_lines_judge_its_tyres_and_its_mass():

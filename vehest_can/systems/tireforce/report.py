@@ -585,7 +585,8 @@ def plots(kind: str, truth, runs: dict[str, tf.TireForceRun] | None, out_dir: Pa
     time with the model's constants) and Fig. 4 (F_yi/F_yf against F_zi/F_zf, identity line);
     "forces": Fig. 5 and 6 (inner FL and outer FR front lateral force: truth and each run) and the
     per-tire error of every run (y scale from t >= settle_s; the settling window shaded), and
-    SKFMEC-A's mass estimate over time (``mass.png``, with ``true_mass_kg`` when given)."""
+    SKFMEC-A's mass estimate over time (``mass.png``, with ``true_mass_kg`` when given) and the friction
+    its split assumed per side with the road's estimate, against the plant's (``friction.png``)."""
     plt = pyplot()
     figs = Figures(out_dir)
     t = np.asarray(truth["t"], float)
@@ -674,13 +675,23 @@ def plots(kind: str, truth, runs: dict[str, tf.TireForceRun] | None, out_dir: Pa
     run = runs.get(ADAPTIVE)
     if isinstance(run, AdaptiveRun) and run.mass is not None and run.mass_std is not None:
         fig, ax = plt.subplots(figsize=(10, 4))
-        ax.plot(t, run.mass, color="tab:green", lw=1.2, label="m̂ (SKFMEC-A, RLS on the longitudinal balance)")
+        ax.plot(t, run.mass, color="tab:green", lw=1.2, label="m̂ (SKFMEC-A: RLS on the balance and the ride heights)")
         ax.fill_between(t, run.mass - 2 * run.mass_std, run.mass + 2 * run.mass_std, color="tab:green", alpha=0.15,
                         label="± 2 std")
         if true_mass_kg is not None:
             ax.axhline(true_mass_kg, color="k", lw=1.2, label=f"truth {true_mass_kg:.0f} kg")
         ax.axhline(tf.SkfConfig.default().m, color="0.5", ls=":", lw=1, label="model mass (the paper's car)")
         save_over_time(fig, ax, "mass [kg]", "estimated mass", "mass.png")
+    if isinstance(run, AdaptiveRun) and run.mu is not None and "mu" in (truth.dtype.names or ()):
+        mu = np.asarray(truth["mu"], float)
+        fig, ax = plt.subplots(figsize=(10, 4))
+        for i, (side, col) in enumerate((("left", "tab:blue"), ("right", "tab:red"))):
+            ax.plot(t, mu[:, i], color=col, lw=2.2, alpha=0.35, label=f"truth, {side} side")
+            ax.plot(t, run.mu[:, i], color=col, lw=1.2, label=f"SKFMEC-A, {side} tyres' μ (the split's)")
+        if run.road_mu is not None:
+            ax.plot(t, run.road_mu, color="tab:green", ls=":", lw=1.4, label="road μ̂ (kinematic coupling, item 9)")
+        ax.set_ylim(0.0, max(1.2, float(np.nanmax(mu)) + 0.05))
+        save_over_time(fig, ax, "friction μ", "friction: the truth and what the split assumed", "friction.png")
     return figs.paths
 
 
