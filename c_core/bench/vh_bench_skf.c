@@ -29,6 +29,22 @@ static int32_t qinputs[N_SAMPLES * VH_SKFQ_NU];
 static const int32_t ride[4] = {(int32_t)(0.163 * (1 << VH_TFA_FH)), (int32_t)(0.163 * (1 << VH_TFA_FH)),
                                 (int32_t)(0.130 * (1 << VH_TFA_FH)), (int32_t)(0.130 * (1 << VH_TFA_FH))};
 
+/* FNV-1a over the bytes (little-endian) of n arrays of int32 */
+static uint32_t fnv1a(const int32_t *const *parts, const int *len, int n)
+{
+    uint32_t h = 2166136261u;
+    int a, b, byte;
+    for (a = 0; a < n; ++a) {
+        for (b = 0; b < len[a]; ++b) {
+            const uint32_t v = (uint32_t)parts[a][b];
+            for (byte = 0; byte < 4; ++byte) {
+                h = (h ^ ((v >> (8 * byte)) & 0xffu)) * 16777619u;
+            }
+        }
+    }
+    return h;
+}
+
 int main(int argc, char **argv)
 {
     static vh_skf_t kf;
@@ -106,38 +122,15 @@ int main(int argc, char **argv)
     vh_bench_report("skfmec_a_fixed_step", samples, n, clock_ns);
     printf("skfmec_a_fixed_saturations %u 0 0\n", (unsigned)ka.sat);
     printf("skfmec_fixed_saturations %u 0 0\n", (unsigned)kq.sat);
-    { /* FNV-1a of the final integer state: equal for every build of the same sources */
-        uint32_t h = 2166136261u;
-        const int32_t *parts[4] = {kq.x, kq.p, kq.fy, kq.fz};
-        const int len[4] = {VH_SKFQ_NX, VH_SKFQ_NX * VH_SKFQ_NX, 4, 4};
-        int a, b;
-        for (a = 0; a < 4; ++a) {
-            for (b = 0; b < len[a]; ++b) {
-                const uint32_t v = (uint32_t)parts[a][b];
-                int byte;
-                for (byte = 0; byte < 4; ++byte) {
-                    h = (h ^ ((v >> (8 * byte)) & 0xffu)) * 16777619u;
-                }
-            }
-        }
-        printf("skfmec_fixed_checksum %u 0 0\n", (unsigned)h);
-    }
-    { /* the same of SKFMEC-A's state: mass, loads, forces, the frictions (the road's updates from step 2000 on) */
-        uint32_t h = 2166136261u;
+    { /* FNV-1a of the final integer states: equal for every build of the same sources */
+        const int32_t *skf[4] = {kq.x, kq.p, kq.fy, kq.fz};
+        const int skf_len[4] = {VH_SKFQ_NX, VH_SKFQ_NX * VH_SKFQ_NX, 4, 4};
+        /* SKFMEC-A: mass, loads, forces, the frictions (the road's updates from step 2000 on) */
         const int32_t scalars[4] = {ka.k, ka.p, ka.mu_road, ka.p_road};
-        const int32_t *parts[5] = {ka.fy, ka.fz, ka.mu, scalars, &ka.z_lp};
-        const int len[5] = {4, 4, 2, 4, 1};
-        int a, b;
-        for (a = 0; a < 5; ++a) {
-            for (b = 0; b < len[a]; ++b) {
-                const uint32_t v = (uint32_t)parts[a][b];
-                int byte;
-                for (byte = 0; byte < 4; ++byte) {
-                    h = (h ^ ((v >> (8 * byte)) & 0xffu)) * 16777619u;
-                }
-            }
-        }
-        printf("skfmec_a_fixed_checksum %u 0 0\n", (unsigned)h);
+        const int32_t *tfa[5] = {ka.fy, ka.fz, ka.mu, scalars, &ka.z_lp};
+        const int tfa_len[5] = {4, 4, 2, 4, 1};
+        printf("skfmec_fixed_checksum %u 0 0\n", (unsigned)fnv1a(skf, skf_len, 4));
+        printf("skfmec_a_fixed_checksum %u 0 0\n", (unsigned)fnv1a(tfa, tfa_len, 5));
     }
     return sink == 0 ? 0 : 2;
 }
