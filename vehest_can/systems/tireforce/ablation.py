@@ -38,10 +38,14 @@ def ablation(sc) -> dict:
     return {"scenario": sc.name, "mass_error_pct": 100 * (mass["final_kg"] / true - 1), **m}
 
 
+def _converged(mass: dict) -> str:
+    return f"converged at {mass['converged_s']:.2f} s" if mass["converged_s"] is not None else "not converged"
+
+
 def ablation_table(m: dict) -> str:
     cols = ("FL", "FR", "RL", "RR", "front", "rear")
     mass = m["variants"]["SKFMEC-A"]["mass"]
-    conv = f"converged at {mass['converged_s']:.2f} s" if mass["converged_s"] is not None else "not converged"
+    conv = _converged(mass)
     lines = [f"== {m['scenario']}: RMS error after 0.2 s, % of peak |Fy|; mass {mass['final_kg']:.0f} kg, truth "
              f"{m['true_mass_kg']:.0f} kg ({m['mass_error_pct']:+.1f} %), {conv}",
              f"{'':<38}" + "".join(f"{c:>8}" for c in cols)]
@@ -53,7 +57,7 @@ def ablation_table(m: dict) -> str:
 def markdown_row(m: dict) -> str:
     """One scenario as a row of docs/skfmec.md's ablation table: per variant FL / FR / RL / RR; front / rear."""
     mass = m["variants"]["SKFMEC-A"]["mass"]
-    conv = f"converged at {mass['converged_s']:.2f} s" if mass["converged_s"] is not None else "not converged"
+    conv = _converged(mass)
     cells = [" / ".join(f"{vm['rms_pct'][w]:.2f}" for w in ("FL", "FR", "RL", "RR")) + "; "
              + " / ".join(f"{vm['rms_pct'][a]:.2f}" for a in ("front", "rear")) for vm in m["variants"].values()]
     return (f"| `{m['scenario']}` | " + " | ".join(cells) + f" | {mass['final_kg']:.0f} kg ({m['true_mass_kg']:.0f}: "

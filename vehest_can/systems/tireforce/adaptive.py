@@ -490,6 +490,7 @@ def estimate_friction(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf
     n, ts = len(u), skf.ts
     a_lp = ts / (cfg.tau_slip + ts)
     a_kin = ts / (cfg.tau_kin + ts)
+    valid_min = 5 * cfg.tau_lp / ts
     kin_min = math.floor(5.0 * cfg.tau_kin / ts + 0.5)
     g_obs = cfg.decim * ts / cfg.tau_mu
     g_fgt = cfg.decim * ts / cfg.tau_mu_forget
@@ -528,7 +529,7 @@ def estimate_friction(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf
             kin_run = 0
         if (k + 1) % cfg.decim == 0:
             seen = [False, False]
-            if cfg.friction and valid_run > 5 * cfg.tau_lp / ts and vx >= cfg.vx_gate and k > 0:
+            if cfg.friction and valid_run > valid_min and vx >= cfg.vx_gate and k > 0:
                 mu4 = effective_mu(mu_side, np.array([mu_road]), cfg)
                 cap = ellipse(fx[k - 1:k], fz[k - 1:k], mu4, tabs, cfg) if cfg.combined else None
                 load_sensitive_split(axle[k - 1:k], fz[k - 1:k], cfg, mu=mu4, cap=cap, alpha=alpha)
@@ -545,9 +546,9 @@ def estimate_friction(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf
             for side in range(2):
                 if not seen[side]:
                     mu_side[side] += g_fgt * (cfg.mu - mu_side[side])
-            if (cfg.road and valid_run > 5 * cfg.tau_lp / ts and kin_run > kin_min and abs(u.ay[k]) >= cfg.ay_kin_gate
+            p_road = min(p_road_max, p_road + q_road)  # the random walk, updated or not
+            if (cfg.road and valid_run > valid_min and kin_run > kin_min and abs(u.ay[k]) >= cfg.ay_kin_gate
                     and mu_side.min() >= cfg.kin_side_min):
-                p_road = min(p_road_max, p_road + q_road)
                 h0, peak = kinematic_model(axle[k:k + 1], fz[k:k + 1], fx[k:k + 1], mu_road, tabs, cfg)
                 h1, _ = kinematic_model(axle[k:k + 1], fz[k:k + 1], fx[k:k + 1], mu_road + cfg.kin_dmu, tabs, cfg)
                 dh = min(cfg.kin_dh_max, max(-cfg.kin_dh_max, (h1 - h0) / cfg.kin_dmu))
@@ -557,7 +558,6 @@ def estimate_friction(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf
                 mu_road = min(cfg.mu, max(cfg.mu_floor, carried, mu_road))
             else:
                 mu_road += g_fgt * (cfg.mu - mu_road)
-                p_road = min(p_road_max, p_road + q_road)
         out[k] = mu_side
         road[k] = mu_road
     return out, road
