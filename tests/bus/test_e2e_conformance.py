@@ -69,7 +69,7 @@ def sessions(tmp_path_factory):
 
 def test_the_library_accepts_every_frame_sent(sessions):
     seen = {}
-    for name, s in sessions.items():
+    for s in sessions.values():
         for m in s.messages():
             try:
                 msg = message_by_id(m.arbitration_id)
