@@ -20,8 +20,16 @@ from daemonproc import start_daemon, stop_daemon
 
 from vehest_can.bus.bus import open_bus, private_multicast
 from vehest_can.bus.frames import database, to_message
-from vehest_can.bus.secoc import (RESERVE_BLOCK, BusSecoc, FreshnessStore, crash_margin, default_state_path,
-                                  secured_messages, state_dir, write_dev_keys)
+from vehest_can.bus.secoc import (
+    RESERVE_BLOCK,
+    BusSecoc,
+    FreshnessStore,
+    crash_margin,
+    default_state_path,
+    secured_messages,
+    state_dir,
+    write_dev_keys,
+)
 from vehest_can.errors import ConfigError
 from vehest_can.systems.roll.scenario import RollCar, load_roll_scenario
 

@@ -384,7 +384,7 @@ def crash_margin(sender: str) -> int:
         for m in database(bus).messages:
             if m.frame_id in secured and secured[m.frame_id][0] == sender:
                 attrs = m.dbc.attributes if m.dbc else {}
-                us = attrs["CycleTimeUs"].value if "CycleTimeUs" in attrs else (m.cycle_time or 0) * 1000
+                us = float(attrs["CycleTimeUs"].value if "CycleTimeUs" in attrs else (m.cycle_time or 0) * 1000)
                 rate += 1e6 / us if us else 2000.0  # an event frame: at most one per tick
     return int(rate * CRASH_MARGIN_S) + 1
 

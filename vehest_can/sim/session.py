@@ -15,6 +15,7 @@ import queue
 import threading
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import can
 import numpy as np
@@ -48,7 +49,7 @@ class Drive:
     initial_speed: float = 0.0    # m/s; > 0 starts rolling in gear[0]
     camber: tuple | None = None   # (vh_cambernode_config_t[4], pose): inspection devices on
     secoc_keys: dict | None = None  # SecOC on for the DLS node and the CIS devices (enable_secoc)
-    secoc_store: object = None      # and their FreshnessStore (None: ephemeral, FVs from 1 in each car)
+    secoc_store: Any = None         # and their FreshnessStore (None: ephemeral, FVs from 1 in each car)
 
     SECOC_NODES = ("CIS", "DLS")
 
