@@ -1,10 +1,10 @@
 /* vh_bench_ecu_secoc.c - the ECU tick with SecOC on, beside off (`vehest-can bench`).
  *
  * Every system's frames (a driveline launch, the chassis node, the roll node on the 14-DOF plant in a
- * 72 km/h steer ramp, the same for all); the roll node secures its frames. Three ECUs step tick by
+ * 72 km/h steer ramp, the same for all); the DLS, chassis and roll nodes secure their frames. Three ECUs step tick by
  * tick in turn (a loaded machine slows all alike), each tick timed (vh_bench_common.h):
  *   ecu_tick_secoc_off     SecOC off, fed the frames as a node without SecOC sends them (tails zero)
- *   ecu_tick_secoc_on      SecOC on: the roll node's frames verified, the ECU's own secured frames
+ *   ecu_tick_secoc_on      SecOC on: the nodes' frames verified, the ECU's own secured frames
  *                          protected, its sync frames at 1 Hz
  *   ecu_tick_secoc_forged  on, and one forged ROLL_Sensors per tick besides (each costs the verifier
  *                          its VH_SECOC_VERIFY_ATTEMPTS candidates and the replay check: the worst case)
@@ -27,7 +27,7 @@
 #include "vh_veh14.h"
 
 #define N_SAMPLES 40000
-#define PER_TICK 8 /* DLS + its sync frame + CHS + the roll node's 4 + its sync frame */
+#define PER_TICK 9 /* DLS + CHS + the roll node's 4, each node's sync frame */
 
 static const uint8_t KEY[16] = {0x2b, 0x7e, 0x15, 0x16, 0x28, 0xae, 0xd2, 0xa6,
                                 0xab, 0xf7, 0x15, 0x88, 0x09, 0xcf, 0x4f, 0x3c};
@@ -42,17 +42,18 @@ static int keyed(vh_secoc_bus_t *s, const char *self)
     return vh_secoc_bus_set_key(s, (unsigned)vh_secoc_bus_node("VEHEST"), KEY) == VH_OK &&
            vh_secoc_bus_set_key(s, (unsigned)vh_secoc_bus_node("ROLL"), KEY) == VH_OK &&
            vh_secoc_bus_set_key(s, (unsigned)vh_secoc_bus_node("DLS"), KEY) == VH_OK &&
+           vh_secoc_bus_set_key(s, (unsigned)vh_secoc_bus_node("CHS"), KEY) == VH_OK &&
            vh_secoc_bus_start(s, 1u, UINT64_MAX) == VH_OK;
 }
 
-/* Every tick's frames, secured by the DLS and roll nodes, and as nodes without SecOC send them. */
+/* Every tick's frames, secured by the DLS, chassis and roll nodes, and as nodes without SecOC send them. */
 static int make_frames(void)
 {
     static vh_dlsim_t sim;
     static vh_v14_t plant;
     static vh_v14_params_t prm;
     static vh_rln_t roll;
-    static vh_secoc_bus_t node, peer, dls;
+    static vh_secoc_bus_t node, peer, dls, chs_sec;
     vh_v14_input_t in;
     vh_chs_config_t ccfg;
     vh_chs_t chs;
@@ -67,10 +68,11 @@ static int make_frames(void)
     if (!vh_bench_launch_init(&sim) || vh_v14_init(&plant, &prm) != VH_OK ||
         vh_v14_set_rolling(&plant, 20.0) != VH_OK || vh_chs_init(&chs, &ccfg) != VH_OK ||
         vh_rln_init(&roll, &rcfg) != VH_OK || !keyed(&node, "ROLL") || !keyed(&peer, "VEHEST") ||
-        !keyed(&dls, "DLS")) {
+        !keyed(&dls, "DLS") || !keyed(&chs_sec, "CHS")) {
         return 0;
     }
     vh_rln_set_secoc(&roll, &node);
+    vh_chs_set_secoc(&chs, &chs_sec);
     vh_dlsim_set_secoc(&sim, &dls, NULL);
     vh_v14_input_init(&in, 1.0);
     for (i = 0; i < N_SAMPLES; ++i) {
@@ -79,7 +81,7 @@ static int make_frames(void)
         s_n[i] = vh_bench_launch_tick(&sim, i, &s_sec[i][0], 2u);
         vh_rln_actuate(&roll, &plant);
         vh_v14_step(&plant, &in);
-        s_n[i] += vh_chs_step(&chs, &plant.truth, &s_sec[i][s_n[i]], 1u);
+        s_n[i] += vh_chs_step(&chs, &plant.truth, &s_sec[i][s_n[i]], 2u); /* + its sync frame */
         s_n[i] += vh_rln_step(&roll, &plant, &s_sec[i][s_n[i]], PER_TICK - s_n[i]);
         for (j = 0; j < s_n[i]; ++j) { /* the verified copy has the tail zeroed: what SecOC off sends */
             if (vh_secoc_bus_rx(&peer, &s_sec[i][j], &s_plain[i][j]) == VH_SECOC_BUS_PASS) {

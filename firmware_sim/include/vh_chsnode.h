@@ -4,7 +4,8 @@
  * quantises to the DBC resolution through the generated codec (vh_ch.h) and sends one
  * E2E-protected CHS_Sensors frame (dbc/vehest_ch.dbc). Where ride-height sensors are fitted
  * (ride_period > 0) it also samples the four springs' deflections every ride_period ticks and sends
- * them in CHS_RideHeight.
+ * them in CHS_RideHeight. With SecOC on (vh_chs_set_secoc) both frames are secured through the node's
+ * vh_secoc_bus hook, as the roll node's are, and its sync frame goes first at 1 Hz.
  *
  * The noise of all CHS_Sensors channels is drawn every tick in a fixed order, so changing one
  * channel's standard deviation (or failing it) leaves the other channels' noise sequences
@@ -18,6 +19,7 @@
 #include <stdint.h>
 
 #include "vh_rng.h"
+#include "vh_secoc_bus.h"
 #include "vh_types.h"
 #include "vh_veh14.h"
 
@@ -59,17 +61,23 @@ typedef struct {
     uint8_t counter_ride;         /* and of the next CHS_RideHeight frame */
     uint32_t tick;                /* steps since reset */
     uint32_t frames;              /* frames sent since reset */
+    vh_secoc_bus_t *secoc;        /* the node's SecOC (caller-owned, kept across resets), NULL: off */
 } vh_chs_t;
 
 void vh_chs_config_default(vh_chs_config_t *cfg);
 /* VH_OK, or VH_EINVAL (nothing changed) for a negative or non-finite noise level or a
  * non-finite bias. */
 int vh_chs_init(vh_chs_t *n, const vh_chs_config_t *cfg);
-/* Counters to 0, random streams restarted from cfg.seed. */
+/* Counters to 0, random streams restarted from cfg.seed; SecOC's sync frames at the next step. */
 void vh_chs_reset(vh_chs_t *n);
+/* SecOC for the node's frames (vh_secoc_bus_init'ed for VH_SECOC_NODE_CHS, keyed, started), or NULL
+ * (vh_chs_init sets NULL). */
+void vh_chs_set_secoc(vh_chs_t *n, vh_secoc_bus_t *s);
 /* Sample truth and write one CHS_Sensors frame (FD|BRS, 32 bytes) to out[0], then, on a ride-height
- * tick (every ride_period ticks from the first), one CHS_RideHeight frame (12 bytes) to out[1] when
- * cap >= 2. Returns the number of frames written: 1 or 2, or 0 when cap is 0 or out or truth is NULL. */
+ * tick (every ride_period ticks from the first), one CHS_RideHeight frame (16 bytes) to out[1] when
+ * cap >= 2. With SecOC on, both are secured and the sync frame, when due, goes first if there is room
+ * (cap 3 leaves room for all). Returns the number of frames written: 1 to 3, or 0 when cap is 0 or out
+ * or truth is NULL. */
 size_t vh_chs_step(vh_chs_t *n, const vh_v14_truth_t *truth, vh_frame_t *out, size_t cap);
 
 #endif /* VH_CHSNODE_H */

@@ -50,6 +50,7 @@ int vh_chs_init(vh_chs_t *n, const vh_chs_config_t *cfg)
         return VH_EINVAL;
     }
     n->cfg = *cfg;
+    n->secoc = NULL;
     vh_chs_reset(n);
     return VH_OK;
 }
@@ -62,7 +63,12 @@ void vh_chs_reset(vh_chs_t *n)
     n->counter_ride = 0u;
     n->tick = 0u;
     n->frames = 0u;
+    if (n->secoc != NULL) {
+        vh_secoc_bus_resync(n->secoc); /* the ECU may have restarted too */
+    }
 }
+
+void vh_chs_set_secoc(vh_chs_t *n, vh_secoc_bus_t *s) { n->secoc = s; }
 
 /* CHS_RideHeight: the four springs' deflections, sampled now, into f. */
 static void ride_frame(vh_chs_t *n, const vh_v14_truth_t *truth, vh_frame_t *f)
@@ -128,5 +134,5 @@ size_t vh_chs_step(vh_chs_t *n, const vh_v14_truth_t *truth, vh_frame_t *out, si
         k = 2u;
     }
     ++n->tick;
-    return k;
+    return n->secoc != NULL ? vh_secoc_bus_tx(n->secoc, out, k, cap) : k;
 }

@@ -11,8 +11,9 @@
  *   4  XCP CRO frame:    len, payload on the slave's CRO identifier (anything)
  *   5  XCP session:      CONNECT, then GET_SEED/UNLOCK with the right key for CAL/PAG and DAQ as
  *                        selected, so the fuzzer reaches SET_MTA, DOWNLOAD, DAQ setup behind them
- *   6  secured frame:    as op 1, then secured by a twin roll node (its sync frame first when
- *                        due): with SecOC on it must verify (genuine traffic is never rejected)
+ *   6  secured frame:    as op 1, then secured by a twin of its sending node (CHS, ROLL, DLS, CIS;
+ *                        its sync frame first when due): with SecOC on it must verify (genuine
+ *                        traffic is never rejected)
  * The camber calibration is loaded and the XCP slave enabled (as the daemon runs). After every step
  * the transmitted frames are checked: known IDs only, the DBC length, within the capacity (never
  * above VH_ECU_MAX_TX); XCP responses within MAX_CTO, DTOs within MAX_DTO; the driveline and roll
@@ -54,9 +55,7 @@ static const rx_msg_t RX[] = {
     {VH_CH_ROLL_MODE_CMD_FRAME_ID, VH_CH_ROLL_MODE_CMD_LENGTH, VH_CH_ROLL_MODE_CMD_E2E},
     {VH_CH_CHS_RIDE_HEIGHT_FRAME_ID, VH_CH_CHS_RIDE_HEIGHT_LENGTH, VH_CH_CHS_RIDE_HEIGHT_E2E},
 };
-#define N_RX (sizeof RX / sizeof RX[0])
-#define FIRST_ROLL_RX 3u /* RX[3..6]: the roll node's frames, the secured ones */
-#define N_ROLL_RX 4u
+#define N_RX (sizeof RX / sizeof RX[0]) /* all of them secured in the DBCs (op 6 secures them) */
 
 static const struct {
     uint32_t id;
@@ -103,8 +102,8 @@ static vh_ecu_t ecu, before;
 static vh_ecu_t initialised[2];
 static int have_initialised;
 static vh_ecu_cal_t ref;               /* the reference page as enabled: never written */
-static vh_secoc_bus_t sec, roll_node;  /* the ECU's SecOC (node VEHEST) and a genuine roll node's */
-static vh_secoc_bus_t sec_keyed, roll_keyed, roll_off; /* their start states, made once */
+static vh_secoc_bus_t sec, twin[VH_SECOC_N_NODES]; /* the ECU's SecOC (node VEHEST), each sending node's twin */
+static vh_secoc_bus_t sec_keyed, twin_keyed[VH_SECOC_N_NODES], twin_off[VH_SECOC_N_NODES]; /* start states */
 static uint8_t secoc_on, max_cto;
 
 /* The snapshots' copies and compares (tens of kB, several per input): libc's own memcpy and memcmp,
@@ -342,13 +341,30 @@ static void xcp_session(uint8_t unlock)
 
 static int keyed(vh_secoc_bus_t *s, unsigned self)
 {
+    unsigned i;
     vh_secoc_bus_init(s, self);
-    return vh_secoc_bus_set_key(s, VH_SECOC_NODE_VEHEST, TEST_KEY) == VH_OK &&
-           vh_secoc_bus_set_key(s, VH_SECOC_NODE_ROLL, TEST_KEY) == VH_OK && vh_secoc_bus_start(s, 1u, UINT64_MAX) == VH_OK;
+    for (i = 0; i < VH_SECOC_N_NODES; ++i) {
+        if (vh_secoc_bus_set_key(s, i, TEST_KEY) != VH_OK) {
+            return 0;
+        }
+    }
+    return vh_secoc_bus_start(s, 1u, UINT64_MAX) == VH_OK;
+}
+
+/* The sending node of a secured frame (VH_SECOC_NODE_*), or -1. */
+HARNESS_ONLY static int sender(uint32_t id)
+{
+    size_t i;
+    for (i = 0; i < sizeof VH_SECOC_MSGS / sizeof VH_SECOC_MSGS[0]; ++i) {
+        if (VH_SECOC_MSGS[i].id == id) {
+            return VH_SECOC_MSGS[i].node;
+        }
+    }
+    return -1;
 }
 
 /* What every input starts from, made once: the ECU initialised, the camber calibration loaded
- * and the XCP slave enabled (MAX_CTO 8 and 64), and the two SecOC nodes keyed and started. */
+ * and the XCP slave enabled (MAX_CTO 8 and 64), and the SecOC nodes keyed and started. */
 static void init_once(void)
 {
     static const float x[3] = {1.0f, 0.0f, 0.0f}, z[3] = {0.0f, 0.0f, 1.0f}, lsb[3] = {0.004f, 0.004f, 0.004f};
@@ -384,9 +400,14 @@ static void init_once(void)
         }
         memcpy(&initialised[m], &ecu, sizeof ecu); /* the same object: pointers into it stay valid */
     }
-    vh_secoc_bus_init(&roll_off, VH_SECOC_NODE_ROLL); /* off: tails stay zero, no sync frames */
-    if (!keyed(&sec_keyed, VH_SECOC_NODE_VEHEST) || !keyed(&roll_keyed, VH_SECOC_NODE_ROLL)) {
+    if (!keyed(&sec_keyed, VH_SECOC_NODE_VEHEST)) {
         abort();
+    }
+    for (m = 0; m < VH_SECOC_N_NODES; ++m) {
+        vh_secoc_bus_init(&twin_off[m], m); /* off: tails stay zero, no sync frames */
+        if (!keyed(&twin_keyed[m], m)) {
+            abort();
+        }
     }
 }
 
@@ -401,6 +422,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     unsigned k;
     size_t n, i;
     uint32_t accepted;
+    int node;
 
     if (!take(&in, &mode)) {
         return 0;
@@ -413,10 +435,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     }
     libc_memcpy(&ecu, &initialised[max_cto == 64u], sizeof ecu);
     memcpy(&ref, &ecu.xcp.ref, sizeof ref);
-    roll_node = roll_off;
+    memcpy(twin, secoc_on ? twin_keyed : twin_off, sizeof twin);
     if (secoc_on) {
         sec = sec_keyed;
-        roll_node = roll_keyed;
         vh_ecu_set_secoc(&ecu, &sec);
     }
     while (take(&in, &op)) {
@@ -433,29 +454,27 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             rx(&f);
             break;
         case 1: /* a frame the E2E check accepts (or, with a counter step of 0 or > 1, flags) */
-        case 6: /* the same, secured by the roll node (a roll frame; SecOC off: as it sends without) */
+        case 6: /* the same, secured by its sending node's twin (SecOC off: as it sends without) */
             if (!take(&in, &a) || !take(&in, &b)) {
                 return 0;
             }
-            if ((op & 7u) == 6u) {
-                a = (uint8_t)(FIRST_ROLL_RX + a % N_ROLL_RX);
-            }
+            node = sender(RX[a % N_RX].id);
             memset(&f, 0, sizeof f);
             f.id = RX[a % N_RX].id;
             f.len = RX[a % N_RX].len;
             f.flags = VH_FRAME_FD | VH_FRAME_BRS;
             take_n(&in, &f.data[2], f.len > 2u ? f.len - 2u : 0u); /* bytes 0-1: CRC, counter */
-            if ((op & 7u) == 6u) { /* the SecOC tail: zero under E2E, then the node's FV and MAC */
+            if ((op & 7u) == 6u && node >= 0) { /* the SecOC tail: zero under E2E, then the node's FV and MAC */
                 memset(&f.data[f.len - VH_SECOC_TAIL_BYTES], 0, VH_SECOC_TAIL_BYTES);
             }
             counter[a % N_RX] = (uint8_t)(counter[a % N_RX] + (b & 3u) - 1u); /* protect adds 1 */
             vh_e2e_protect(RX[a % N_RX].e2e, f.data, f.len, &counter[a % N_RX]);
-            if ((op & 7u) == 1u) {
+            if ((op & 7u) == 1u || node < 0) {
                 rx(&f);
                 break;
             }
             sf[0] = f;
-            n = vh_secoc_bus_tx(&roll_node, sf, 1u, 3u);
+            n = vh_secoc_bus_tx(&twin[node], sf, 1u, 3u);
             for (i = 0; i < n; ++i) {
                 accepted = sec.cnt.accepted + sec.cnt.syncs;
                 rx(&sf[i]);

@@ -39,7 +39,6 @@ KERNEL_OPT = ["-O3"]
 # the harness's RX table: DLS_Sensors, CIS_Accel, CHS_Sensors, ROLL_Sensors/_YawRate/_ActuatorStatus/_ModeCmd,
 # CHS_RideHeight
 RX_INDEX = {0x100: 0, 0x200: 1, 0x110: 2, 0x120: 3, 0x121: 4, 0x122: 5, 0x123: 6, 0x111: 7}
-FIRST_ROLL, N_ROLL = 3, 4  # RX_INDEX 3..6: the roll node's frames (op 6 secures them)
 # the first byte of an input: bit 0 SecOC on, bit 1 XCP MAX_CTO 64
 PLAIN, SECOC, CTO64 = 0, 1, 2
 TICKS = bytes([2, 0x60])       # op 2: one tick at capacity 6
@@ -136,6 +135,11 @@ def _xcp_programs() -> dict[str, bytes]:
             "xcp_cal_cto64": bytes([CTO64]) + cal, "xcp_locked": bytes([PLAIN]) + _xcp_session(0) + cal[1:]}
 
 
+def _secured(frame_id: int, data: bytes) -> bytes:
+    """op 6: the frame's payload (bytes 2.., E2E made by the harness), secured by its node's twin."""
+    return bytes([6, RX_INDEX[frame_id], 1]) + data[2:]
+
+
 def seed_corpus(out: Path, frames_per_seed: int = 64) -> int:
     """Seeds from the golden chassis log (CHS_Sensors with real E2E), the roll golden scenario's
     frames (plain and secured), a synthetic DLS run and XCP sessions."""
@@ -147,9 +151,12 @@ def seed_corpus(out: Path, frames_per_seed: int = 64) -> int:
         if m and int(m[1], 16) in RX_INDEX:
             frames.append((int(m[1], 16), bytes.fromhex(m[2])))
     n = 0
-    for start in range(0, min(len(frames), 16 * frames_per_seed), frames_per_seed):
-        prog = b"".join(_raw(i, d) + TICKS for i, d in frames[start:start + frames_per_seed])
-        (out / f"chassis_{n:03d}").write_bytes(bytes([PLAIN]) + prog)
+    for k, start in enumerate(range(0, min(len(frames), 16 * frames_per_seed), frames_per_seed)):
+        part = frames[start:start + frames_per_seed]
+        (out / f"chassis_{k:03d}").write_bytes(bytes([PLAIN]) + b"".join(_raw(i, d) + TICKS for i, d in part))
+        if k < 4:  # and secured by the harness's chassis node (op 6): the SecOC ECU's chassis path
+            (out / f"chassis_secoc_{k:03d}").write_bytes(bytes([SECOC]) + b"".join(_secured(i, d) + TICKS for i, d in part))
+            n += 1
         n += 1
     # protected DLS / CIS frames (op 1) with mid-range payloads, ticks between
     for which in (0, 1):
@@ -162,9 +169,7 @@ def seed_corpus(out: Path, frames_per_seed: int = 64) -> int:
     for k, start in enumerate(range(0, min(len(roll), 4 * frames_per_seed), frames_per_seed)):
         part = roll[start:start + frames_per_seed]
         (out / f"roll_{k:03d}").write_bytes(bytes([PLAIN]) + b"".join(_raw(i, d) + TICKS for i, d in part))
-        secured = b"".join(((bytes([6, RX_INDEX[i] - FIRST_ROLL, 1]) + d[2:]) if FIRST_ROLL <= RX_INDEX[i] < FIRST_ROLL + N_ROLL
-                            else _raw(i, d)) + TICKS for i, d in part)
-        (out / f"roll_secoc_{k:03d}").write_bytes(bytes([SECOC]) + secured)
+        (out / f"roll_secoc_{k:03d}").write_bytes(bytes([SECOC]) + b"".join(_secured(i, d) + TICKS for i, d in part))
         n += 2
     for name, prog in _xcp_programs().items():
         (out / name).write_bytes(prog)

@@ -51,6 +51,7 @@ def main(argv=None) -> int:
         notify.settimeout(60)
         proc = subprocess.Popen(
             [sys.executable, "-m", "vehest_can.cli", "daemon", "--mode", "realtime", "--secoc-keys", str(keyfile),
+             "--secoc-state", "none",  # keys made for this run: nothing to persist
              "--stats", str(stats), *busmod.cli_args(cfg)],
             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
             env={**os.environ, "NOTIFY_SOCKET": str(Path(tmp) / "notify.sock")})

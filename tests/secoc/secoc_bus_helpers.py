@@ -31,8 +31,9 @@ def daemon_lockstep(keys: dict, car, tmp_path):
     write_dev_keys(keyfile, [])  # a fresh file, then the keys into it (mode 600 kept)
     keyfile.write_text("[keys]\n" + "".join(f'{k.node} = "{k.raw.hex()}"\n' for k in keys.values()))
     config = private_multicast()
+    # keys made for this test, so no persisted freshness: both sides start at FV 1, as in-process
     proc = start_daemon(config, "--mode", "lockstep", "--idle-timeout", "60", "--secoc-keys", str(keyfile),
-                        tmp_path=tmp_path)
+                        "--secoc-state", "none", tmp_path=tmp_path)
     try:
         bus = open_bus(config)
         try:

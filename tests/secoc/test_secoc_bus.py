@@ -30,6 +30,8 @@ MODE = CH.get_message_by_name("ROLL_ModeCmd")
 SENS = CH.get_message_by_name("ROLL_Sensors")
 STATUS = PT.get_message_by_name("VEHEST_Status")
 ACT = CH.get_message_by_name("ROLL_ActuatorStatus")
+CHS = CH.get_message_by_name("CHS_Sensors")
+RIDE = CH.get_message_by_name("CHS_RideHeight")
 SCENARIO = "roll_paper_72kph_active"
 #: the roll node's secured frames (its sync frame aside)
 ROLL_SECURED = {fid for fid, (node, _, _, sync) in secured_messages().items() if node == "ROLL" and not sync}
@@ -107,7 +109,9 @@ def test_genuine_traffic_zero_rejections_and_same_estimates_as_off(keys):
     on, truth_on, car, ecu = run_roll(keys)
     off, truth_off, _, _ = run_roll(None)
     c = ecu.secoc.counters()
-    assert c["rejected"] == 0 and c["accepted"] == 3 * 200 + 10 and c["syncs"] == 1  # every roll-node frame of 1 s
+    # every frame of 1 s of the roll node (610) and of the chassis sensor node (2000 CHS_Sensors), each
+    # node's sync frame
+    assert c["rejected"] == 0 and c["accepted"] == 3 * 200 + 10 + 2000 and c["syncs"] == 2
     assert car.secoc.counters()["rejected"] == 0 and car.node.cnt_rejected == 0
     assert car.secoc.counters()["accepted"] == 200          # every VEHEST_RollCmd of 1 s, verified
     assert ecu.counters()["secoc_reject"] == 0
@@ -223,15 +227,16 @@ def test_resync_after_a_restart_of_either_side(keys, tmp_path):
         return k0 + ticks
 
     k = run(2000, ecu, car, 0)
-    ecu.secoc.maintain()
     fv_before = int(ecu.secoc.c.tx.fv)
+    ecu.secoc.close()  # a clean stop: the exact state (a crash's margin: test_secoc_state.py)
     rej0 = car.node.cnt_rejected
     ecu2 = secured_ecu(keys, FreshnessStore(tmp_path / "ecu.json"))  # the ECU process restarted
-    assert int(ecu2.secoc.c.tx.fv) > fv_before                       # above every FV it ever sent
+    assert int(ecu2.secoc.c.tx.fv) >= fv_before                      # above every FV it ever sent
     k = run(400, ecu2, car, k)
     assert car.node.cnt_rejected == rej0 and car.secoc.counters()["syncs"] >= 2
     assert ecu2.secoc.counters()["rejected"] == 0                    # it remembered the roll node
-    car.secoc.maintain()
+    for s in car.secoc_hooks():
+        s.close()
     car2 = RollCar(load_roll_scenario(SCENARIO), 3.0)                 # the roll node restarted
     car2.enable_secoc(keys, FreshnessStore(tmp_path / "roll.json"))
     before = ecu2.secoc.counters()
@@ -241,8 +246,8 @@ def test_resync_after_a_restart_of_either_side(keys, tmp_path):
         for f in ecu2.step_frames():
             car2.rx(ffi.addressof(f))
     after = ecu2.secoc.counters()
-    assert after["rejected"] == before["rejected"] and after["syncs"] == before["syncs"] + 1
-    assert after["accepted"] - before["accepted"] == 3 * 40 + 2        # every frame of car2's 200 ms
+    assert after["rejected"] == before["rejected"] and after["syncs"] == before["syncs"] + 2
+    assert after["accepted"] - before["accepted"] == 3 * 40 + 2 + 400  # every frame of car2's 200 ms
     assert car2.secoc.counters()["rejected"] == 0 and car2.node.cnt_rejected == 0  # restored: in sync
     # a receiver without state (a new ECU, no state file): unsynced until the roll node's next sync
     ecu3 = Ecu()
@@ -252,7 +257,7 @@ def test_resync_after_a_restart_of_either_side(keys, tmp_path):
             ecu3.rx_frame(ffi.addressof(f))
         ecu3.step_frames()
     c3 = ecu3.secoc.counters()
-    assert c3["syncs"] == 1 and c3["unsynced"] == c3["rejected"] > 0 and c3["accepted"] > 0
+    assert c3["syncs"] == 2 and c3["unsynced"] == c3["rejected"] > 0 and c3["accepted"] > 0
 
 
 # ---- an independent verifier on a secured log ---------------------------------------------------------
@@ -302,13 +307,49 @@ def test_secured_session_log_verified_independently(keys, tmp_path):
     msgs = list(read_log(tmp_path / "secured.log"))
     ok, bad = independent_check(msgs, keys)
     n_secured = sum(1 for m in msgs if m.arbitration_id in secured_messages())
-    assert bad == 0 and ok == n_secured > 1500          # every secured frame of 0.5 s, both nodes
+    assert bad == 0 and ok == n_secured > 2500          # every secured frame of 0.5 s, all three nodes
+    assert sum(1 for m in msgs if m.arbitration_id == CHS.frame_id) == 1000  # CHS_Sensors among them
     # one flipped bit anywhere in a secured frame and the independent check refuses it
     i = next(j for j, m in enumerate(msgs) if m.arbitration_id == CMD.frame_id)
     d = bytearray(msgs[i].data)
     d[3] ^= 0x10
     msgs[i] = can.Message(arbitration_id=CMD.frame_id, is_extended_id=False, is_fd=True, data=bytes(d))
     assert independent_check(msgs, keys)[1] == 1
+
+
+def test_chassis_sensor_frames_secured_and_verified_independently(keys):
+    """The tyre-force car (the chassis sensor node with ride heights, the inputs of the tyre-force,
+    mass and friction estimation): CHS_Sensors and CHS_RideHeight secured, every MAC verified by the
+    independent verifier, none rejected by the ECU, every estimate as with SecOC off; a tampered
+    CHS_Sensors is rejected and changes nothing."""
+    from vehest_can.systems.tireforce.scenario import ChassisCar, load_tireforce_scenario
+
+    sc = load_tireforce_scenario("chassis_paper_mu_drop")
+    car = ChassisCar(sc, 0.5)
+    car.enable_secoc(keys)
+    ecu = secured_ecu(keys)
+    on = run_inprocess(car, ecu)
+    msgs = list(on.messages())
+    ok, bad = independent_check(msgs, keys)
+    n = {fid: sum(1 for m in msgs if m.arbitration_id == fid) for fid in (CHS.frame_id, RIDE.frame_id)}
+    assert bad == 0 and ok == sum(1 for m in msgs if m.arbitration_id in secured_messages())
+    assert n == {CHS.frame_id: 1000, RIDE.frame_id: 50}
+    c = ecu.secoc.counters()
+    assert c["rejected"] == 0 and c["accepted"] == 1050 and c["syncs"] == 1
+    off = run_inprocess(ChassisCar(sc, 0.5), Ecu())
+    by_tick = lambda s: [[m for m, k in zip(s.messages(), s.frame_tick) if k == t] for t in range(s.frame_tick[-1] + 1)]  # noqa: E731
+    assert authentic(by_tick(on)) == authentic(by_tick(off))  # SecOC changes no estimate
+    # tampered: one bit of the payload of a genuine CHS_Sensors
+    i = next(j for j, m in enumerate(msgs) if m.arbitration_id == CHS.frame_id)
+    d = bytearray(msgs[i].data)
+    d[5] ^= 0x04
+    msgs[i] = can.Message(arbitration_id=CHS.frame_id, is_extended_id=False, is_fd=True, data=bytes(d))
+    assert independent_check(msgs, keys)[1] == 1
+    ecu2 = secured_ecu(keys)
+    for m in msgs[:i + 1]:
+        if m.arbitration_id in {CHS.frame_id, RIDE.frame_id} or secured_messages().get(m.arbitration_id, ("",))[0] == "CHS":
+            ecu2.rx(m)
+    assert ecu2.secoc.counters()["bad_mac"] == 1
 
 
 # ---- lockstep over the bus -----------------------------------------------------------------------

@@ -48,30 +48,38 @@ def open_session_log(args, nodes) -> SessionLog | None:
     return SessionLog(args.log, nodes, per_bus=args.log_per_bus) if args.log else None
 
 
-def add_secoc_arguments(parser: argparse.ArgumentParser, state: bool = True) -> None:
-    """--secoc-keys (and --secoc-state): SecOC on for this process's node (docs/secoc.md); off without."""
+def add_secoc_arguments(parser: argparse.ArgumentParser) -> None:
+    """--secoc-keys and --secoc-state: SecOC on for this process's nodes (docs/secoc.md); off without keys."""
     parser.add_argument("--secoc-keys", metavar="KEYFILE",
-                        help="SecOC on: secure this node's frames and verify the secured frames it receives, "
+                        help="SecOC on: secure this process's frames and verify the secured frames it receives, "
                              "with the keys of this file (mode 600; 'vehest-can secoc keygen'). Default: off")
-    if state:
-        parser.add_argument("--secoc-state", metavar="FILE",
-                            help="with --secoc-keys: persist the freshness here (JSON), so a restart resumes "
-                                 "above every FV sent and stays synchronised; without it every start is FV 1")
+    parser.add_argument("--secoc-state", metavar="FILE",
+                        help="with --secoc-keys: the freshness state file (JSON, mode 600), so a restart resumes "
+                             "above every FV sent and rejects frames replayed from earlier runs. Default: one file "
+                             "per key set and node under $XDG_STATE_HOME/vehest-can (~/.local/state/vehest-can); "
+                             "'none': not persisted (every start at FV 1: only for keys made for one run)")
 
 
-def secoc_from_args(args, node: str):
-    """The node's BusSecoc inputs from the flags: (keys, FreshnessStore or None), or None when off."""
-    from ..bus.secoc import FreshnessStore, load_keys
+def secoc_from_args(args, nodes: str | tuple[str, ...]):
+    """(keys, FreshnessStore or None) for the process playing `nodes`, or None when SecOC is off. The
+    state is persisted by default; --secoc-state none says so on stderr."""
+    from ..bus.secoc import FreshnessStore, default_state_path, load_keys
 
+    nodes = (nodes,) if isinstance(nodes, str) else tuple(nodes)
     state = getattr(args, "secoc_state", None)
     if not args.secoc_keys:
         if state:
             raise ConfigError("--secoc-state needs --secoc-keys")
         return None
     keys = load_keys(args.secoc_keys)
-    if node not in keys:
-        raise ConfigError(f"{args.secoc_keys}: no key for {node}, the node this process plays")
-    return keys, (FreshnessStore(state) if state else None)
+    for node in nodes:
+        if node not in keys:
+            raise ConfigError(f"{args.secoc_keys}: no key for {node}, a node this process plays")
+    if state == "none":
+        print("warning: --secoc-state none: SecOC freshness is not persisted; a restart starts at FV 1 again and "
+              "accepts frames replayed from earlier runs (only for keys made for one run)", file=sys.stderr)
+        return keys, None
+    return keys, FreshnessStore(state or default_state_path(keys, nodes))
 
 
 def check_seconds(value: float | None, option: str, *, maximum: float = MAX_SESSION_S, zero: bool = False) -> None:

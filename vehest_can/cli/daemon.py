@@ -72,6 +72,16 @@ def run(args) -> int:
     secoc = secoc_from_args(args, "VEHEST")
     if secoc is not None:
         ecu.enable_secoc(*secoc)
+        if secoc[1] is not None:
+            print(f"vehest-can daemon: SecOC freshness state {secoc[1].path}", file=sys.stderr, flush=True)
+    try:
+        return _serve(args, ecu, xcp, xcp_config)
+    finally:
+        if ecu.secoc is not None:
+            ecu.secoc.close()  # the exact state of a clean end (a kill -9 leaves the last second's)
+
+
+def _serve(args, ecu: Ecu, xcp, xcp_config) -> int:
     buses, routes, channel = _open_buses(args)
     if xcp_config is not None:  # a bus of its own for XCP: its frames go there, the rest stay
         buses, routes = _add_xcp_bus(buses, routes, channel, xcp_config, xcp)
@@ -95,7 +105,6 @@ def run(args) -> int:
     if xcp is not None:
         print(xcp_ecu.summary(ecu), file=sys.stderr)
     if ecu.secoc is not None:
-        ecu.secoc.maintain()
         print("SecOC: " + ", ".join(f"{k} {v}" for k, v in ecu.secoc.counters().items()), file=sys.stderr)
     if args.stats:
         doc = asdict(stats) | ({"secoc": ecu.secoc.counters()} if ecu.secoc is not None else {})

@@ -72,10 +72,15 @@ def run(args, systems: list[System] | None = None) -> int:
     daemon_args = [a for st in setups.values() for a in st.daemon_args]
     with tempfile.TemporaryDirectory(prefix="vehest-secoc-") as keydir:
         keys = _dev_keys(Path(keydir)) if args.secoc == "on" else None
+        secoc_args = []
         if keys is not None:
-            daemon_args += ["--secoc-keys", str(Path(keydir) / "dev_keys.toml")]
-            print(f"SecOC: on ({len(keys)} development keys made for this run, deleted after it)")
-        return _run(args, systems, runs, out, config, setups, daemon_args, keys)
+            # Keys made for this run are a freshness domain of their own (no frame of another run
+            # verifies under them), so neither side persists freshness: every session starts at FV 1
+            # on both sides, the bus run and the in-process run alike (bit for bit, tails included).
+            secoc_args = ["--secoc-keys", str(Path(keydir) / "dev_keys.toml"), "--secoc-state", "none"]
+            print(f"SecOC: on ({len(keys)} development keys made for this run, deleted after it; "
+                  f"freshness not persisted)")
+        return _run(args, systems, runs, out, config, setups, daemon_args + secoc_args, keys, secoc_args)
 
 
 def _dev_keys(keydir: Path) -> dict:
@@ -93,7 +98,8 @@ def _with_secoc(car, keys):
     return car
 
 
-def _run(args, systems, runs, out: Path, config: dict, setups: dict, daemon_args: list[str], keys) -> int:
+def _run(args, systems, runs, out: Path, config: dict, setups: dict, daemon_args: list[str], keys,
+         secoc_args: list[str]) -> int:
     ecu_proc = subprocess.Popen(_daemon_cmd(config, "lockstep", ["--idle-timeout", "60", *daemon_args]),
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy())
     results: list[tuple[System, dict]] = []
@@ -133,7 +139,6 @@ def _run(args, systems, runs, out: Path, config: dict, setups: dict, daemon_args
     if args.realtime > 0:
         wall_clock = [(s, sc) for s, sc in runs if s.realtime]
         system, sc = (wall_clock or runs)[0]
-        secoc_args = [a for a in daemon_args if a == "--secoc-keys" or a.endswith("dev_keys.toml")]
         all_metrics.append(_realtime(args, config, _with_secoc(system.car(sc, args.realtime), keys), sc.name, out,
                                      secoc_args))
 

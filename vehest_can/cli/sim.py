@@ -8,7 +8,7 @@ from ..errors import ConfigError
 from ..progress import Progress
 from ..sim.session import CAR_NODES, SimMaster
 from ..systems import load_any_scenario
-from ._common import add_log_arguments, check_log_arguments, check_seconds, open_session_log
+from ._common import add_log_arguments, add_secoc_arguments, check_log_arguments, check_seconds, open_session_log, secoc_from_args
 
 
 def add_subparser(subparsers) -> None:
@@ -23,6 +23,7 @@ def add_subparser(subparsers) -> None:
     p.add_argument("--pose", choices=("wheel", "x_down", "z_down"),
                    help="camber inspection devices in this pose (calibration fixture), overriding the scenario")
     add_log_arguments(p)
+    add_secoc_arguments(p)
     busmod.add_arguments(p)
     p.set_defaults(func=run)
 
@@ -38,13 +39,25 @@ def run(args) -> int:
     check_seconds(args.duration, "--duration")
     check_log_arguments(args)
     drive = system.car(sc, args.duration)
+    nodes = getattr(drive, "SECOC_NODES", ())
+    if args.secoc_keys and not nodes:
+        raise ConfigError(f"{sc.name}: this car has no secured node: leave out --secoc-keys")
+    secoc = secoc_from_args(args, nodes) if nodes else None
+    if secoc is not None:
+        drive.enable_secoc(*secoc)
+        if secoc[1] is not None:
+            print(f"vehest-can sim: SecOC freshness state {secoc[1].path}", file=sys.stderr, flush=True)
     config = busmod.bus_config(args)
     bus = busmod.open_bus(config)
     writer = open_session_log(args, CAR_NODES)
     progress = Progress(f"{sc.name} ({args.mode})")
     master = SimMaster(bus, drive, log_writer=writer, progress=progress)
-    with busmod.serving(bus, writer, master.stop_event.set):
-        session = master.run_lockstep() if args.mode == "lockstep" else master.run_realtime()
+    try:
+        with busmod.serving(bus, writer, master.stop_event.set):
+            session = master.run_lockstep() if args.mode == "lockstep" else master.run_realtime()
+    finally:
+        for s in master.car.secoc_hooks() if hasattr(master.car, "secoc_hooks") else ():
+            s.close()  # the exact state of a clean end
     progress.done(f"{len(session.truth)} ticks, {len(session.frames)} frames")
     print(f"{sc.name}: {len(session.truth)} ticks, {len(session.frames)} frames, "
           f"{session.stats.get('wall_s', 0):.1f} s", file=sys.stderr)

@@ -15,6 +15,7 @@ import queue
 import threading
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import can
 import numpy as np
@@ -48,6 +49,9 @@ class Drive:
     initial_speed: float = 0.0    # m/s; > 0 starts rolling in gear[0]
     camber: tuple | None = None   # (vh_cambernode_config_t[4], pose): inspection devices on
     secoc_keys: dict | None = None  # SecOC on for the DLS node and the CIS devices (enable_secoc)
+    secoc_store: Any = None         # and their FreshnessStore (None: ephemeral, FVs from 1 in each car)
+
+    SECOC_NODES = ("CIS", "DLS")
 
     @property
     def n(self) -> int:
@@ -55,11 +59,10 @@ class Drive:
 
     def enable_secoc(self, keys: dict, store=None) -> Drive:
         """SecOC on for the car's nodes DLS and CIS: every Car made from this drive secures their
-        frames (vehest_can.bus.secoc.BusSecoc, one per node, FVs from 1: a new car is a new session
-        on both sides, so in-process and bus runs stay bit-identical). No freshness store here."""
-        if store is not None:
-            raise ValueError("a driveline car keeps no freshness state")
-        self.secoc_keys = keys
+        frames (vehest_can.bus.secoc.BusSecoc, one per node). Without a store (a FreshnessStore) FVs
+        start from 1 in each car: a new car is a new session on both sides, so in-process and bus
+        runs stay bit-identical; with one, each car resumes where the last left off."""
+        self.secoc_keys, self.secoc_store = keys, store
         return self
 
 
@@ -115,7 +118,7 @@ class Car:
         if drive.secoc_keys is not None:
             from ..bus.secoc import BusSecoc
 
-            self.secoc = {node: BusSecoc(node, drive.secoc_keys) for node in ("DLS", "CIS")}
+            self.secoc = {node: BusSecoc(node, drive.secoc_keys, store=drive.secoc_store) for node in ("DLS", "CIS")}
             lib.vh_dlsim_set_secoc(self.c, self.secoc["DLS"].c, self.secoc["CIS"].c)
         self.reset()
 
@@ -130,7 +133,13 @@ class Car:
     def tick(self, k: int) -> list:
         n = lib.vh_dlsim_tick(self.c, float(self.drive.throttle[k]), int(self.drive.gear[k]),
                               self._out, lib.VH_DLSIM_MAX_TX)
+        if k and k % lib.VH_SECOC_SYNC_PERIOD_TICKS == 0:
+            for s in self.secoc.values():
+                s.maintain()  # once a second: the FV reservation ahead, the receivers' state stored
         return [self._out[i] for i in range(n)]
+
+    def secoc_hooks(self) -> list:
+        return list(self.secoc.values())
 
     def truth(self) -> np.void:
         return np.frombuffer(ffi.buffer(ffi.addressof(self.c.plant.truth)), dtype=TRUTH_DTYPE)[0].copy()

@@ -156,10 +156,11 @@ class RollCar:
         self._inputs = sc.plant.inputs(ffi)
         self._active = sc.active_at(np.arange(sc.n_steps) * DT)
         self._arc = sc.arc_params(ffi, lib)
-        self._out = ffi.new("vh_frame_t[6]")  # CHS 1 + the roll node's 4 + its SecOC sync frame
+        self._out = ffi.new("vh_frame_t[7]")  # CHS 1 + the roll node's 4 + both nodes' SecOC sync frames
         self._rxf = ffi.new("vh_frame_t *")
         self.node = ffi.new("vh_rln_t *")
         self.secoc: Any = None  # SecOC off until enable_secoc (a vehest_can.bus.secoc.BusSecoc)
+        self.chs_secoc: Any = None  # and the chassis sensor node's
         self.reset()
 
     def reset(self) -> None:
@@ -168,6 +169,10 @@ class RollCar:
         if lib.vh_v14_arc_config(self._plant, ffi.addressof(self._arc[0]), ffi.addressof(self._arc[1])) != lib.VH_OK:
             raise ScenarioError(f"{self.scenario.plant._where()}: actuators: the plant refuses these limits")
         self._chs = self.scenario.plant.make_node(ffi, lib)
+        self._chs.cfg.ride_period = 0  # the roll car sends no ride heights (the roll system uses none)
+        if self.chs_secoc is not None:
+            lib.vh_chs_set_secoc(self._chs, self.chs_secoc.c)
+            self.chs_secoc.restart()
         if lib.vh_rln_init(self.node, self.scenario.node_config(ffi, lib)) != lib.VH_OK:
             raise ScenarioError(f"{self.scenario.plant._where()}: roll_sensors: the roll node refuses them")
         if self.secoc is not None:  # the node's SecOC outlives the node (vh_rln_init clears the pointer)
@@ -175,14 +180,23 @@ class RollCar:
             self.secoc.restart()  # a new session: a lockstep session's ECU starts afresh too
         self._k = 0
 
+    SECOC_NODES = ("CHS", "ROLL")
+
     def enable_secoc(self, keys: dict, store=None):
-        """SecOC on for the roll node (node ROLL): its secured frames protected, the ECU's commands
-        verified before they are applied (vehest_can.bus.secoc.BusSecoc); reset() restarts it."""
+        """SecOC on for the roll node (node ROLL: its secured frames protected, the ECU's commands
+        verified before they are applied) and the chassis sensor node (CHS: its frames protected),
+        each a vehest_can.bus.secoc.BusSecoc (store: their FreshnessStore, or None); reset()
+        restarts them. Returns the roll node's."""
         from ...bus.secoc import BusSecoc
 
         self.secoc = BusSecoc("ROLL", keys, store=store)
+        self.chs_secoc = BusSecoc("CHS", keys, store=store)
         self._lib.vh_rln_set_secoc(self.node, self.secoc.c)
+        self._lib.vh_chs_set_secoc(self._chs, self.chs_secoc.c)
         return self.secoc
+
+    def secoc_hooks(self) -> list:
+        return [s for s in (self.chs_secoc, self.secoc) if s is not None]
 
     def rx(self, frame) -> None:
         """One ECU frame (``can.Message`` or ``vh_frame_t`` cdata) to the roll node."""
@@ -200,8 +214,11 @@ class RollCar:
         self.node.cfg.mode_active = int(self._active[k])
         lib.vh_rln_actuate(self.node, self._plant)
         lib.vh_v14_step(self._plant, self._inputs + k)
-        n = lib.vh_chs_step(self._chs, ffi.addressof(self._plant, "truth"), self._out, 1)
+        n = lib.vh_chs_step(self._chs, ffi.addressof(self._plant, "truth"), self._out, 2)  # + its sync frame
         n += lib.vh_rln_step(self.node, self._plant, self._out + n, 5)
+        if k and k % lib.VH_SECOC_SYNC_PERIOD_TICKS == 0:
+            for s in self.secoc_hooks():
+                s.maintain()  # once a second: the FV reservation ahead, the receivers' state stored
         return [self._out[i] for i in range(n)]
 
     def truth(self) -> np.void:

@@ -237,16 +237,36 @@ class ChassisCar:
         self.n = sc.car_steps(duration_s)
         self.truth_dtype = truth_dtype(ffi)
         self._inputs = sc.inputs(ffi)
-        self._out = ffi.new("vh_frame_t[2]")
+        self._out = ffi.new("vh_frame_t[3]")  # CHS_Sensors, CHS_RideHeight, the node's SecOC sync frame
+        self.secoc: Any = None  # SecOC off until enable_secoc (a vehest_can.bus.secoc.BusSecoc)
         self.reset()
+
+    SECOC_NODES = ("CHS",)
 
     def reset(self) -> None:
         self._plant = self.scenario.make_plant(self._ffi, self._lib)
         self._node = self.scenario.make_node(self._ffi, self._lib)
+        if self.secoc is not None:  # a new node, a new session: SecOC restarts (as the ECU's does)
+            self._lib.vh_chs_set_secoc(self._node, self.secoc.c)
+            self.secoc.restart()
+
+    def enable_secoc(self, keys: dict, store=None):
+        """SecOC on for the chassis sensor node (node CHS): CHS_Sensors and CHS_RideHeight secured
+        (vehest_can.bus.secoc.BusSecoc; store: its FreshnessStore, or None); reset() restarts it."""
+        from ...bus.secoc import BusSecoc
+
+        self.secoc = BusSecoc("CHS", keys, store=store)
+        self._lib.vh_chs_set_secoc(self._node, self.secoc.c)
+        return self.secoc
+
+    def secoc_hooks(self) -> list:
+        return [self.secoc] if self.secoc is not None else []
 
     def tick(self, k: int) -> list:
         self._lib.vh_v14_step(self._plant, self._inputs + k)
-        n = self._lib.vh_chs_step(self._node, self._ffi.addressof(self._plant, "truth"), self._out, 2)
+        n = self._lib.vh_chs_step(self._node, self._ffi.addressof(self._plant, "truth"), self._out, 3)
+        if self.secoc is not None and k and k % self._lib.VH_SECOC_SYNC_PERIOD_TICKS == 0:
+            self.secoc.maintain()  # once a second: the FV reservation ahead, the receivers' state stored
         return [self._out[i] for i in range(n)]
 
     def truth(self) -> np.void:
