@@ -100,10 +100,13 @@ def state(ecu: Ecu) -> dict[str, int]:
                             "safe": int(x.safe), "cal_mode": int(x.cal_mode), "own_bus": int(x.own_bus)}
 
 
-def rx_own(ecu: Ecu, msg, _buf=ffi.new("vh_frame_t *")) -> None:
+_RX_OWN = ffi.new("vh_frame_t *")  # the daemon's receive path is one thread
+
+
+def rx_own(ecu: Ecu, msg) -> None:
     """A frame heard on XCP's own bus: its CRO reaches the slave; nothing there is the systems' input."""
     if not (msg.is_error_frame or msg.is_remote_frame):
-        lib.vh_ecu_xcp_rx_own(ecu.c, to_frame(msg, _buf))
+        lib.vh_ecu_xcp_rx_own(ecu.c, to_frame(msg, _RX_OWN))
 
 
 def read_raw(ecu: Ecu, name: str, page: str = "page"):
