@@ -170,7 +170,7 @@ def test_pyxcp_over_the_projects_host_only_multicast_bus(pyxcp_master):
     bridge = XcpBridge(slave_bus, slave,
                        on_tick=lambda t: slave.write_measurement("ecu_tick", t)).start()
     try:
-        m = pyxcp_master(None, desc, bus=master_bus)
+        m = pyxcp_master(None, desc, bus=master_bus, key=bytes(16))
         meas = [(x.name, x.address, 0, C_TYPES[x.ctype][3]) for x in desc.measurements]
         policy = Collect([DaqList(name="mc", event_num=2, stim=False, enable_timestamps=True,
                                   measurements=meas, priority=0, prescaler=1)])

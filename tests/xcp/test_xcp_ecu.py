@@ -214,11 +214,11 @@ def test_a_refused_value_written_in_two_downloads_leaves_no_byte_behind():
     cro = Cro(ecu)
     cro.connect_unlocked()
     a = torque_r(cro.desc)
-    assert cro.download(a, struct.pack("<d", 1.0e8))[0] == 0xFF
+    assert cro.download(a, struct.pack("<d", 1.0e6))[0] == 0xFF
     assert cro.download(a, struct.pack("<d", -5.0))[:2] == bytes([ERR, ERR_OUT_OF_RANGE])
     for _ in range(250):  # past open_ticks: nothing is left open to commit
         ecu.step()
-    assert xcp_ecu.read(ecu, "cal.dkf[0].r", "work")[2] == 1.0e8 == ecu.c.dkf[0].cfg.r[2]
+    assert xcp_ecu.read(ecu, "cal.dkf[0].r", "work")[2] == 1.0e6 == ecu.c.dkf[0].cfg.r[2]
     assert xcp_ecu.counters(ecu)["cal_dropped"] == 0
 
 

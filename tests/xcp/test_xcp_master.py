@@ -232,10 +232,12 @@ def test_bench_runner_serves_a_live_image(capsys, pyxcp_master):
     from vehest_can.xcp.__main__ import main
 
     desc = load(DEMO)
-    t = threading.Thread(target=main, args=(["-c", "xcp-runner", "--seconds", "1.5"],))
+    t = threading.Thread(target=main, args=(["-c", "xcp-runner", "--seconds", "1.5", "--dev"],))
     t.start()
     time.sleep(0.3)
-    m = pyxcp_master("xcp-runner", desc)
+    from vehest_can.xcp.keys import DEV_KEY
+
+    m = pyxcp_master("xcp-runner", desc, key=DEV_KEY)
     with m:
         m.connect()
         a = struct.unpack("<I", m.shortUpload(4, desc.item("ecu_tick").address))[0]
