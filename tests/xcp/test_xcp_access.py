@@ -9,8 +9,16 @@ import struct
 import can
 import numpy as np
 import pytest
-from test_xcp_ecu import (ERR, ERR_ACCESS_DENIED, ERR_ACCESS_LOCKED, ERR_OUT_OF_RANGE, ERR_RESOURCE_TEMPORARY_NOT_ACCESSIBLE,
-                          ERR_WRITE_PROTECTED, KEY, Cro)
+from test_xcp_ecu import (
+    ERR,
+    ERR_ACCESS_DENIED,
+    ERR_ACCESS_LOCKED,
+    ERR_OUT_OF_RANGE,
+    ERR_RESOURCE_TEMPORARY_NOT_ACCESSIBLE,
+    ERR_WRITE_PROTECTED,
+    KEY,
+    Cro,
+)
 
 from vehest_can.bus.frames import to_message
 from vehest_can.errors import ConfigError

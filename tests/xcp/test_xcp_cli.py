@@ -140,5 +140,6 @@ def test_the_xcp_bus_flags_are_python_cans_and_checked(capsys):
     assert main(["daemon", "--xcp", "off", "--xcp-channel", "239.74.163.9", "--duration", "1"]) == 1
     assert "needs the XCP slave" in capsys.readouterr().err
     with pytest.raises(SystemExit):
-        main(["daemon", "--xcp", "on", "--xcp-dev", "--xcp-interface", "udp_multicast", "--xcp-bitrate", "fast", "--duration", "1"])
+        main(["daemon", "--xcp", "on", "--xcp-dev", "--xcp-interface", "udp_multicast", "--xcp-bitrate", "fast",
+              "--duration", "1"])
     assert "argument --xcp-bitrate: 'fast': expected a positive number of bit/s" in capsys.readouterr().err

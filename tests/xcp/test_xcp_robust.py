@@ -13,8 +13,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from vehest_can.xcp import DEMO, Slave, key_for, load
-from vehest_can.xcp.keys import SEED_LEN
 from vehest_can.xcp.description import from_dict
+from vehest_can.xcp.keys import SEED_LEN
 from vehest_can.xcp.slave import raw_limits_for_c
 
 DESC = load(DEMO)

@@ -244,7 +244,8 @@ def from_args(args, ecu: Ecu) -> Description | None:
         if k in opt and not 0 <= opt[k] & 0x7FFFFFFF <= (0x1FFFFFFF if opt[k] & 0x80000000 else 0x7FF):
             raise ConfigError(f"--xcp-{k.replace('_', '-')} 0x{opt[k]:X} is not a CAN identifier")
     fd = None if args.xcp_fd is None else args.xcp_fd == "on"
-    desc = enable(ecu, key, fd=fd, own_bus=own_bus(args), cal_mode=bool(args.xcp_cal_mode), **opt)
+    desc = enable(ecu, key, cro_id=opt.get("cro_id"), dto_id=opt.get("dto_id"), max_cto=opt.get("max_cto"),
+                  max_dto=opt.get("max_dto"), fd=fd, own_bus=own_bus(args), cal_mode=bool(args.xcp_cal_mode))
     if args.xcp_dev:
         print("vehest-can daemon: XCP development mode: seed & key with the fixed, public development key "
               "(anyone can unlock calibration: a bench, never a car)", file=sys.stderr, flush=True)
