@@ -43,7 +43,9 @@ def test_the_fuzzer_reaches_an_accepted_chassis_frame_and_reports_it(clang, tmp_
 
 
 @pytest.mark.parametrize("canary, what", [(2, "an XCP calibration write committed after seed & key"),
-                                          (3, "a roll UKF step on frames that passed SecOC")])
+                                          (3, "a roll UKF step on frames that passed SecOC"),
+                                          (4, "XCP seed & key locked out by wrong keys"),
+                                          (5, "a safety-relevant XCP write refused outside the safe state")])
 def test_the_fuzzer_reaches_past_xcp_seed_and_key_and_secoc(clang, tmp_path, canary, what):
     """Positive controls for the XCP and SecOC ops: a planted abort behind each is reached."""
     r = run_fuzz.run(30, tmp_path, defines=(f"-DVH_FUZZ_CANARY={canary}",))

@@ -23,7 +23,7 @@
 static float meas[20];
 static uint8_t ref[16], work[16], ecu[16];
 static const vh_xcp_region_t REG[] = {{MEAS, sizeof meas, VH_XCP_ACC_READ | VH_XCP_ACC_DAQ, (const uint8_t *)meas}};
-static const vh_xcp_char_t CHARS[] = {{CAL, 4u, VH_XCP_F32, 0.0, 1000.0}};
+static const vh_xcp_char_t CHARS[] = {{CAL, 4u, VH_XCP_F32, 0u, 0.0, 1000.0}};
 static const vh_xcp_event_t EVENTS[] = {{"tick", 50u, 4u}, {"1ms", 1u, 6u}, {"10ms", 10u, 6u}};
 
 static void cro(vh_xcp_t *x, const uint8_t *c, size_t len)

@@ -49,6 +49,11 @@ static int cro(vh_ecu_t *ecu, const uint8_t *data, uint8_t len, uint8_t *res)
     return 0;
 }
 
+/* RFC 4493's published AES-128 test key: a bench, not a secret */
+static const uint8_t BENCH_KEY[16] = {0x2b, 0x7e, 0x15, 0x16, 0x28, 0xae, 0xd2, 0xa6,
+                                      0xab, 0xf7, 0x15, 0x88, 0x09, 0xcf, 0x4f, 0x3c};
+static vh_cmac_key_t bench_key;
+
 static int connect_unlocked(vh_ecu_t *ecu)
 {
     static const uint8_t connect[] = {0xFF, 0x00};
@@ -58,16 +63,13 @@ static int connect_unlocked(vh_ecu_t *ecu)
         return 0;
     }
     for (resource = 1u; resource <= 4u; resource = (uint8_t)(resource * 4u)) { /* CAL/PAG, DAQ */
-        uint8_t get_seed[3] = {0xF8, 0x00, 0x00}, unlock[6] = {0xF7, 4};
-        uint32_t seed, key;
+        uint8_t get_seed[3] = {0xF8, 0x00, 0x00}, unlock[2 + VH_XCP_KEY_LEN] = {0xF7, VH_XCP_KEY_LEN};
         get_seed[2] = resource;
         if (!cro(ecu, get_seed, 3u, res)) {
             return 0;
         }
-        seed = (uint32_t)res[2] | (uint32_t)res[3] << 8 | (uint32_t)res[4] << 16 | (uint32_t)res[5] << 24;
-        key = vh_xcp_key(seed, 0x5EC0DE42u);
-        vh_bench_le32(&unlock[2], key);
-        if (!cro(ecu, unlock, 6u, NULL)) {
+        vh_xcp_key(&bench_key, resource, &res[2], &unlock[2]);
+        if (!cro(ecu, unlock, sizeof unlock, NULL)) {
             return 0;
         }
     }
@@ -143,7 +145,10 @@ int main(void)
     xcfg.max_cto = 8u;
     xcfg.max_dto = 48u;
     xcfg.fd = 1u;
-    xcfg.secret = 0x5EC0DE42u;
+    xcfg.key = &bench_key;
+    if (vh_cmac_init(&bench_key, BENCH_KEY) != 0) {
+        return 1;
+    }
     if (vh_ecu_init(&none, &ecfg) != VH_OK || vh_ecu_init(&idle, &ecfg) != VH_OK || vh_ecu_init(&daq, &ecfg) != VH_OK ||
         vh_ecu_xcp_enable(&idle, &xcfg) != VH_OK || vh_ecu_xcp_enable(&daq, &xcfg) != VH_OK ||
         !connect_unlocked(&idle) || !connect_unlocked(&daq) || !daq_20_at_1ms(&daq)) {

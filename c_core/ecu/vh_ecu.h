@@ -84,7 +84,8 @@ void vh_ecu_note_deadline_miss(vh_ecu_t *ecu, uint32_t n);
 void vh_ecu_set_secoc(vh_ecu_t *ecu, vh_secoc_bus_t *s);
 
 /* XCP (vh_ecu_xcp.c). Enable the slave on the ECU as configured now (its tuning becomes the
- * reference page); survives vh_ecu_reset, which keeps the calibration. VH_EINVAL: bad config. */
+ * reference page); survives vh_ecu_reset, which keeps the calibration. VH_EINVAL: bad config or
+ * no key. */
 int vh_ecu_xcp_enable(vh_ecu_t *ecu, const vh_ecu_xcp_config_t *cfg);
 /* The tuning block of the ECU as configured / into the configuration and the running filters. */
 void vh_ecu_cal_gather(const vh_ecu_t *ecu, vh_ecu_cal_t *cal);
@@ -92,6 +93,9 @@ void vh_ecu_cal_apply(vh_ecu_t *ecu, const vh_ecu_cal_t *cal);
 /* The scheduler's hooks: a frame on the CRO or DTO identifier (1 if it was one), the tick boundary, an event channel,
  * and the XCP frames after the systems' TX (returns the new count). */
 int vh_ecu_xcp_rx(vh_ecu_t *ecu, const vh_frame_t *f);
+/* A frame heard on the XCP bus of its own (own_bus): its CRO reaches the slave; nothing else there
+ * is input of the ECU (1 if it was the CRO or DTO identifier). */
+int vh_ecu_xcp_rx_own(vh_ecu_t *ecu, const vh_frame_t *f);
 void vh_ecu_xcp_tick(vh_ecu_t *ecu);
 void vh_ecu_xcp_event(vh_ecu_t *ecu, uint16_t channel);
 size_t vh_ecu_xcp_tx(vh_ecu_t *ecu, vh_frame_t *tx, size_t n, size_t cap);

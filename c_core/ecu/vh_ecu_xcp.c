@@ -1,9 +1,12 @@
 /* vh_ecu_xcp.c - the ECU's XCP application: the slave's memory is the ECU itself, its
  * calibration segment the tuning block vh_ecu_cal_t (see vh_ecu_xcp.h). */
+#include <math.h>
 #include <string.h>
 
 #include "vh_ecu.h"
-#include "vh_ecu_xcp_table.inc" /* generated: VH_ECU_XCP_CHARS, the limits of the A2L */
+#include "vh_ecu_xcp_table.inc" /* generated: VH_ECU_XCP_CHARS (limits, safety classes), VH_ECU_XCP_REGIONS */
+
+typedef char vh_ecu_xcp_regions_fit[(VH_ECU_XCP_N_REGIONS <= VH_XCP_MAX_REGIONS) ? 1 : -1];
 
 #define EXT_BIT 0x80000000u /* XCP-on-CAN convention: bit 31 of an identifier = 29-bit */
 
@@ -100,12 +103,18 @@ int vh_ecu_xcp_enable(vh_ecu_t *ecu, const vh_ecu_xcp_config_t *cfg)
 {
     vh_ecu_xcp_t *a = &ecu->xcp;
     vh_xcp_config_t s;
+    unsigned i;
+    if (cfg->key == NULL) {
+        return VH_EINVAL; /* no key, no XCP: nothing here works without the user's key */
+    }
     memset(a, 0, sizeof *a);
     vh_ecu_cal_gather(ecu, &a->ref);
-    a->region.address = VH_ECU_XCP_MEAS_ADDRESS;
-    a->region.size = (uint32_t)sizeof *ecu;
-    a->region.access = VH_XCP_ACC_READ | VH_XCP_ACC_DAQ;
-    a->region.mem = (const uint8_t *)ecu;
+    for (i = 0; i < VH_ECU_XCP_N_REGIONS; ++i) { /* the described members only, never the whole instance */
+        a->regions[i].address = VH_ECU_XCP_MEAS_ADDRESS + VH_ECU_XCP_REGIONS[i].offset;
+        a->regions[i].size = VH_ECU_XCP_REGIONS[i].size;
+        a->regions[i].access = VH_XCP_ACC_READ | VH_XCP_ACC_DAQ;
+        a->regions[i].mem = (const uint8_t *)ecu + VH_ECU_XCP_REGIONS[i].offset;
+    }
     /* cycle in units of 10 us (4) or 100 us (5): 500 us, 1 ms, 10 ms */
     a->events[0].name = "tick";
     a->events[0].cycle = 50u;
@@ -123,11 +132,15 @@ int vh_ecu_xcp_enable(vh_ecu_t *ecu, const vh_ecu_xcp_config_t *cfg)
     s.max_dto = cfg->max_dto;
     s.fd = cfg->fd;
     s.protect = VH_XCP_RES_CALPAG | VH_XCP_RES_DAQ;
-    s.secret = cfg->secret;
+    s.key = cfg->key;
+    memcpy(s.salt, cfg->salt, sizeof s.salt);
+    s.unlock_delay_ticks = VH_ECU_XCP_UNLOCK_DELAY_TICKS;
+    s.unlock_attempts = VH_ECU_XCP_UNLOCK_ATTEMPTS;
+    s.safe = &a->safe;
     s.tick_us = VH_TICK_US;
     s.open_ticks = 200u; /* 100 ms: an array edited in the middle commits without its last byte */
-    s.regions = &a->region;
-    s.n_regions = 1u;
+    s.regions = a->regions;
+    s.n_regions = (uint8_t)VH_ECU_XCP_N_REGIONS;
     s.cal_address = VH_ECU_XCP_CAL_ADDRESS;
     s.cal_size = (uint32_t)sizeof(vh_ecu_cal_t);
     s.cal_ref = (const uint8_t *)&a->ref;
@@ -143,11 +156,14 @@ int vh_ecu_xcp_enable(vh_ecu_t *ecu, const vh_ecu_xcp_config_t *cfg)
         memset(a, 0, sizeof *a);
         return VH_EINVAL;
     }
+    a->own_bus = cfg->own_bus ? 1u : 0u;
+    a->cal_mode = cfg->cal_mode ? 1u : 0u;
     a->enabled = 1u;
     return VH_OK;
 }
 
-int vh_ecu_xcp_rx(vh_ecu_t *ecu, const vh_frame_t *f)
+/* A frame on the CRO or DTO identifier heard on `own` (the XCP bus) or the vehicle bus. */
+static int xcp_rx(vh_ecu_t *ecu, const vh_frame_t *f, int own)
 {
     vh_ecu_xcp_t *a = &ecu->xcp;
     const uint32_t id = f->id | (((f->flags & VH_FRAME_EXT) != 0u) ? EXT_BIT : 0u);
@@ -155,9 +171,31 @@ int vh_ecu_xcp_rx(vh_ecu_t *ecu, const vh_frame_t *f)
         return 0;
     }
     if (id == a->slave.cfg.cro_id) {
-        vh_xcp_rx(&a->slave, f->data, f->len, a->ticks);
+        if (a->own_bus && !own) {
+            a->slave.n.cro_foreign++; /* the slave listens on its own bus only: not answered */
+        } else {
+            vh_xcp_rx(&a->slave, f->data, f->len, a->ticks);
+        }
     } /* else our own RES/DTO heard back (a loopback bus): known, not input, like our DBC TX */
     return 1;
+}
+
+int vh_ecu_xcp_rx(vh_ecu_t *ecu, const vh_frame_t *f) { return xcp_rx(ecu, f, 0); }
+
+int vh_ecu_xcp_rx_own(vh_ecu_t *ecu, const vh_frame_t *f) { return xcp_rx(ecu, f, 1); }
+
+/* The safe state of this tick, decided here (the ECU's, not the host's): see vh_ecu_xcp.h. */
+static uint8_t safe_state(vh_ecu_t *ecu)
+{
+    vh_ecu_xcp_t *a = &ecu->xcp;
+    const int dls = !ecu->drv.dls.rx.timed_out, chs = !ecu->roll.rx[VH_ROLL_RX_CHS].timed_out;
+    const int passive = ecu->roll.smc.fade <= 0.0f && ecu->roll.smc.m_f == 0.0f && ecu->roll.smc.m_r == 0.0f;
+    int still;
+    a->heard = (uint8_t)(a->heard | (dls ? 1u : 0u) | (chs ? 2u : 0u));
+    /* a source heard once and silent now is unknown, not still */
+    still = (dls ? vh_drv_app_still(&ecu->drv, VH_ECU_XCP_STILL_WW) : !(a->heard & 1u)) &&
+            (chs ? (ecu->roll.u_ok && fabsf(ecu->roll.vx) < (float)VH_ECU_XCP_STILL_VX) : !(a->heard & 2u));
+    return (uint8_t)(passive && (still || a->cal_mode));
 }
 
 void vh_ecu_xcp_tick(vh_ecu_t *ecu)
@@ -166,6 +204,10 @@ void vh_ecu_xcp_tick(vh_ecu_t *ecu)
     if (!a->enabled) {
         return;
     }
+    if (a->cal_mode) {
+        ecu->roll.mode_active = 0u; /* calibration mode: the roll actuators passive (before roll steps) */
+    }
+    a->safe = safe_state(ecu);
     vh_xcp_tick(&a->slave, a->ticks);
     if (a->slave.n.cal_commits != a->applied || a->slave.page_ecu != a->applied_page) {
         vh_ecu_cal_apply(ecu, &a->page);

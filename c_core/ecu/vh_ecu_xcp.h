@@ -1,8 +1,18 @@
 /* vh_ecu_xcp.h - the XCP-on-CAN slave (vh_xcp.h) as an application of the ECU.
  *
+ * Off until vh_ecu_xcp_enable, which the host calls only when the user turns XCP on with a key.
+ *
  * Measurement: the master's address space VH_ECU_XCP_MEAS_ADDRESS + offsetof(vh_ecu_t, member)
- * reads the ECU instance itself (UPLOAD and DAQ): every system's states, covariances,
- * innovations, health and counters by their C names.
+ * reads the members of the ECU instance the description names (UPLOAD and DAQ), nothing else:
+ * the readable regions are the generated table's (vh_ecu_xcp_table.inc, the measurements with
+ * adjacent ones merged), so pointers, the slave's own state and configuration stay unreadable.
+ * The seed & key key is not in vh_ecu_t at all (caller-owned, like SecOC's keys).
+ *
+ * Safe state (the ECU's decision, every tick): roll control passive (faded out, zero moment) AND
+ * the car at standstill (every speed source heard since enable says so now: the driveline's wheel
+ * speeds and the chassis' vx; a source heard once and silent now is not standstill), or the
+ * calibration mode (cal_mode, the host's start option) with the roll actuators held passive.
+ * Safety-relevant characteristics are written and committed only then (ERR_WRITE_PROTECTED).
  *
  * Calibration: one segment at VH_ECU_XCP_CAL_ADDRESS + offsetof(vh_ecu_cal_t, member), the
  * tuning of every system gathered in one block. Page 1 (reference, never written) is the tuning
@@ -29,6 +39,10 @@
 #define VH_ECU_XCP_CAL_ADDRESS 0x20000000
 #define VH_ECU_XCP_N_EVENTS 3
 #define VH_ECU_XCP_MAX_TX 1 /* XCP frames per tick: one 64-byte DTO per 500 us is the budget */
+#define VH_ECU_XCP_UNLOCK_DELAY_TICKS 1000 /* 0.5 s after a wrong key, doubled with each further one */
+#define VH_ECU_XCP_UNLOCK_ATTEMPTS 5       /* wrong keys in a row: seed & key locked until restart */
+#define VH_ECU_XCP_STILL_WW 0.5            /* standstill: driveline wheel speeds below [rad/s] */
+#define VH_ECU_XCP_STILL_VX 0.2            /* standstill: chassis vx below [m/s] */
 
 /* The driveline filters' tuning: -> dkf[i].cfg.q, .r, .p_max */
 typedef struct {
@@ -87,7 +101,11 @@ typedef struct {
     uint8_t max_cto;  /* 8 .. 64 (above 8: fd) */
     uint8_t max_dto;
     uint8_t fd;
-    uint32_t secret;  /* seed & key */
+    const vh_cmac_key_t *key;    /* seed & key: the user's key, caller-owned outside vh_ecu_t */
+    uint8_t salt[VH_XCP_SALT_LEN]; /* random per start (the host's) */
+    uint8_t own_bus;  /* XCP on a bus of its own: a CRO through vh_ecu_rx (the vehicle bus) is not
+                       * answered, only counted (cro_foreign); vh_ecu_xcp_rx_own takes the XCP bus */
+    uint8_t cal_mode; /* calibration mode: roll held passive; the safe state needs no standstill */
 } vh_ecu_xcp_config_t;
 
 typedef struct {
@@ -95,13 +113,17 @@ typedef struct {
     vh_ecu_cal_t ref;    /* page 1: the configured tuning; the slave never writes it */
     vh_ecu_cal_t work;   /* page 0 */
     vh_ecu_cal_t page;   /* what the systems run on; only vh_xcp_tick writes it */
-    vh_xcp_region_t region;
+    vh_xcp_region_t regions[VH_XCP_MAX_REGIONS]; /* the measurements (the generated table) */
     vh_xcp_event_t events[VH_ECU_XCP_N_EVENTS];
     uint32_t ticks;      /* never reset: the slave's clock and DAQ timestamps survive vh_ecu_reset */
     uint32_t applied;    /* slave.n.cal_commits already copied into the systems */
     uint8_t applied_page;
     uint8_t stale;       /* the systems were re-initialised: copy the tuning again */
     uint8_t enabled;
+    uint8_t own_bus;
+    uint8_t cal_mode;
+    uint8_t safe;        /* the safe state of this tick (the slave reads it at every write) */
+    uint8_t heard;       /* speed sources heard since enable: 1 driveline wheel speeds, 2 chassis vx */
 } vh_ecu_xcp_t;
 
 #endif /* VH_ECU_XCP_H */

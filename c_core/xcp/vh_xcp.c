@@ -23,6 +23,7 @@
 #define ERR_SEQUENCE 0x29u
 #define ERR_DAQ_CONFIG 0x2Au
 #define ERR_MEMORY_OVERFLOW 0x30u
+#define ERR_RESOURCE_TEMPORARY_NOT_ACCESSIBLE 0x33u /* XCP 1.1 */
 
 /* DAQ allocation sequence (Part 2, "dynamic DAQ configuration"): FREE_DAQ, ALLOC_DAQ, then all
  * ALLOC_ODT, then all ALLOC_ODT_ENTRY. */
@@ -213,7 +214,7 @@ int vh_xcp_init(vh_xcp_t *x, const vh_xcp_config_t *cfg)
         cfg->n_events > VH_XCP_MAX_EVENTS || (cfg->n_regions > 0u && cfg->regions == NULL) ||
         (cfg->n_chars > 0u && cfg->chars == NULL) || (cfg->n_events > 0u && cfg->events == NULL) ||
         (cfg->cal_size > 0u && (cfg->cal_ref == NULL || cfg->cal_work == NULL || cfg->cal_ecu == NULL)) ||
-        (cfg->cal_size == 0u && cfg->n_chars > 0u) ||
+        (cfg->cal_size == 0u && cfg->n_chars > 0u) || (cfg->protect != 0u && cfg->key == NULL) ||
         cfg->cal_size > 0xFFFFFFFFu - cfg->cal_address) {
         return VH_XCP_EINVAL;
     }
@@ -266,10 +267,8 @@ static void disconnect(vh_xcp_t *x)
 void vh_xcp_reset(vh_xcp_t *x)
 {
     vh_xcp_config_t cfg = x->cfg;
-    uint32_t secret = cfg.secret;
-    memset(x, 0, sizeof *x);
+    memset(x, 0, sizeof *x); /* the lockout and the delay end here, and only here */
     x->cfg = cfg;
-    x->seed_state = secret ^ 0xA5A5A5A5u;
     x->daq_state = DAQ_NONE;
     x->page_ecu = x->page_xcp = x->page_ecu_next = PAGE_WORK;
     if (cfg.cal_size > 0u) {
@@ -279,12 +278,34 @@ void vh_xcp_reset(vh_xcp_t *x)
     disconnect(x);
 }
 
+static bool safe_now(const vh_xcp_t *x)
+{
+    return x->cfg.safe == NULL || *x->cfg.safe != 0u;
+}
+
+static bool any_safety_char(const vh_xcp_t *x)
+{
+    unsigned i;
+    for (i = 0; i < x->cfg.n_chars; ++i) {
+        if (x->cfg.chars[i].flags & VH_XCP_CHAR_SAFETY) {
+            return true;
+        }
+    }
+    return false;
+}
+
 void vh_xcp_tick(vh_xcp_t *x, uint32_t tick)
 {
     unsigned i;
+    const bool safe = safe_now(x);
     x->tick = tick;
     if (x->cfg.cal_size == 0u) {
         return;
+    }
+    if (x->page_ecu_next != x->page_ecu && !safe && any_safety_char(x)) {
+        /* the state left safe between SET_CAL_PAGE and this boundary: the switch is dropped */
+        x->page_ecu_next = x->page_ecu;
+        x->n.cal_unsafe++;
     }
     if (x->page_ecu_next != x->page_ecu) { /* page switch: the whole segment at once */
         x->page_ecu = x->page_ecu_next;
@@ -303,7 +324,11 @@ void vh_xcp_tick(vh_xcp_t *x, uint32_t tick)
         if (x->char_state[i] == CHAR_PENDING || stale) {
             const vh_xcp_char_t *c = &x->cfg.chars[i];
             uint32_t off = c->address - x->cfg.cal_address;
-            if (char_valid(c, x->cfg.cal_work + off)) {
+            if ((c->flags & VH_XCP_CHAR_SAFETY) && !safe) {
+                /* written in the safe state, due after it ended (an array left open): dropped */
+                memcpy(x->cfg.cal_work + off, x->cfg.cal_ecu + off, char_size(c));
+                x->n.cal_unsafe++;
+            } else if (char_valid(c, x->cfg.cal_work + off)) {
                 memcpy(x->cfg.cal_ecu + off, x->cfg.cal_work + off, char_size(c));
                 x->n.cal_commits++;
             } else {
@@ -317,12 +342,51 @@ void vh_xcp_tick(vh_xcp_t *x, uint32_t tick)
     }
 }
 
-uint32_t vh_xcp_key(uint32_t seed, uint32_t secret)
+void vh_xcp_key(const vh_cmac_key_t *k, uint8_t resource, const uint8_t seed[VH_XCP_SEED_LEN],
+                uint8_t key[VH_XCP_KEY_LEN])
 {
-    /* key = rotl32(seed ^ secret, 7) * 0x9E3779B1 (mod 2^32): every seed bit moves the key */
-    uint32_t v = seed ^ secret;
-    v = (v << 7) | (v >> 25);
-    return v * 0x9E3779B1u;
+    uint8_t msg[5u + VH_XCP_SEED_LEN], tag[VH_AES_BLOCK];
+    msg[0] = 'X';
+    msg[1] = 'C';
+    msg[2] = 'P';
+    msg[3] = 'K';
+    msg[4] = resource; /* a key unlocks the resource its seed was for, no other */
+    memcpy(&msg[5], seed, VH_XCP_SEED_LEN);
+    vh_cmac(k, msg, sizeof msg, tag);
+    memcpy(key, tag, VH_XCP_KEY_LEN);
+}
+
+/* A seed nobody can predict without K, different on every request and, with the host's salt, on
+ * every start: CMAC(K, "XCPS" | salt | seeds issued | tick). */
+static void make_seed(vh_xcp_t *x)
+{
+    uint8_t msg[4u + VH_XCP_SALT_LEN + 8u], tag[VH_AES_BLOCK];
+    msg[0] = 'X';
+    msg[1] = 'C';
+    msg[2] = 'P';
+    msg[3] = 'S';
+    memcpy(&msg[4], x->cfg.salt, VH_XCP_SALT_LEN);
+    wr32(&msg[4u + VH_XCP_SALT_LEN], ++x->seeds, false);
+    wr32(&msg[8u + VH_XCP_SALT_LEN], x->tick, false);
+    vh_cmac(x->cfg.key, msg, sizeof msg, tag);
+    memcpy(x->seed, tag, VH_XCP_SEED_LEN);
+}
+
+/* Seed & key refused now: locked out after unlock_attempts wrong keys (until reset), or inside the
+ * delay after a wrong key. The answer is sent and counted here. */
+static bool unlock_refused(vh_xcp_t *x)
+{
+    if (x->locked_out) {
+        x->n.unlock_lockout++;
+        res_err(x, ERR_ACCESS_DENIED);
+        return true;
+    }
+    if (x->fail_streak > 0u && (int32_t)(x->penalty_until - x->tick) > 0) {
+        x->n.unlock_delayed++;
+        res_err(x, ERR_RESOURCE_TEMPORARY_NOT_ACCESSIBLE);
+        return true;
+    }
+    return false;
 }
 
 /* ---- commands ---------------------------------------------------------------------------- */
@@ -402,32 +466,58 @@ static void cmd_get_seed(vh_xcp_t *x, const uint8_t *c)
         x->seed_for = 0u;
         return;
     }
-    /* seed: an LCG (Numerical Recipes constants) stepped by the tick too, so no two sessions
-     * see the same seed; deterministic for a given sequence of CROs and ticks */
-    x->seed_state = x->seed_state * 1664525u + 1013904223u + x->tick;
-    x->seed = x->seed_state;
+    if (unlock_refused(x)) {
+        x->seed_for = 0u;
+        return;
+    }
+    make_seed(x);
     x->seed_for = res;
-    r = res_begin(x, 6u);
-    r[1] = 4u;
-    wr32(&r[2], x->seed, false);
+    r = res_begin(x, (uint8_t)(2u + VH_XCP_SEED_LEN));
+    r[1] = VH_XCP_SEED_LEN;
+    memcpy(&r[2], x->seed, VH_XCP_SEED_LEN);
 }
 
 static void cmd_unlock(vh_xcp_t *x, const uint8_t *c, size_t len)
 {
-    uint8_t *r;
+    uint8_t *r, want[VH_XCP_KEY_LEN], diff = 0u, res;
+    unsigned i;
+    if (unlock_refused(x)) {
+        x->seed_for = 0u;
+        return;
+    }
     if (x->seed_for == 0u) {
         res_err(x, ERR_SEQUENCE);
         return;
     }
-    if (len < 6u || c[1] != 4u || rd32(&c[2], false) != vh_xcp_key(x->seed, x->cfg.secret)) {
-        /* wrong key: ERR_ACCESS_LOCKED and the session ends (Part 2, UNLOCK) */
+    vh_xcp_key(x->cfg.key, x->seed_for, x->seed, want);
+    for (i = 0; i < VH_XCP_KEY_LEN; ++i) { /* every byte compared: no early exit on the first wrong one */
+        diff |= (uint8_t)((len >= 2u + VH_XCP_KEY_LEN ? c[2u + i] : 0u) ^ want[i]);
+    }
+    res = x->seed_for;
+    x->seed_for = 0u; /* one attempt per seed */
+    if (len < 2u + VH_XCP_KEY_LEN || c[1] != VH_XCP_KEY_LEN || diff != 0u) {
+        /* wrong key: ERR_ACCESS_LOCKED (Part 2, UNLOCK), counted, and a delay that doubles with
+         * each wrong key in a row, then a lockout. The session stays: on CAN any node can send a
+         * CRO, and a node that guesses must not end the master's session (where the standard has
+         * the slave disconnect). */
         x->n.key_fail++;
+        if (x->fail_streak < 0xFFu) {
+            x->fail_streak++;
+        }
+        if (x->cfg.unlock_attempts != 0u && x->fail_streak >= x->cfg.unlock_attempts) {
+            x->locked_out = 1u;
+        } else if (x->cfg.unlock_delay_ticks != 0u) {
+            uint32_t d = x->cfg.unlock_delay_ticks;
+            for (i = 1u; i < x->fail_streak && d < 0x40000000u; ++i) {
+                d *= 2u;
+            }
+            x->penalty_until = x->tick + d;
+        }
         res_err(x, ERR_ACCESS_LOCKED);
-        disconnect(x);
         return;
     }
-    x->locked = (uint8_t)(x->locked & ~x->seed_for);
-    x->seed_for = 0u;
+    x->fail_streak = 0u;
+    x->locked = (uint8_t)(x->locked & ~res);
     r = res_begin(x, 2u);
     r[1] = x->locked;
 }
@@ -507,6 +597,17 @@ static void download(vh_xcp_t *x, const uint8_t *data, uint8_t n)
         res_err(x, ERR_ACCESS_DENIED); /* a byte between characteristics: not calibration data */
         return;
     }
+    if (!safe_now(x)) {
+        for (i = 0; i < x->cfg.n_chars; ++i) {
+            const vh_xcp_char_t *c = &x->cfg.chars[i];
+            if ((c->flags & VH_XCP_CHAR_SAFETY) && c->address < end && a < c->address + char_size(c)) {
+                /* safety-relevant, outside the safe state: write protected now (nothing written) */
+                x->n.cal_unsafe++;
+                res_err(x, ERR_WRITE_PROTECTED);
+                return;
+            }
+        }
+    }
     off = a - x->cfg.cal_address;
     memcpy(undo, x->cfg.cal_work + off, n);
     memcpy(x->cfg.cal_work + off, data, n);
@@ -566,6 +667,11 @@ static void cmd_set_cal_page(vh_xcp_t *x, const uint8_t *c)
     }
     if (!(mode & 0x03u)) {
         res_err(x, ERR_MODE_NOT_VALID);
+        return;
+    }
+    if ((mode & 0x01u) && page != x->page_ecu_next && !safe_now(x) && any_safety_char(x)) {
+        x->n.cal_unsafe++; /* the ECU's page holds safety-relevant characteristics */
+        res_err(x, ERR_WRITE_PROTECTED);
         return;
     }
     if (mode & 0x01u) {

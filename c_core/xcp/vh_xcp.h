@@ -15,6 +15,19 @@
  * characteristic is copied whole from the page the ECU uses, so a filter never sees half a
  * matrix. Anything outside the described memory is refused (ERR_ACCESS_DENIED) and counted.
  *
+ * Seed & key: GET_SEED returns VH_XCP_SEED_LEN bytes, the first bytes of CMAC-AES-128(K, "XCPS" |
+ * salt | seeds issued | tick), and UNLOCK wants the first VH_XCP_KEY_LEN bytes of CMAC-AES-128(K,
+ * "XCPK" | resource | seed) (vh_xcp_key). K is the integrator's key (a key file on the host, the HSM
+ * on a target), held outside the slave and outside every described region. A wrong key is refused
+ * and counted; the session stays (a node that guesses cannot end the master's session). After a
+ * wrong key, GET_SEED and UNLOCK wait `unlock_delay_ticks`, doubled with every further wrong key
+ * (ERR_RESOURCE_TEMPORARY_NOT_ACCESSIBLE in the window); `unlock_attempts` wrong keys in a row lock
+ * seed & key until vh_xcp_reset (ERR_ACCESS_DENIED): a restart.
+ *
+ * Safety classes: a characteristic flagged VH_XCP_CHAR_SAFETY is written (DOWNLOAD) and committed
+ * (tick) only while the caller's `*safe` is non-zero; otherwise ERR_WRITE_PROTECTED, counted in
+ * cal_unsafe. The decision is the caller's (the ECU's safe state), read at every write and commit.
+ *
  * Byte order: memory is moved as raw bytes; CONNECT reports the byte order given in the config
  * (the host's: little endian on x86 and Cortex-M).
  *
@@ -28,9 +41,11 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "vh_cmac.h"
+
 /* Capacities: the instance is sized at compile time (no heap). */
 #define VH_XCP_FRAME_MAX 64    /* CAN FD payload */
-#define VH_XCP_MAX_REGIONS 16
+#define VH_XCP_MAX_REGIONS 96   /* the ECU's measurements, adjacent ones merged: 70 */
 #define VH_XCP_MAX_CHARS 64    /* characteristics in the calibration segment */
 #define VH_XCP_MAX_EVENTS 8
 #define VH_XCP_MAX_DAQ 8       /* dynamic DAQ lists */
@@ -38,10 +53,16 @@
 #define VH_XCP_MAX_ENTRIES 256 /* ODT entries over all ODTs */
 #define VH_XCP_TXQ 128         /* DTO frames queued between two vh_xcp_tx_pop drains */
 #define VH_XCP_ID_MAX 48       /* GET_ID strings */
+#define VH_XCP_SEED_LEN 6      /* GET_SEED and UNLOCK each fit one classic CAN frame */
+#define VH_XCP_KEY_LEN 6
+#define VH_XCP_SALT_LEN 8
 
 /* Region access bits. */
 #define VH_XCP_ACC_READ 1 /* UPLOAD / SHORT_UPLOAD */
 #define VH_XCP_ACC_DAQ 2  /* WRITE_DAQ may sample it */
+
+/* Characteristic flags. */
+#define VH_XCP_CHAR_SAFETY 1 /* safety-relevant: written and committed only while *cfg.safe */
 
 /* Resource bits (CONNECT RESOURCE, GET_STATUS protection, GET_SEED resource). */
 #define VH_XCP_RES_CALPAG 1
@@ -70,6 +91,7 @@ typedef struct {
     uint32_t address;
     uint16_t count;
     uint8_t type; /* vh_xcp_type_t */
+    uint8_t flags; /* VH_XCP_CHAR_* */
     double min;
     double max;
 } vh_xcp_char_t;
@@ -89,11 +111,16 @@ typedef struct {
     uint8_t pad8;     /* classic CAN: pad every frame to DLC 8 */
     uint8_t big_endian;
     uint8_t protect;  /* VH_XCP_RES_* that need GET_SEED/UNLOCK after CONNECT */
-    uint32_t secret;  /* seed & key: key = vh_xcp_key(seed, secret) */
+    const vh_cmac_key_t *key; /* seed & key (caller-owned, outside the described memory); NULL only
+                               * when nothing is protected */
+    uint8_t salt[VH_XCP_SALT_LEN]; /* the host's random bytes per start: seeds differ between starts */
+    uint32_t unlock_delay_ticks;   /* after a wrong key; doubled with each further one (0: none) */
+    uint8_t unlock_attempts;       /* wrong keys in a row that lock seed & key until reset (0: never) */
+    const uint8_t *safe;           /* the caller's safe state (non-zero: safe); NULL: always safe */
     uint32_t tick_us; /* DAQ timestamp: one timestamp tick per ECU tick */
     uint32_t open_ticks; /* a characteristic written part-way commits after this many ticks
                           * without a write (0: only once its last byte is written) */
-    const vh_xcp_region_t *regions;
+    const vh_xcp_region_t *regions; /* sorted or not; apart or adjacent */
     uint8_t n_regions;
     uint32_t cal_address; /* the calibration segment, same size on every page */
     uint32_t cal_size;
@@ -128,7 +155,11 @@ typedef struct {
     uint32_t err_locked;    /* ERR_ACCESS_LOCKED: seed & key not done */
     uint32_t err_daq;       /* ERR_SEQUENCE / ERR_MEMORY_OVERFLOW / ERR_DAQ_CONFIG / ERR_DAQ_ACTIVE */
     uint32_t err_other;
-    uint32_t key_fail;      /* wrong keys (the slave disconnects) */
+    uint32_t key_fail;      /* wrong keys (refused; the session stays) */
+    uint32_t unlock_delayed; /* GET_SEED/UNLOCK refused in the delay after a wrong key */
+    uint32_t unlock_lockout; /* GET_SEED/UNLOCK refused after unlock_attempts wrong keys */
+    uint32_t cal_unsafe;    /* safety-relevant writes, commits, page switches refused: not in the safe state */
+    uint32_t cro_foreign;   /* CROs heard on a bus the slave does not serve (counted by the caller) */
     uint32_t cal_writes;    /* DOWNLOADs accepted */
     uint32_t cal_commits;   /* characteristics copied to the ECU page at a tick boundary */
     uint32_t cal_dropped;   /* written part-way, out of range when due (never reach the ECU) */
@@ -163,8 +194,11 @@ typedef struct {
     bool connected;
     uint8_t locked;      /* VH_XCP_RES_* still locked */
     uint8_t seed_for;    /* resource the last GET_SEED was for (0: none) */
-    uint32_t seed;
-    uint32_t seed_state; /* LCG, deterministic */
+    uint8_t seed[VH_XCP_SEED_LEN];
+    uint32_t seeds;      /* seeds issued since reset (the seed's counter) */
+    uint8_t fail_streak; /* wrong keys in a row */
+    uint8_t locked_out;  /* unlock_attempts reached: seed & key refused until reset */
+    uint32_t penalty_until; /* tick before which GET_SEED/UNLOCK are refused */
     uint32_t tick;
     /* MTA: memory address, or a string (GET_ID, GET_DAQ_EVENT_INFO) */
     uint32_t mta;
@@ -209,8 +243,9 @@ void vh_xcp_rx(vh_xcp_t *x, const uint8_t *cro, size_t len, uint32_t tick);
 void vh_xcp_event(vh_xcp_t *x, uint16_t channel);
 /* Next frame to transmit (the response first, then DTOs in order); 0 when none is left. */
 int vh_xcp_tx_pop(vh_xcp_t *x, vh_xcp_frame_t *out);
-/* The seed & key algorithm, exposed so a test master and the bench tool compute the same key.
- * A bench algorithm, not a secret one: a production ECU derives keys in its HSM. */
-uint32_t vh_xcp_key(uint32_t seed, uint32_t secret);
+/* The key for a seed of a resource (VH_XCP_RES_*): the first VH_XCP_KEY_LEN bytes of
+ * CMAC-AES-128(k, "XCPK" | resource | seed). A master computes the same from the key file. */
+void vh_xcp_key(const vh_cmac_key_t *k, uint8_t resource, const uint8_t seed[VH_XCP_SEED_LEN],
+                uint8_t key[VH_XCP_KEY_LEN]);
 
 #endif /* VH_XCP_H */

@@ -1,9 +1,10 @@
 """cffi build script (out-of-line API mode) for ``vehest_can._xcp``: the XCP slave alone.
 
 Its own extension, so the slave builds and is tested apart from the ECU firmware (and the
-shared ``vehest_build.py`` stays untouched). The cdef is the public header itself: only its
+shared ``vehest_build.py`` stays untouched). The cdef is the public headers themselves: only their
 preprocessor lines are dropped (cffi parses declarations and integer ``#define`` constants, not
-include guards or ``#include``).
+include guards or ``#include``). Seed & key is CMAC-AES-128: the slave links SecOC's CMAC
+(c_core/secoc/vh_cmac.c) and, like SecOC, OpenSSL's libcrypto for the AES.
 """
 from __future__ import annotations
 
@@ -14,23 +15,29 @@ from cffi import FFI
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
-from cbuild import ROOT, STRICT_FLAGS, compile_strict, extension, header_cdef  # noqa: E402,F401  (c_core/cbuild.py)
+from cbuild import ROOT, STRICT_FLAGS, compile_strict, header_cdef, libcrypto  # noqa: E402,F401  (c_core/cbuild.py)
 
+SECOC = HERE.parent / "secoc"
 HEADER = HERE / "vh_xcp.h"
-SOURCES = [HERE / "vh_xcp.c"]
+HEADERS = [SECOC / "vh_aes128.h", SECOC / "vh_cmac.h", HEADER]
+SOURCES = [HERE / "vh_xcp.c", SECOC / "vh_cmac.c", SECOC / "vh_aes128_host.c"]
 
 
-def cdef_text(header: Path = HEADER) -> str:
-    return header_cdef([header])
+def cdef_text(headers: list[Path] = HEADERS) -> str:
+    return header_cdef(headers)
 
 
 def compile_slave(out_dir: Path = ROOT / "build" / "xcp_obj", extra_flags: list[str] | None = None) -> list[str]:
-    """The slave compiled with the strict flags, apart from cffi's glue."""
-    return compile_strict(SOURCES, [HERE], out_dir, extra_flags=extra_flags)
+    """The slave (and the CMAC it keys with) compiled with the strict flags, apart from cffi's glue."""
+    return compile_strict(SOURCES, [HERE, SECOC], out_dir, extra_flags=extra_flags)
 
 
 def make_ffi() -> FFI:
-    return extension("vehest_can._xcp", HEADER, cdef_text(), compile_slave())
+    ffi = FFI()
+    ffi.cdef(cdef_text())
+    ffi.set_source("vehest_can._xcp", f'#include "{HEADER.name}"', include_dirs=[str(HERE), str(SECOC)],
+                   extra_objects=compile_slave(), extra_link_args=[libcrypto()])
+    return ffi
 
 
 ffibuilder = make_ffi()

@@ -1,16 +1,20 @@
 /* fuzz_ecu.c - coverage-guided fuzz target (libFuzzer) for the ECU's RX + tick path.
  *
  * The input is a mode byte, then a program of records, each starting with an op byte:
- *   mode bit 0: SecOC on (a fixed test key, RFC 4493's: never a real key); bit 1: XCP MAX_CTO 64
+ *   mode bit 0: SecOC on (a fixed test key, RFC 4493's: never a real key); bit 1: XCP MAX_CTO 64;
+ *   bit 2: XCP calibration mode (roll held passive); bit 3: XCP on a bus of its own
  *   0  raw frame:        id selector, flags, len, payload  (anything, CRC almost never right)
  *   1  protected frame:  which RX message, counter step, payload; the E2E CRC and alive counter
  *                        are made right, so the fuzzer reaches the decode, the checks behind
  *                        E2E (SNA, qualifiers, ranges) and the filters
  *   2  ticks:            step the ECU 1..16 times with a fuzzed TX capacity
  *   3  deadline misses / reset
- *   4  XCP CRO frame:    len, payload on the slave's CRO identifier (anything)
- *   5  XCP session:      CONNECT, then GET_SEED/UNLOCK with the right key for CAL/PAG and DAQ as
- *                        selected, so the fuzzer reaches SET_MTA, DOWNLOAD, DAQ setup behind them
+ *   4  XCP CRO frame:    len, payload on the slave's CRO identifier (anything); with its own bus,
+ *                        op bit 4 sends it on the vehicle bus (not answered, counted)
+ *   5  XCP session:      CONNECT, then GET_SEED/UNLOCK with the key (from the configured key, the
+ *                        slave's vh_xcp_key) for CAL/PAG and DAQ as selected, so the fuzzer reaches
+ *                        SET_MTA, DOWNLOAD, DAQ setup behind them; op bit 7 a wrong key instead (the
+ *                        delay, the lockout); the right key unlocks unless a delay or lockout holds
  *   6  secured frame:    as op 1, then secured by a twin of its sending node (CHS, ROLL, DLS, CIS;
  *                        its sync frame first when due): with SecOC on it must verify (genuine
  *                        traffic is never rejected)
@@ -19,7 +23,8 @@
  * above VH_ECU_MAX_TX); XCP responses within MAX_CTO, DTOs within MAX_DTO; the driveline and roll
  * estimates stay finite. After every received frame: a frame SecOC rejected is counted once in
  * cnt.secoc_reject and changed nothing else; a CRO frame changed nothing but the slave and the working calibration page; the
- * reference page is never written. A violation is a crash (abort), like a sanitizer report.
+ * reference page is never written; outside the ECU's safe state no safety-relevant characteristic of
+ * the running page changes. A violation is a crash (abort), like a sanitizer report.
  */
 #define _GNU_SOURCE /* RTLD_NEXT */
 #include <dlfcn.h>
@@ -77,7 +82,6 @@ static const struct {
 /* The XCP slave as vehest_can/xcp/ecu.toml describes it, and the bench's seed & key secret. */
 #define XCP_CRO 0x7E0u
 #define XCP_DTO 0x7E1u
-#define XCP_SECRET 0x5EC0DE42u
 #define XCP_WAIT_TICKS 256u /* a response may queue behind a full DTO queue (VH_XCP_TXQ) */
 
 /* RFC 4493's published AES-128 test key: a test vector, not a secret. */
@@ -96,15 +100,17 @@ typedef struct {
 
 /* fuzzing harness state (not firmware): re-initialised per input; static for their size */
 static vh_ecu_t ecu, before;
-/* ecu as every input starts it, per MAX_CTO (8, 64): vh_ecu_init (its tyre-model peak search was
- * 80 % of an input's time), the camber calibration and vh_ecu_xcp_enable, done once each; copied
- * back into the same object, so the pointers into it stay valid */
-static vh_ecu_t initialised[2];
+/* ecu as every input starts it, per XCP variant (MAX_CTO 8/64 x calibration mode x own bus):
+ * vh_ecu_init (its tyre-model peak search was 80 % of an input's time), the camber calibration and
+ * vh_ecu_xcp_enable, done once each; copied back into the same object, so the pointers into it stay valid */
+#define N_XCP_VARIANTS 8u
+static vh_ecu_t initialised[N_XCP_VARIANTS];
+static vh_cmac_key_t xcp_key; /* the slave's seed & key key (the test key), outside the ECU as the host keeps it */
 static int have_initialised;
 static vh_ecu_cal_t ref;               /* the reference page as enabled: never written */
 static vh_secoc_bus_t sec, twin[VH_SECOC_N_NODES]; /* the ECU's SecOC (node VEHEST), each sending node's twin */
 static vh_secoc_bus_t sec_keyed, twin_keyed[VH_SECOC_N_NODES], twin_off[VH_SECOC_N_NODES]; /* start states */
-static uint8_t secoc_on, max_cto;
+static uint8_t secoc_on, max_cto, own_bus;
 
 /* The snapshots' copies and compares (tens of kB, several per input): libc's own memcpy and memcmp,
  * not ASan's wrappers, which first scan the shadow of both ranges, as long as the copy itself. Only
@@ -184,10 +190,33 @@ HARNESS_ONLY static void check_tx(const vh_frame_t *tx, size_t n, size_t cap)
     }
 }
 
+/* Outside the safe state of the tick (the ECU's decision) no safety-relevant characteristic of the
+ * running page changed in it. */
+HARNESS_ONLY static void check_safe(const vh_ecu_cal_t *page_before)
+{
+    const vh_xcp_config_t *c = &ecu.xcp.slave.cfg;
+    unsigned i;
+    if (ecu.xcp.safe) {
+        return;
+    }
+    for (i = 0; i < c->n_chars; ++i) {
+        const size_t off = c->chars[i].address - c->cal_address;
+        const size_t len = (size_t)c->chars[i].count * (c->chars[i].type >= VH_XCP_F64 ? 8u : c->chars[i].type >= VH_XCP_U32 ? 4u : c->chars[i].type >= VH_XCP_U16 ? 2u : 1u);
+        if ((c->chars[i].flags & VH_XCP_CHAR_SAFETY) &&
+            libc_memcmp((const uint8_t *)page_before + off, (const uint8_t *)&ecu.xcp.page + off, len) != 0) {
+            abort();
+        }
+    }
+}
+
 static size_t tick(vh_frame_t *tx, size_t cap)
 {
-    const size_t n = vh_ecu_step(&ecu, tx, cap);
+    static vh_ecu_cal_t page;
+    size_t n;
+    libc_memcpy(&page, &ecu.xcp.page, sizeof page);
+    n = vh_ecu_step(&ecu, tx, cap);
     check_tx(tx, n, cap);
+    check_safe(&page);
     return n;
 }
 
@@ -236,16 +265,26 @@ HARNESS_ONLY static int changed_not_xcp(void)
 }
 
 /* One received frame, and what it may have changed (the snapshot only where there is a check:
- * the ECU is over 40 kB; for a CRO frame only the part it must not change, two thirds of it). */
-HARNESS_ONLY static void rx(const vh_frame_t *f)
+ * the ECU is over 40 kB; for a CRO frame only the part it must not change, two thirds of it).
+ * `xcp_bus`: heard on XCP's own bus (vh_ecu_xcp_rx_own), else on the vehicle bus (vh_ecu_rx). */
+static void deliver(const vh_frame_t *f, int xcp_bus)
+{
+    if (xcp_bus) {
+        (void)vh_ecu_xcp_rx_own(&ecu, f);
+    } else {
+        vh_ecu_rx(&ecu, f);
+    }
+}
+
+HARNESS_ONLY static void rx_on(const vh_frame_t *f, int xcp_bus)
 {
     const uint32_t rejected = sec.cnt.rejected;
     if (!(secoc_on && secured(f->id))) {
         if (f->id != XCP_CRO) {
-            vh_ecu_rx(&ecu, f);
+            deliver(f, xcp_bus);
         } else {
             snapshot_not_xcp(); /* cnt is in it */
-            vh_ecu_rx(&ecu, f);
+            deliver(f, xcp_bus);
             if (ecu.cnt.secoc_reject != before.cnt.secoc_reject) {
                 abort(); /* nothing but a rejection is counted there */
             }
@@ -259,7 +298,7 @@ HARNESS_ONLY static void rx(const vh_frame_t *f)
         return;
     }
     libc_memcpy(&before, &ecu, sizeof ecu);
-    vh_ecu_rx(&ecu, f);
+    deliver(f, xcp_bus);
     if (ecu.cnt.secoc_reject != (uint16_t)(before.cnt.secoc_reject + (sec.cnt.rejected != rejected))) {
         abort(); /* each rejection counted once (the 16-bit counter wraps), nothing else counted there */
     }
@@ -278,6 +317,8 @@ HARNESS_ONLY static void rx(const vh_frame_t *f)
     }
 }
 
+HARNESS_ONLY static void rx(const vh_frame_t *f) { rx_on(f, 0); }
+
 /* A CRO command; the response (RES or ERR) into res, 0 if none came. */
 static int xcp_cmd(const uint8_t *cmd, uint8_t len, uint8_t res[VH_XCP_FRAME_MAX])
 {
@@ -289,7 +330,7 @@ static int xcp_cmd(const uint8_t *cmd, uint8_t len, uint8_t res[VH_XCP_FRAME_MAX
     f.flags = VH_FRAME_FD | VH_FRAME_BRS;
     f.len = len;
     memcpy(f.data, cmd, len);
-    rx(&f);
+    rx_on(&f, own_bus); /* the master on the slave's bus */
     for (k = 0; k < XCP_WAIT_TICKS; ++k) {
         n = tick(tx, VH_ECU_MAX_TX);
         for (i = 0; i < n; ++i) {
@@ -302,12 +343,12 @@ static int xcp_cmd(const uint8_t *cmd, uint8_t len, uint8_t res[VH_XCP_FRAME_MAX
     return 0;
 }
 
-/* CONNECT, then seed & key for the resources in `unlock` (VH_XCP_RES_CALPAG, VH_XCP_RES_DAQ). */
-static void xcp_session(uint8_t unlock)
+/* CONNECT, then seed & key for the resources in `unlock` (VH_XCP_RES_CALPAG, VH_XCP_RES_DAQ), with
+ * the right key, or a wrong one when `wrong`. */
+static void xcp_session(uint8_t unlock, int wrong)
 {
     static const uint8_t resources[2] = {VH_XCP_RES_CALPAG, VH_XCP_RES_DAQ};
     uint8_t cmd[8] = {0xFFu, 0x00u}, res[VH_XCP_FRAME_MAX];
-    uint32_t seed, key;
     unsigned i;
     if (!xcp_cmd(cmd, 2u, res) || res[0] != 0xFFu) {
         abort(); /* a CONNECT is always answered */
@@ -319,22 +360,25 @@ static void xcp_session(uint8_t unlock)
         cmd[0] = 0xF8u; /* GET_SEED mode 0 */
         cmd[1] = 0u;
         cmd[2] = resources[i];
-        if (!xcp_cmd(cmd, 3u, res) || res[0] != 0xFFu || (res[1] != 4u && res[1] != 0u)) {
+        if (!xcp_cmd(cmd, 3u, res)) {
+            abort();
+        }
+        if (res[0] == 0xFEu && (res[1] == 0x33u || res[1] == 0x24u) &&
+            (ecu.xcp.slave.fail_streak > 0u || ecu.xcp.slave.locked_out)) {
+            continue; /* in the delay after a wrong key, or locked out: seed & key waits */
+        }
+        if (res[0] != 0xFFu || (res[1] != VH_XCP_SEED_LEN && res[1] != 0u)) {
             abort();
         }
         if (res[1] == 0u) {
             continue; /* unlocked already */
         }
-        seed = (uint32_t)res[2] | (uint32_t)res[3] << 8 | (uint32_t)res[4] << 16 | (uint32_t)res[5] << 24;
-        key = vh_xcp_key(seed, XCP_SECRET);
         cmd[0] = 0xF7u; /* UNLOCK */
-        cmd[1] = 4u;
-        cmd[2] = (uint8_t)key;
-        cmd[3] = (uint8_t)(key >> 8);
-        cmd[4] = (uint8_t)(key >> 16);
-        cmd[5] = (uint8_t)(key >> 24);
-        if (!xcp_cmd(cmd, 6u, res) || res[0] != 0xFFu) {
-            abort(); /* the right key unlocks */
+        cmd[1] = VH_XCP_KEY_LEN;
+        vh_xcp_key(&xcp_key, resources[i], &res[2], &cmd[2]);
+        cmd[2] = (uint8_t)(cmd[2] ^ (wrong ? 0x5Au : 0u));
+        if (!xcp_cmd(cmd, 2u + VH_XCP_KEY_LEN, res) || (res[0] == 0xFFu) == (wrong != 0)) {
+            abort(); /* the right key unlocks, a wrong one never */
         }
     }
 }
@@ -379,11 +423,12 @@ static void init_once(void)
         abort();
     }
     vh_ecu_config_default(&cfg);
-    if (vh_ecu_init(&ecu, &cfg) != VH_OK || vh_camber_cal_from_axes(&cal, x, z, lsb, 1e-3f) != VH_OK) {
+    if (vh_ecu_init(&ecu, &cfg) != VH_OK || vh_camber_cal_from_axes(&cal, x, z, lsb, 1e-3f) != VH_OK ||
+        vh_cmac_init(&xcp_key, TEST_KEY) != 0) {
         abort();
     }
     memcpy(&before, &ecu, sizeof ecu);
-    for (m = 0; m < 2u; ++m) {
+    for (m = 0; m < N_XCP_VARIANTS; ++m) {
         memcpy(&ecu, &before, sizeof ecu);
         for (w = 0; w < VH_ECU_N_WHEELS; ++w) {
             (void)vh_ecu_set_camber_calibration(&ecu, w, &cal);
@@ -391,13 +436,18 @@ static void init_once(void)
         memset(&xcfg, 0, sizeof xcfg);
         xcfg.cro_id = XCP_CRO;
         xcfg.dto_id = XCP_DTO;
-        xcfg.max_cto = m ? 64u : 8u;
+        xcfg.max_cto = (m & 1u) ? 64u : 8u;
         xcfg.max_dto = 48u;
         xcfg.fd = 1u;
-        xcfg.secret = XCP_SECRET;
+        xcfg.key = &xcp_key;
+        xcfg.cal_mode = (uint8_t)((m >> 1) & 1u);
+        xcfg.own_bus = (uint8_t)((m >> 2) & 1u);
         if (vh_ecu_xcp_enable(&ecu, &xcfg) != VH_OK) {
             abort();
         }
+        /* a short delay after a wrong key (the same code, 4 ticks doubling instead of 1000): the
+         * lockout is then a few records away, not 15000 ticks of input */
+        ecu.xcp.slave.cfg.unlock_delay_ticks = 4u;
         memcpy(&initialised[m], &ecu, sizeof ecu); /* the same object: pointers into it stay valid */
     }
     if (!keyed(&sec_keyed, VH_SECOC_NODE_VEHEST)) {
@@ -429,11 +479,12 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     }
     secoc_on = mode & 1u;
     max_cto = (mode & 2u) ? 64u : 8u;
+    own_bus = (uint8_t)((mode >> 3) & 1u);
     if (!have_initialised) {
         init_once();
         have_initialised = 1;
     }
-    libc_memcpy(&ecu, &initialised[max_cto == 64u], sizeof ecu);
+    libc_memcpy(&ecu, &initialised[(mode >> 1) & 7u], sizeof ecu);
     memcpy(&ref, &ecu.xcp.ref, sizeof ref);
     memcpy(twin, secoc_on ? twin_keyed : twin_off, sizeof twin);
     if (secoc_on) {
@@ -510,10 +561,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             f.flags = (op & 8u) ? 0u : (VH_FRAME_FD | VH_FRAME_BRS);
             f.len = (uint8_t)(a % 65u);
             take_n(&in, f.data, f.len);
-            rx(&f);
+            rx_on(&f, own_bus && !(op & 16u)); /* op bit 4 with its own bus: heard on the vehicle bus */
             break;
-        default: /* 5, 7: an XCP session (CONNECT, seed & key) */
-            xcp_session((uint8_t)(op >> 3));
+        default: /* 5, 7: an XCP session (CONNECT, seed & key; op bit 7: a wrong key) */
+            xcp_session((uint8_t)(op >> 3), op & 0x80u);
             break;
         }
     }
@@ -522,10 +573,13 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     /* The suite's positive controls: a "bug" the fuzzer must get to (and report) from its seeds, or
      * the harness reaches too little. 1: behind an accepted chassis frame and a filter step;
      * 2: behind an XCP calibration write committed (after seed & key); 3: behind a roll UKF step
-     * on frames that passed SecOC. */
+     * on frames that passed SecOC; 4: behind seed & key locked out by wrong keys; 5: behind a
+     * safety-relevant write refused outside the safe state. */
     if ((VH_FUZZ_CANARY == 1 && ecu.chs.heard && ecu.chs.skf.steps > 0u) ||
         (VH_FUZZ_CANARY == 2 && ecu.xcp.slave.n.cal_commits > 0u) ||
-        (VH_FUZZ_CANARY == 3 && secoc_on && sec.cnt.accepted > 0u && ecu.roll.stepped)) {
+        (VH_FUZZ_CANARY == 3 && secoc_on && sec.cnt.accepted > 0u && ecu.roll.stepped) ||
+        (VH_FUZZ_CANARY == 4 && ecu.xcp.slave.locked_out) ||
+        (VH_FUZZ_CANARY == 5 && ecu.xcp.slave.n.cal_unsafe > 0u)) {
         abort();
     }
 #endif

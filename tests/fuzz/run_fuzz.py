@@ -116,7 +116,7 @@ def _xcp_programs() -> dict[str, bytes]:
     from vehest_can.xcp import ecu as xcp_ecu
 
     ecu = Ecu()
-    desc = xcp_ecu.enable(ecu)
+    desc = xcp_ecu.enable(ecu, bytes(16))  # the layout and the reference page only: no key used here
     item = desc.characteristics[0]
     off = item.address - desc.calibration_address
     raw = bytes(ffi.buffer(ffi.addressof(ecu.c.xcp, "ref"), ffi.sizeof("vh_ecu_cal_t"))[off:off + item.size])
@@ -131,8 +131,14 @@ def _xcp_programs() -> dict[str, bytes]:
            + _cro(0xE1, 0xFF, 8, 0, *struct.pack("<I", meas.address + 8))
            + _cro(0xE0, 0x10, 0, 0, 0, 0, 1, 0) + _cro(0xDE, 2, 0, 0) + _cro(0xDD, 1) + FULL_TICKS * 4
            + _cro(0xDD, 0) + FULL_TICKS)
+    # wrong keys (op bit 7) with the delays between: the lockout; a safety-relevant write (behind the
+    # chassis frames of a moving car in seed_corpus: refused outside the safe state)
+    wrong = (bytes([0x80 | _xcp_session(0x01)[0]]) + FULL_TICKS * 4) * 5
+    burst = desc.item("cal.rx_burst_frames")
+    safety = _xcp_session() + _cro(0xF6, 0, 0, 0, *struct.pack("<I", burst.address)) + _cro(0xF0, 1, 16) + FULL_TICKS
     return {"xcp_cal": bytes([PLAIN]) + cal, "xcp_daq": bytes([PLAIN]) + daq,
-            "xcp_cal_cto64": bytes([CTO64]) + cal, "xcp_locked": bytes([PLAIN]) + _xcp_session(0) + cal[1:]}
+            "xcp_cal_cto64": bytes([CTO64]) + cal, "xcp_locked": bytes([PLAIN]) + _xcp_session(0) + cal[1:],
+            "xcp_lockout": bytes([PLAIN]) + wrong + cal, "xcp_safety": safety}
 
 
 def _secured(frame_id: int, data: bytes) -> bytes:
@@ -172,6 +178,8 @@ def seed_corpus(out: Path, frames_per_seed: int = 64) -> int:
         (out / f"roll_secoc_{k:03d}").write_bytes(bytes([SECOC]) + b"".join(_secured(i, d) + TICKS for i, d in part))
         n += 2
     for name, prog in _xcp_programs().items():
+        if name == "xcp_safety":  # the car moving first: the ECU out of its safe state
+            prog = bytes([PLAIN]) + b"".join(_raw(i, d) + TICKS for i, d in frames[:frames_per_seed]) + prog
         (out / name).write_bytes(prog)
         n += 1
     return n

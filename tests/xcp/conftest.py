@@ -8,19 +8,15 @@ import struct
 import can
 import pytest
 
-from vehest_can.xcp import DEMO, Slave, XcpBridge, key_for, load
+from vehest_can.xcp import DEMO, Slave, XcpBridge, load
+from vehest_can.xcp.keys import seed_n_key
 
 _channels = itertools.count()
-SECRET = 0x5EC0DE42
+#: RFC 4493's published AES-128 test key: the tests' seed & key key (a test vector, not a secret)
+KEY = bytes.fromhex("2b7e151628aed2a6abf7158809cf4f3c")
 
 
-def seed_n_key(secret: int):
-    def compute(resource: int, seed: bytes) -> bytes:
-        return key_for(seed, secret)
-    return compute
-
-
-def make_master(channel: str, desc, *, secret: int | None = SECRET, timeout: float = 1.0, bus=None):
+def make_master(channel: str, desc, *, key: bytes | None = KEY, timeout: float = 1.0, bus=None):
     """A pyxcp master (skips the test when pyxcp is not installed: the C-only tests still run)."""
     pytest.importorskip("pyxcp")
     from pyxcp.config import General, PyXCP, Transport
@@ -42,8 +38,8 @@ def make_master(channel: str, desc, *, secret: int | None = SECRET, timeout: flo
     app._setup_logger()
     app.general = General(config=c, parent=app)
     app.transport = Transport(config=c, parent=app)
-    if secret is not None:
-        app.general.seed_n_key_function = seed_n_key(secret)
+    if key is not None:
+        app.general.seed_n_key_function = seed_n_key(key)  # the key file's key, computed by `cryptography`
     logging.getLogger("pyxcp").setLevel(logging.WARNING)
     return Master("can", config=app, transport_layer_interface=bus)
 
@@ -54,7 +50,7 @@ class Rig:
     def __init__(self, desc=None, **slave_kw):
         self.desc = desc or load(DEMO)
         self.channel = f"xcp-test-{next(_channels)}"
-        self.slave = Slave(self.desc, secret=SECRET, **slave_kw)
+        self.slave = Slave(self.desc, key=KEY, **slave_kw)
         self.bus = can.Bus(interface="virtual", channel=self.channel, receive_own_messages=False)
         self.bridge = XcpBridge(self.bus, self.slave).start()
         self.master = make_master(self.channel, self.desc)

@@ -17,7 +17,7 @@ def test_round_trip_of_what_the_master_wrote(rig, tmp_path):
     doc = json.loads(path.read_text())
     assert doc["format"] == calfile.FORMAT and doc["version"] == 1
     assert doc["values"]["torque_offset"] == -9.25 and doc["values"]["skf_gain"][1][0] == 0.5
-    fresh = Slave(load(DEMO))
+    fresh = Slave(load(DEMO), key=bytes(16))
     assert fresh.read("torque_offset") == 0
     calfile.load(fresh, path)
     for c in fresh.desc.characteristics:
@@ -38,7 +38,7 @@ def test_round_trip_of_what_the_master_wrote(rig, tmp_path):
     (lambda d: d["values"].update(rx_timeout_ticks=1), "outside"),
 ])
 def test_invalid_files_are_refused_and_change_nothing(tmp_path, edit, msg):
-    s = Slave(load(DEMO))
+    s = Slave(load(DEMO), key=bytes(16))
     path = tmp_path / "cal.json"
     calfile.save(s, path)
     doc = json.loads(path.read_text())

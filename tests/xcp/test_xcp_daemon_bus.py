@@ -23,6 +23,7 @@ from vehest_can.sim.scenario import load_scenario
 from vehest_can.sim.session import SimMaster, drive_from_scenario
 from vehest_can.xcp import ecu as xcp_ecu
 from vehest_can.xcp.description import C_TYPES
+from vehest_can.xcp.keys import write_key
 
 pytestmark = pytest.mark.multicast
 pytest.importorskip("pyxcp")
@@ -48,7 +49,9 @@ def test_daq_over_the_daemon_on_its_own_xcp_bus_equals_its_estimate_frames(pyxcp
     seconds = float(os.environ.get("VEHEST_XCP_RT_SECONDS", "2"))
     main, xcp = busmod.private_multicast(), busmod.private_multicast()
     stats = tmp_path / "stats.json"
-    proc = start_daemon(main, "--mode", "realtime", "--xcp-interface", "udp_multicast", "--xcp-channel", xcp["channel"],
+    key = write_key(tmp_path / "xcp.key")  # the user's key file, mode 600
+    proc = start_daemon(main, "--mode", "realtime", "--xcp", "on", "--xcp-key", str(tmp_path / "xcp.key"),
+                        "--xcp-interface", "udp_multicast", "--xcp-channel", xcp["channel"],
                         "--xcp-bus-kwargs", f"port={xcp['port']}", "--stats", str(stats), tmp_path=tmp_path)
     car_bus, listen_bus, master_bus = busmod.open_bus(main), busmod.open_bus(main), busmod.open_bus(xcp)
     desc = xcp_ecu.description()
@@ -58,14 +61,16 @@ def test_daq_over_the_daemon_on_its_own_xcp_bus_equals_its_estimate_frames(pyxcp
     def hear(msg: can.Message) -> None:
         if msg.arbitration_id == EST.frame_id:
             est.append(msg)
-        elif msg.arbitration_id in (desc.cro_id, desc.dto_id):
+        elif msg.arbitration_id == desc.dto_id:  # (the one CRO there is the test's own)
             xcp_on_main.append(msg)
     notifier = can.Notifier(listen_bus, [hear], timeout=0.01)
     car = threading.Thread(target=SimMaster(car_bus, drive_from_scenario(load_scenario("launch_2nd"), seconds + 4.0))
                            .run_realtime, daemon=True)
     car.start()
     try:
-        m = pyxcp_master(None, desc, bus=master_bus, timeout=2.0)
+        # a CONNECT on the vehicle bus: the slave listens on its own bus only (not answered, counted)
+        car_bus.send(can.Message(arbitration_id=desc.cro_id, is_extended_id=False, is_fd=True, data=bytes([0xFF, 0])))
+        m = pyxcp_master(None, desc, bus=master_bus, timeout=2.0, key=key)
         m.__enter__()
         m.connect()
         m.getCommModeInfo()
@@ -93,7 +98,10 @@ def test_daq_over_the_daemon_on_its_own_xcp_bus_equals_its_estimate_frames(pyxcp
             b.shutdown()
     assert rc == 0, err
     assert f"XCP bus udp_multicast {xcp['channel']} port {xcp['port']}" in err
-    buses = json.loads(stats.read_text())["buses"]
+    doc = json.loads(stats.read_text())
+    buses = doc["buses"]
+    assert doc["xcp"]["cro_foreign"] == 1 and doc["xcp"]["own_bus"] == 1 and doc["xcp"]["key_fail"] == 0
+    assert "xcp: " in err and "cro_foreign=1" in err  # the exit line
     assert set(buses) == {"vcan0", "xcp"} and buses["xcp"]["tx"] > 0, buses  # the ECU's bus by its log channel
     assert xcp_on_main == []  # every XCP frame on the XCP bus, none on the ECU's
 
@@ -120,3 +128,27 @@ def test_daq_over_the_daemon_on_its_own_xcp_bus_equals_its_estimate_frames(pyxcp
           f"{torque.min():.0f}..{torque.max():.0f} Nm")
     assert n >= 0.9 * len(daq)
     assert np.ptp(torque) > 100.0  # the launch moves the estimate: not a comparison of constants
+
+
+def test_a_daemon_with_default_flags_answers_no_xcp_frame(tmp_path):
+    """XCP is off by default: a CONNECT on the daemon's bus gets no answer (and no XCP line at exit)."""
+    main = busmod.private_multicast()
+    stats = tmp_path / "stats.json"
+    proc = start_daemon(main, "--mode", "realtime", "--stats", str(stats), tmp_path=tmp_path)
+    bus = busmod.open_bus(main)
+    desc = xcp_ecu.description()
+    heard: list[can.Message] = []
+    try:
+        for _ in range(3):
+            bus.send(can.Message(arbitration_id=desc.cro_id, is_extended_id=False, is_fd=True, data=bytes([0xFF, 0])))
+            end = time.monotonic() + 1.0
+            while (left := end - time.monotonic()) > 0:
+                msg = bus.recv(left)
+                if msg is not None and msg.arbitration_id == desc.dto_id:
+                    heard.append(msg)
+    finally:
+        rc, err = stop_daemon(proc)
+        bus.shutdown()
+    assert rc == 0, err
+    assert heard == [] and "xcp:" not in err and "xcp" not in json.loads(stats.read_text())
+    print("default daemon: 3 CONNECTs on its bus, 0 XCP frames in 3 s")

@@ -166,11 +166,11 @@ def test_pyxcp_over_the_projects_host_only_multicast_bus(pyxcp_master):
     cfg = busmod.private_multicast()
     slave_bus, master_bus = busmod.open_bus(cfg), busmod.open_bus(cfg)
     assert slave_bus.host_only and master_bus.host_only
-    slave = Slave(desc, secret=0x5EC0DE42)
+    slave = Slave(desc, key=bytes(16))
     bridge = XcpBridge(slave_bus, slave,
                        on_tick=lambda t: slave.write_measurement("ecu_tick", t)).start()
     try:
-        m = pyxcp_master(None, desc, bus=master_bus)
+        m = pyxcp_master(None, desc, bus=master_bus, key=bytes(16))
         meas = [(x.name, x.address, 0, C_TYPES[x.ctype][3]) for x in desc.measurements]
         policy = Collect([DaqList(name="mc", event_num=2, stim=False, enable_timestamps=True,
                                   measurements=meas, priority=0, prescaler=1)])

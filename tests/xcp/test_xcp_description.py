@@ -44,4 +44,4 @@ def test_refused(change, msg):
 def test_the_c_slave_refuses_what_it_cannot_serve():
     d = from_dict(base(xcp={"max_cto": 7}))
     with pytest.raises(XcpConfigError):
-        Slave(d)
+        Slave(d, key=bytes(16))

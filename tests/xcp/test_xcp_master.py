@@ -85,18 +85,26 @@ def test_write_without_seed_and_key_is_refused(rig):
     assert rig.slave.read("dkf_r_torque", "work") == 64.0
 
 
-def test_a_wrong_key_is_refused_counted_and_ends_the_session(rig):
+def test_a_wrong_key_is_refused_counted_delayed_and_the_session_stays(rig):
+    """A wrong key: ERR_ACCESS_LOCKED, counted, the session kept (a guessing node cannot end the
+    master's); seed & key then waits unlock_delay_ticks (ERR_RESOURCE_TEMPORARY_NOT_ACCESSIBLE),
+    after which pyxcp's seed & key with the key file's key unlocks."""
     rig.connect()
     seed = rig.master.getSeed(0, 0x01)
-    assert seed.length == 4
+    assert seed.length == 6
     with pytest.raises(ERR) as e:
-        rig.master.unlock(4, [0, 0, 0, 0])
+        rig.master.unlock(6, [0, 0, 0, 0, 0, 0])
     assert code(e) == 0x25
     assert rig.slave.counters()["key_fail"] == 1
-    assert not rig.slave.x.connected
-    rig.connect()
+    assert rig.slave.x.connected and rig.slave.x.fail_streak == 1
+    with pytest.raises(ERR) as e:
+        rig.master.getSeed(0, 0x01)
+    assert code(e) == 0x33  # in the delay
+    assert rig.slave.counters()["unlock_delayed"] == 1
+    rig.bridge.advance(1000)  # the delay: 1000 ticks after the first wrong key
     rig.master.cond_unlock("calpag")  # the right key, computed from a fresh seed
     assert not rig.master.getStatus().resourceProtectionStatus.calpag
+    assert rig.slave.x.fail_streak == 0
 
 
 def test_download_lands_at_the_next_tick_boundary(rig):
@@ -224,10 +232,12 @@ def test_bench_runner_serves_a_live_image(capsys, pyxcp_master):
     from vehest_can.xcp.__main__ import main
 
     desc = load(DEMO)
-    t = threading.Thread(target=main, args=(["-c", "xcp-runner", "--seconds", "1.5"],))
+    t = threading.Thread(target=main, args=(["-c", "xcp-runner", "--seconds", "1.5", "--dev"],))
     t.start()
     time.sleep(0.3)
-    m = pyxcp_master("xcp-runner", desc)
+    from vehest_can.xcp.keys import DEV_KEY
+
+    m = pyxcp_master("xcp-runner", desc, key=DEV_KEY)
     with m:
         m.connect()
         a = struct.unpack("<I", m.shortUpload(4, desc.item("ecu_tick").address))[0]

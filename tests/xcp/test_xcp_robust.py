@@ -14,12 +14,13 @@ from hypothesis import strategies as st
 
 from vehest_can.xcp import DEMO, Slave, key_for, load
 from vehest_can.xcp.description import from_dict
+from vehest_can.xcp.keys import SEED_LEN
 from vehest_can.xcp.slave import raw_limits_for_c
 
 DESC = load(DEMO)
 FD_DESC = from_dict({**tomllib.loads(DEMO.read_text()),
                      "xcp": {**tomllib.loads(DEMO.read_text())["xcp"], "fd": True, "max_cto": 64, "max_dto": 64}})
-SECRET = 0x5EC0DE42
+KEY = bytes.fromhex("2b7e151628aed2a6abf7158809cf4f3c")  # RFC 4493's test key
 KNOWN = [0xFF, 0xFE, 0xFD, 0xFC, 0xFB, 0xFA, 0xF8, 0xF7, 0xF6, 0xF5, 0xF4, 0xF0, 0xED, 0xEB, 0xEA, 0xE9,
          0xE3, 0xE2, 0xE1, 0xE0, 0xDF, 0xDE, 0xDD, 0xDC, 0xDA, 0xD9, 0xD7, 0xD6, 0xD5, 0xD4, 0xD3]
 ERROR_CODES = {0x00, 0x10, 0x11, 0x12, 0x20, 0x21, 0x22, 0x23, 0x24, 0x25, 0x26, 0x27, 0x28, 0x29, 0x2A,
@@ -35,12 +36,12 @@ def answer(s: Slave, cro: bytes) -> bytes | None:
 
 
 def unlocked(desc=DESC, **kw) -> Slave:
-    s = Slave(desc, secret=SECRET, **kw)
+    s = Slave(desc, key=KEY, **kw)
     assert answer(s, CONNECT)[0] == 0xFF
     for res in (0x01, 0x04):
         seed = answer(s, bytes([0xF8, 0x00, res]))  # GET_SEED
-        assert seed[0] == 0xFF and seed[1] == 4
-        assert answer(s, bytes([0xF7, 4]) + key_for(seed[2:6], SECRET))[0] == 0xFF  # UNLOCK
+        assert seed[0] == 0xFF and seed[1] == SEED_LEN
+        assert answer(s, bytes([0xF7, SEED_LEN]) + key_for(seed[2:2 + SEED_LEN], res, KEY))[0] == 0xFF  # UNLOCK
     return s
 
 
@@ -81,7 +82,7 @@ variant = st.sampled_from([(DESC, False), (DESC, True), (FD_DESC, False)])  # cl
 @given(st.lists(cro, min_size=1, max_size=40), st.booleans(), variant)
 def test_random_cros_never_crash_and_always_answer_well(cros, unlock, var):
     desc, pad8 = var
-    s = unlocked(desc, pad8=pad8) if unlock else Slave(desc, secret=SECRET, pad8=pad8)
+    s = unlocked(desc, pad8=pad8) if unlock else Slave(desc, key=KEY, pad8=pad8)
     meas0, ref0, _ = memory(s)
     for i, c in enumerate(cros):
         was_connected = s.x.connected
@@ -107,7 +108,7 @@ def test_random_cros_never_crash_and_always_answer_well(cros, unlock, var):
 @settings(max_examples=200, deadline=None)
 @given(st.integers(0, 2**32 - 1), st.integers(1, 7))
 def test_upload_anywhere_is_either_described_memory_or_access_denied(address, n):
-    s = Slave(DESC, secret=SECRET)
+    s = Slave(DESC, key=KEY)
     answer(s, CONNECT)
     resp = answer(s, bytes([0xF4, n, 0, 0]) + struct.pack("<I", address))  # SHORT_UPLOAD
     inside = any(lo <= address and address + n <= lo + size for lo, size in
@@ -190,7 +191,7 @@ def test_a_running_list_cannot_be_rewritten():
 
 
 def test_daq_commands_need_the_daq_resource():
-    s = Slave(DESC, secret=SECRET)
+    s = Slave(DESC, key=KEY)
     answer(s, CONNECT)
     for cro in ([0xD6], [0xD5, 0, 1, 0], [0xDD, 1], [0xE2, 0, 0, 0, 0, 0]):
         assert answer(s, bytes(cro)) == bytes([0xFE, 0x25])
@@ -199,7 +200,7 @@ def test_daq_commands_need_the_daq_resource():
 
 
 def test_short_and_unknown_cros():
-    s = Slave(DESC, secret=SECRET)
+    s = Slave(DESC, key=KEY)
     assert answer(s, b"") is None and answer(s, b"\xFD") is None  # not connected: silence
     answer(s, CONNECT)
     assert answer(s, b"") == bytes([0xFE, 0x21])

@@ -9,7 +9,7 @@ import struct
 
 import numpy as np
 import pytest
-from test_xcp_ecu import ERR, ERR_OUT_OF_RANGE, Cro
+from test_xcp_ecu import ERR, ERR_OUT_OF_RANGE, KEY, Cro
 
 from vehest_can.bus.frames import database
 from vehest_can.native import check, ffi, lib
@@ -38,7 +38,7 @@ def test_roll_tuning_and_internals_are_described_by_their_c_names():
     assert desc.item("cal.roll.ukf.r").shape == (lib.VH_ROLL_NZ,)
     # the reference page is the configured tuning
     ecu = Ecu()
-    xcp_ecu.enable(ecu)
+    xcp_ecu.enable(ecu, KEY)
     assert xcp_ecu.read(ecu, "cal.roll.ukf.r", "ref") == list(ecu.c.cfg.roll.ukf.r)
     assert xcp_ecu.read(ecu, "cal.roll.smc.k", "ref") == ecu.c.cfg.roll.smc.k == 5.0
 
@@ -122,7 +122,7 @@ def test_every_roll_characteristic_at_its_limits_keeps_the_configuration_valid()
     the box reach the controller, and the roll app's own check accepts them."""
     for corner in (0, 1):
         ecu = Ecu()
-        xcp_ecu.enable(ecu)
+        xcp_ecu.enable(ecu, KEY)
         cro = Cro.__new__(Cro)
         cro.ecu, cro.desc, cro.other = ecu, xcp_ecu.description(), []
         cro.connect_unlocked()

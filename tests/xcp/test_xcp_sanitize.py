@@ -9,8 +9,12 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 XCP = ROOT / "c_core" / "xcp"
+SECOC = ROOT / "c_core" / "secoc"
 sys.path.insert(0, str(XCP))
 import xcp_build  # noqa: E402
+
+#: the slave with the CMAC it keys seed & key with (c_core/secoc), AES from libcrypto
+SLAVE = [f"-I{XCP}", f"-I{SECOC}", str(XCP / "vh_xcp.c"), str(SECOC / "vh_cmac.c"), str(SECOC / "vh_aes128_host.c")]
 
 SAN = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer", "-g", "-O1"]
 
@@ -18,8 +22,8 @@ SAN = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-f
 @pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
 def test_slave_under_asan_ubsan_with_random_cros(tmp_path):
     exe = tmp_path / "sanitize_xcp"
-    build = subprocess.run(["cc", *xcp_build.STRICT_FLAGS, *SAN, f"-I{XCP}", str(XCP / "vh_xcp.c"),
-                            str(Path(__file__).with_name("c") / "sanitize_xcp.c"), "-lm", "-o", str(exe)],
+    build = subprocess.run(["cc", *xcp_build.STRICT_FLAGS, *SAN, *SLAVE,
+                            str(Path(__file__).with_name("c") / "sanitize_xcp.c"), "-lm", xcp_build.libcrypto(), "-o", str(exe)],
                            capture_output=True, text=True)
     assert build.returncode == 0, build.stderr
     run = subprocess.run([str(exe), "200000"], capture_output=True, text=True, timeout=600,
@@ -40,7 +44,7 @@ def test_cdef_is_the_header_without_its_preprocessor_lines():
 
 
 def test_slave_includes_only_the_c_library_headers():
-    allowed = {"<stdint.h>", "<stddef.h>", "<stdbool.h>", "<string.h>", '"vh_xcp.h"'}
+    allowed = {"<stdint.h>", "<stddef.h>", "<stdbool.h>", "<string.h>", '"vh_xcp.h"', '"vh_cmac.h"'}
     for f in (XCP / "vh_xcp.h", XCP / "vh_xcp.c"):
         incs = {line.split()[1] for line in f.read_text().splitlines() if line.startswith("#include")}
         assert incs <= allowed, (f.name, incs - allowed)
@@ -55,8 +59,8 @@ def test_slave_compiles_with_the_strict_flags(tmp_path):
 def test_bench_runs_on_a_tiny_size(tmp_path):
     """c_core/bench/bench_xcp.c: the figures are measured, not asserted; here it only has to run."""
     exe = tmp_path / "bench_xcp"
-    build = subprocess.run(["cc", *xcp_build.STRICT_FLAGS, "-O2", f"-I{XCP}", str(XCP / "vh_xcp.c"),
-                            str(XCP.parent / "bench" / "bench_xcp.c"), "-o", str(exe)], capture_output=True, text=True)
+    build = subprocess.run(["cc", *xcp_build.STRICT_FLAGS, "-O2", *SLAVE, str(XCP.parent / "bench" / "bench_xcp.c"),
+                            xcp_build.libcrypto(), "-o", str(exe)], capture_output=True, text=True)
     assert build.returncode == 0, build.stderr
     run = subprocess.run([str(exe), "2000"], capture_output=True, text=True, timeout=60)
     assert run.returncode == 0, run.stdout

@@ -83,11 +83,14 @@ def run(args) -> int:
 
 def _serve(args, ecu: Ecu, xcp, xcp_config) -> int:
     buses, routes, channel = _open_buses(args)
-    if xcp_config is not None:  # a bus of its own for XCP: its frames go there, the rest stay
+    rx_by_bus = {}
+    if xcp_config is not None:  # a bus of its own for XCP: its frames go there, the rest stay; it listens there only
         buses, routes = _add_xcp_bus(buses, routes, channel, xcp_config, xcp)
+        rx_by_bus = {"xcp": lambda msg: xcp_ecu.rx_own(ecu, msg)}
     writer = open_session_log(args, {"VEHEST"})  # the log sets each frame's channel (its bus)
     daemon = EcuDaemon(buses if len(buses) > 1 else next(iter(buses.values())), ecu, log_writer=writer,
-                       log_channel=channel, notifier=sdnotify.Notifier.from_env(), routes=routes)
+                       log_channel=channel, notifier=sdnotify.Notifier.from_env(), routes=routes,
+                       rx_by_bus=rx_by_bus)
     first, *others = buses.values()
     with busmod.serving(first, writer, daemon.stop_event.set), _closing(others):
         if args.mode == "lockstep":
@@ -107,7 +110,8 @@ def _serve(args, ecu: Ecu, xcp, xcp_config) -> int:
     if ecu.secoc is not None:
         print("SecOC: " + ", ".join(f"{k} {v}" for k, v in ecu.secoc.counters().items()), file=sys.stderr)
     if args.stats:
-        doc = asdict(stats) | ({"secoc": ecu.secoc.counters()} if ecu.secoc is not None else {})
+        doc = asdict(stats) | ({"secoc": ecu.secoc.counters()} if ecu.secoc is not None else {}) | \
+            ({"xcp": xcp_ecu.state(ecu)} if xcp is not None else {})
         Path(args.stats).write_text(json.dumps(doc, indent=2) + "\n")
     return 0
 
@@ -143,8 +147,8 @@ def _open_buses(args) -> tuple[dict, dict, str | None]:
 
 
 def _add_xcp_bus(buses: dict, routes: dict, channel: str | None, config: dict, desc) -> tuple[dict, dict]:
-    """The XCP bus beside the ECU's, as "xcp": the slave's RES/ERR/DTO are routed there; its CRO is
-    heard on every bus the daemon serves (the ECU's RX knows IDs, not buses)."""
+    """The XCP bus beside the ECU's, as "xcp": the slave's RES/ERR/DTO are routed there, and its CRO
+    is taken there only (a CRO on another bus is counted, cro_foreign, and not answered)."""
     if "xcp" in buses:
         raise ConfigError("the HIL configuration has a bus named 'xcp' already: leave out --xcp-interface/--xcp-channel")
     try:

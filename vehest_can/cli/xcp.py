@@ -1,9 +1,10 @@
 """``vehest-can xcp``: the ECU's XCP description, its A2L, and a small master for named items.
 
+    vehest-can xcp keygen FILE            a new seed & key key file (mode 600) for the daemon and its masters
     vehest-can xcp a2l [-o FILE]          the A2L of the ECU (the build's, from the C structs)
     vehest-can xcp list [PATTERN]         measurements and characteristics: type, unit, limits
     vehest-can xcp get NAME...            read them from a running daemon (its bus: python-can flags)
-    vehest-can xcp set NAME VALUE...      calibrate one (seed & key done for you), read it back
+    vehest-can xcp set NAME VALUE...      calibrate one (seed & key with --key FILE), read it back
     vehest-can xcp save FILE              the running ECU's working page as a calibration file
     vehest-can xcp load FILE              a calibration file (checked whole first) into the running ECU
 (`vehest-can daemon --xcp-cal FILE` starts the ECU on one.)
@@ -27,6 +28,9 @@ def add_subparser(subparsers) -> None:
                                           "bus of a running `vehest-can daemon`.")
     sub = p.add_subparsers(dest="action", metavar="ACTION")
     sub.required = True
+    kg = sub.add_parser("keygen", help="write a new seed & key key file (mode 600; never overwrites)")
+    kg.add_argument("file", metavar="FILE")
+    kg.set_defaults(func=run_keygen)
     a = sub.add_parser("a2l", help="write the ECU's A2L")
     a.add_argument("-o", "--output", metavar="FILE", help="where (default: print it)")
     a.set_defaults(func=run_a2l)
@@ -49,6 +53,10 @@ def add_subparser(subparsers) -> None:
         q.add_argument("--cro-id", metavar="ID", help="master->slave identifier (default: the A2L's)")
         q.add_argument("--dto-id", metavar="ID", help="slave->master identifier (default: the A2L's)")
         q.add_argument("--timeout", type=float, default=1.0, metavar="S", help="per answer (default 1 s)")
+        if name in ("set", "load"):
+            k = q.add_mutually_exclusive_group(required=True)
+            k.add_argument("--key", metavar="FILE", help="the daemon's seed & key key file (--xcp-key)")
+            k.add_argument("--dev", action="store_true", help="the public development key (a daemon with --xcp-dev)")
         busmod.add_arguments(q)
         q.set_defaults(func=func)
 
@@ -65,6 +73,15 @@ def _item(desc, name: str):
         close = [n for n in (i.name for i in desc.measurements + desc.characteristics) if name in n][:5]
         hint = f" (did you mean {', '.join(close)}?)" if close else " (`vehest-can xcp list` shows them)"
         raise ConfigError(f"no XCP item named {name!r}{hint}") from None
+
+
+def run_keygen(args) -> int:
+    from ..xcp.keys import write_key
+
+    write_key(args.file)
+    print(f"{args.file}: XCP seed & key key written (mode 600); start the daemon with --xcp on --xcp-key {args.file}",
+          file=sys.stderr)
+    return 0
 
 
 def run_a2l(args) -> int:
@@ -116,9 +133,9 @@ def _connected(args, unlock: bool = False):
     m, _ = _master(args)
     try:
         if unlock:
-            from ..xcp import ecu as xcp_ecu
+            from ..xcp.keys import DEV_KEY, load_key
 
-            m.connect(key_for=lambda seed: xcp_ecu.key_for(seed))
+            m.connect(DEV_KEY if args.dev else load_key(args.key))
         else:
             m.connect()
         yield m

@@ -26,6 +26,7 @@ import signal
 import subprocess
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import can
@@ -119,14 +120,18 @@ def _fmt(p: dict) -> str:
 class EcuDaemon:
     def __init__(self, bus: can.BusABC | dict[str, can.BusABC], ecu: Ecu | None = None, *,
                  log_writer: can.Listener | None = None, log_channel: str | None = "vcan0",
-                 notifier: sdnotify.Notifier | None = None, routes: dict[int, str] | None = None):
+                 notifier: sdnotify.Notifier | None = None, routes: dict[int, str] | None = None,
+                 rx_by_bus: dict[str, Callable[[can.Message], None]] | None = None):
         """`bus`: one bus, or {name: bus} for several (then logged with the bus's name as channel);
-        `routes`: frame ID -> bus name of what the ECU sends (others go to the first bus)."""
+        `routes`: frame ID -> bus name of what the ECU sends (others go to the first bus);
+        `rx_by_bus`: bus name -> what takes that bus's frames instead of the ECU's RX (XCP's own bus:
+        its slave listens there only, and nothing heard there is the systems' input)."""
         self.buses = dict(bus) if isinstance(bus, dict) else {"": bus}
         if not self.buses:
             raise ValueError("the daemon needs a bus")
         self.bus = next(iter(self.buses.values()))
         self.routes = {i: n for i, n in (routes or {}).items() if n in self.buses}
+        self.rx_by_bus = {n: f for n, f in (rx_by_bus or {}).items() if n in self.buses}
         self.notifier = notifier or sdnotify.Notifier()  # systemd's sd_notify; a no-op by default
         self.ecu = ecu or Ecu()
         self.log_writer = log_writer
@@ -274,6 +279,9 @@ class EcuDaemon:
                 self._count(name, "rx")
                 now = self.ecu.tick * TICK_S
                 self._log(msg, now, name)
+                if name in self.rx_by_bus:
+                    self.rx_by_bus[name](msg)
+                    continue
                 if not lockstep.is_sync(msg):
                     self.ecu.rx(msg)
                     continue
@@ -386,7 +394,7 @@ class EcuDaemon:
                     stats.frames_rx += 1
                     self._count(name, "rx")
                     self._log(msg, now, name)
-                    self.ecu.rx(msg)
+                    self.rx_by_bus.get(name, self.ecu.rx)(msg)
                     if msg.arbitration_id == self._dls_id:
                         pending.append(t_rx)
                 out = self.ecu.step()

@@ -7,8 +7,9 @@ the matching A2L file and ``calfile`` saves and loads the working page.
 The slave and the bridge load on first use, so the A2L generator runs before the C is built.
 """
 from .description import DEMO, Description, DescriptionError, load
+from .keys import key_for
 
-_LAZY = {"Slave": "slave", "XcpConfigError": "slave", "key_for": "slave", "XcpBridge": "bridge"}
+_LAZY = {"Slave": "slave", "XcpConfigError": "slave", "XcpBridge": "bridge"}
 
 __all__ = ["DEMO", "Description", "DescriptionError", "Slave", "XcpBridge", "XcpConfigError", "key_for", "load"]
 

@@ -10,12 +10,15 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 
 import can
 
+from ..errors import ConfigError
 from . import DEMO, Slave, XcpBridge, load
+from .keys import DEV_KEY, load_key
 
 
 def simulate(slave: Slave):
@@ -41,9 +44,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("-c", "--channel", default="xcp", help="python-can channel")
     ap.add_argument("--fd", action="store_true", help="CAN FD frames (with max_cto/max_dto up to 64)")
     ap.add_argument("--seconds", type=float, default=None, help="stop after this long (default: until Ctrl-C)")
+    k = ap.add_mutually_exclusive_group(required=True)
+    k.add_argument("--key", metavar="FILE", help="seed & key key file (`vehest-can xcp keygen FILE`)")
+    k.add_argument("--dev", action="store_true", help="the fixed, public development key (a bench only)")
     args = ap.parse_args(argv)
     desc = load(args.description)
-    slave = Slave(desc)
+    try:
+        key = DEV_KEY if args.dev else load_key(args.key)
+    except ConfigError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    if args.dev:
+        print("XCP development mode: seed & key with the fixed, public development key", file=sys.stderr)
+    slave = Slave(desc, key=key, salt=os.urandom(8))
     with can.Bus(interface=args.interface, channel=args.channel, fd=args.fd or desc.fd) as bus:
         bridge = XcpBridge(bus, slave, on_tick=simulate(slave)).start()
         bridge.start_clock()

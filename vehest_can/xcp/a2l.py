@@ -10,7 +10,8 @@ MOD_COMMON (byte order, alignment); IF_DATA XCP (PROTOCOL_LAYER with MAX_CTO/MAX
 optional commands the slave has, DAQ with the event channels, PAG, XCP_ON_CAN with the
 identifiers and, on CAN FD, MAX_DLC); one COMPU_METHOD per scaled item (LINEAR: phys = a * raw +
 b, COEFFS_LINEAR a b) and CM_IDENTICAL for the rest; one RECORD_LAYOUT per datatype; MEASUREMENT
-and CHARACTERISTIC (VALUE, or VAL_BLK with MATRIX_DIM) by their C names.
+and CHARACTERISTIC (VALUE, or VAL_BLK with MATRIX_DIM) by their C names, each characteristic with
+its safety class in an ANNOTATION (label "safety class": "tuning" or "safety").
 """
 from __future__ import annotations
 
@@ -33,6 +34,12 @@ OPTIONAL_CMDS = [
     "ALLOC_ODT_ENTRY",
 ]
 MAX_DAQ = 8  # VH_XCP_MAX_DAQ
+#: each characteristic's safety class as an ANNOTATION (label "safety class", text: the class and its rule)
+SAFETY_TEXT = {
+    "tuning": "tuning: any value within the limits, at any time",
+    "safety": "safety: written only in the ECU's safe state (roll control passive and the car at standstill, "
+              "or calibration mode); otherwise ERR_WRITE_PROTECTED",
+}
 TIME_UNITS = {3: "UNIT_1US", 4: "UNIT_10US", 5: "UNIT_100US", 6: "UNIT_1MS", 7: "UNIT_10MS", 8: "UNIT_100MS"}
 
 
@@ -199,6 +206,9 @@ def _characteristic(item: Item) -> list[str]:
         out.append("  MATRIX_DIM " + " ".join(str(n) for n in dims))
     if item.unit:
         out.append(f"  PHYS_UNIT {_q(item.unit)}")
+    out += ["  /begin ANNOTATION", f"    ANNOTATION_LABEL {_q('safety class')}",
+            f"    ANNOTATION_ORIGIN {_q('vehest-can')}", "    /begin ANNOTATION_TEXT",
+            f"      {_q(SAFETY_TEXT[item.safety_class])}", "    /end ANNOTATION_TEXT", "  /end ANNOTATION"]
     out.append("/end CHARACTERISTIC")
     return out
 

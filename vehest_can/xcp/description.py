@@ -56,6 +56,11 @@ C_TYPES = {
 }
 
 
+#: a characteristic's safety class: "tuning" any value in range at any time; "safety" (monitors,
+#: health thresholds, controller gains and limits) written only in the ECU's safe state
+SAFETY_CLASSES = ("tuning", "safety")
+
+
 class DescriptionError(ValueError):
     """The description cannot be laid out or is inconsistent."""
 
@@ -76,6 +81,7 @@ class Item:
     shape: tuple[int, ...] = ()
     comment: str = ""
     initial: tuple[float, ...] = ()  # characteristic: raw reference-page value(s)
+    safety_class: str = "tuning"  # characteristic: SAFETY_CLASSES
 
     @property
     def type_code(self) -> int:
@@ -186,7 +192,11 @@ def _layout(rows: list[dict], kind: str, base: int) -> tuple[Item, ...]:
             raise DescriptionError(f"{name}: address 0x{address:X} overlaps the item before it")
         initial = row.pop("initial", 0.0)
         initial = tuple(initial) if isinstance(initial, (list, tuple)) else (initial,) * (math.prod(shape) if shape else 1)
-        unknown = set(row) - {"unit", "min", "max", "factor", "offset", "comment"}
+        if "class" in row:
+            row["safety_class"] = row.pop("class")
+            if kind != "characteristic" or row["safety_class"] not in SAFETY_CLASSES:
+                raise DescriptionError(f"{name}: class is a characteristic's, one of {', '.join(SAFETY_CLASSES)}")
+        unknown = set(row) - {"unit", "min", "max", "factor", "offset", "comment", "safety_class"}
         if unknown:
             raise DescriptionError(f"{name}: unknown keys {', '.join(sorted(unknown))}")
         item = Item(name=name, ctype=ctype, kind=kind, address=address, shape=shape, initial=initial, **row)

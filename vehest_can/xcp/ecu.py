@@ -1,25 +1,33 @@
 """The XCP slave inside the ECU firmware (``c_core/ecu/vh_ecu_xcp.h``), seen from Python.
 
-``enable(ecu)`` switches it on in a :class:`vehest_can.systems.ecu.Ecu`: from then on the CRO
-frames handed to ``ecu.rx`` reach it through the ECU's own dispatch and its RES/ERR/DTO frames
-come out of ``ecu.step`` with the systems' frames, so every way of driving the ECU (in-process,
-lockstep, real time, the daemon) serves XCP without more code. The layout is the C structs';
-``description()`` is the same Description the build wrote the A2L and the limit table from.
+Off unless switched on: ``enable(ecu, key)`` with the user's key (``keys.load_key``) switches it
+on in a :class:`vehest_can.systems.ecu.Ecu`: from then on the CRO frames handed to ``ecu.rx``
+(or, with ``own_bus``, only those handed to ``rx_own``: the XCP bus) reach it through the ECU's
+own dispatch and its RES/ERR/DTO frames come out of ``ecu.step`` with the systems' frames, so
+every way of driving the ECU (in-process, lockstep, real time, the daemon) serves XCP without
+more code. The layout is the C structs'; ``description()`` is the same Description the build
+wrote the A2L and the limit table from.
 """
 from __future__ import annotations
 
+import os
 import struct
+import sys
+import weakref
 from functools import lru_cache
 
+from ..bus.frames import to_frame
 from ..errors import ConfigError
 from ..native import ffi, lib
 from ..systems.ecu import Ecu
 from . import ecu_desc
 from .description import C_TYPES, Description
+from .keys import DEV_KEY, load_key
 
-#: the bench's seed & key secret (a bench algorithm: a production ECU derives keys in its HSM)
-SECRET = 0x5EC0DE42
 COUNTERS = [f[0] for f in ffi.typeof("vh_xcp_counters_t").fields]
+#: the key schedule each enabled ECU's slave reads: outside vh_ecu_t (never in XCP's memory), alive
+#: as long as its ECU
+_KEYS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 PAGES = ("page", "work", "ref")  # what the systems run on, the working page, the reference page
 
 
@@ -29,18 +37,36 @@ def description() -> Description:
     return ecu_desc.describe(ffi)
 
 
-def key_for(seed: bytes, secret: int = SECRET) -> bytes:
-    """The key the slave expects for a 4-byte seed (vh_xcp_key, the firmware's own function)."""
-    (s,) = struct.unpack("<I", seed)
-    return struct.pack("<I", lib.vh_xcp_key(s, secret))
+def firmware_key_for(seed: bytes, resource: int, key: bytes) -> bytes:
+    """The key as the firmware computes it (vh_xcp_key, the C); ``keys.key_for`` is the independent one."""
+    k = ffi.new("vh_cmac_key_t *")
+    if lib.vh_cmac_init(k, key) != 0:
+        raise ConfigError("the AES backend refused the XCP key")
+    out = ffi.new("uint8_t[]", lib.VH_XCP_KEY_LEN)
+    lib.vh_xcp_key(k, resource, seed, out)
+    lib.vh_cmac_wipe(k)
+    return bytes(out)
 
 
-def enable(ecu: Ecu, *, cro_id: int | None = None, dto_id: int | None = None, max_cto: int | None = None,
-           max_dto: int | None = None, fd: bool | None = None, secret: int = SECRET) -> Description:
-    """Switch the slave on (the ECU's tuning as configured now becomes the reference page).
-    Identifiers, MAX_CTO/MAX_DTO and CAN FD default to the description's; ConfigError if the
-    firmware refuses them. Returns the description with the values in use."""
+def enable(ecu: Ecu, key: bytes, *, cro_id: int | None = None, dto_id: int | None = None,
+           max_cto: int | None = None, max_dto: int | None = None, fd: bool | None = None,
+           own_bus: bool = False, cal_mode: bool = False, salt: bytes | None = None) -> Description:
+    """Switch the slave on with the user's 16-byte seed & key key (the ECU's tuning as configured
+    now becomes the reference page). Identifiers, MAX_CTO/MAX_DTO and CAN FD default to the
+    description's; ``own_bus``: the slave answers only CROs handed to ``rx_own`` (its own bus);
+    ``cal_mode``: calibration mode (roll held passive); ``salt``: 8 bytes that make this start's
+    seeds (default random). ConfigError if the firmware refuses them. Returns the description with
+    the values in use."""
     from dataclasses import replace
+
+    if not isinstance(key, (bytes, bytearray)) or len(key) != 16:
+        raise ConfigError("XCP needs a 16-byte (AES-128) seed & key key: `vehest-can xcp keygen FILE`")
+    salt = os.urandom(lib.VH_XCP_SALT_LEN) if salt is None else salt
+    if len(salt) != lib.VH_XCP_SALT_LEN:
+        raise ConfigError(f"the XCP seed salt is {lib.VH_XCP_SALT_LEN} bytes")
+    k = ffi.new("vh_cmac_key_t *")
+    if lib.vh_cmac_init(k, bytes(key)) != 0:
+        raise ConfigError("the AES backend refused the XCP key")
 
     desc = description()
     desc = replace(desc, cro_id=desc.cro_id if cro_id is None else cro_id,
@@ -49,8 +75,9 @@ def enable(ecu: Ecu, *, cro_id: int | None = None, dto_id: int | None = None, ma
                    max_dto=desc.max_dto if max_dto is None else max_dto,
                    fd=desc.fd if fd is None else fd)
     c = ffi.new("vh_ecu_xcp_config_t *")
-    c.cro_id, c.dto_id, c.max_cto, c.max_dto, c.fd, c.secret = (
-        desc.cro_id, desc.dto_id, desc.max_cto, desc.max_dto, int(desc.fd), secret)
+    c.cro_id, c.dto_id, c.max_cto, c.max_dto, c.fd = desc.cro_id, desc.dto_id, desc.max_cto, desc.max_dto, int(desc.fd)
+    c.key, c.salt, c.own_bus, c.cal_mode = k, salt, int(own_bus), int(cal_mode)
+    _KEYS[ecu] = k  # before the slave can read it; replaced (a new key) on a second enable
     if lib.vh_ecu_xcp_enable(ecu.c, c) != lib.VH_OK:
         raise ConfigError(f"XCP configuration refused by the ECU: CRO 0x{desc.cro_id:X}, DTO 0x{desc.dto_id:X}, "
                           f"MAX_CTO {desc.max_cto}, MAX_DTO {desc.max_dto}, fd={desc.fd} "
@@ -64,6 +91,22 @@ def enabled(ecu: Ecu) -> bool:
 
 def counters(ecu: Ecu) -> dict[str, int]:
     return {name: int(getattr(ecu.c.xcp.slave.n, name)) for name in COUNTERS}
+
+
+def state(ecu: Ecu) -> dict[str, int]:
+    """The slave's counters and its seed & key and safe-state flags (the daemon's --stats "xcp")."""
+    x = ecu.c.xcp
+    return counters(ecu) | {"fail_streak": int(x.slave.fail_streak), "locked_out": int(x.slave.locked_out),
+                            "safe": int(x.safe), "cal_mode": int(x.cal_mode), "own_bus": int(x.own_bus)}
+
+
+_RX_OWN = ffi.new("vh_frame_t *")  # the daemon's receive path is one thread
+
+
+def rx_own(ecu: Ecu, msg) -> None:
+    """A frame heard on XCP's own bus: its CRO reaches the slave; nothing there is the systems' input."""
+    if not (msg.is_error_frame or msg.is_remote_frame):
+        lib.vh_ecu_xcp_rx_own(ecu.c, to_frame(msg, _RX_OWN))
 
 
 def read_raw(ecu: Ecu, name: str, page: str = "page"):
@@ -126,11 +169,20 @@ def _int(text: str) -> int:
 
 
 def add_arguments(parser) -> None:
-    """The daemon's XCP flags: the slave is on unless --xcp off; identifiers, sizes and CAN FD are
-    configuration (defaults: vehest_can/xcp/ecu.toml, the A2L's)."""
+    """The daemon's XCP flags: the slave is off unless --xcp on with the user's key (--xcp-key, or
+    --xcp-dev's public one); identifiers, sizes and CAN FD are configuration (defaults:
+    vehest_can/xcp/ecu.toml, the A2L's)."""
     d = description()
     g = parser.add_argument_group("XCP on CAN (the ECU's measurement and calibration slave, docs/xcp.md)")
-    g.add_argument("--xcp", choices=("on", "off"), default="on", help="serve XCP on the bus (default on)")
+    g.add_argument("--xcp", choices=("on", "off"), default="off",
+                   help="serve XCP (default off); on its own bus when --xcp-interface/--xcp-channel name one, "
+                        "else on the ECU's bus")
+    g.add_argument("--xcp-key", metavar="FILE", help="seed & key key file (mode 600; `vehest-can xcp keygen FILE`)")
+    g.add_argument("--xcp-dev", action="store_true",
+                   help="development mode: seed & key with the fixed, public development key (a bench, never a car)")
+    g.add_argument("--xcp-cal-mode", action="store_true",
+                   help="calibration mode: the roll actuators held passive for the whole run, so safety-relevant "
+                        "characteristics may be written without standstill")
     g.add_argument("--xcp-cro-id", metavar="ID", help=f"master->slave identifier (default 0x{d.cro_id:X}; "
                    "add 0x80000000 for a 29-bit one)")
     g.add_argument("--xcp-dto-id", metavar="ID", help=f"slave->master identifier (default 0x{d.dto_id:X})")
@@ -174,24 +226,41 @@ def _add_bus_arguments(group) -> None:
 
 
 def from_args(args, ecu: Ecu) -> Description | None:
-    """Enable the slave on `ecu` as the flags say; None with --xcp off."""
+    """Enable the slave on `ecu` as the flags say; None with --xcp off (the default)."""
     if getattr(args, "xcp", "off") != "on":
-        if getattr(args, "xcp_cal", None):
-            raise ConfigError("--xcp-cal needs the XCP slave (--xcp on)")
+        for flag in ("xcp_cal", "xcp_key", "xcp_dev", "xcp_cal_mode"):
+            if getattr(args, flag, None):
+                raise ConfigError(f"--{flag.replace('_', '-')} needs the XCP slave (--xcp on)")
         return None
+    if args.xcp_key and args.xcp_dev:
+        raise ConfigError("--xcp-key and --xcp-dev exclude each other: the user's key, or the public development key")
+    if not (args.xcp_key or args.xcp_dev):
+        raise ConfigError("--xcp on needs a seed & key key: --xcp-key FILE (`vehest-can xcp keygen FILE` makes one), "
+                          "or --xcp-dev for a bench")
+    key = load_key(args.xcp_key) if args.xcp_key else DEV_KEY
     opt = {k: _int(v) for k, v in (("cro_id", args.xcp_cro_id), ("dto_id", args.xcp_dto_id),
                                    ("max_cto", args.xcp_max_cto), ("max_dto", args.xcp_max_dto)) if v is not None}
     for k in ("cro_id", "dto_id"):
         if k in opt and not 0 <= opt[k] & 0x7FFFFFFF <= (0x1FFFFFFF if opt[k] & 0x80000000 else 0x7FF):
             raise ConfigError(f"--xcp-{k.replace('_', '-')} 0x{opt[k]:X} is not a CAN identifier")
     fd = None if args.xcp_fd is None else args.xcp_fd == "on"
-    desc = enable(ecu, fd=fd, **opt)
+    desc = enable(ecu, key, cro_id=opt.get("cro_id"), dto_id=opt.get("dto_id"), max_cto=opt.get("max_cto"),
+                  max_dto=opt.get("max_dto"), fd=fd, own_bus=own_bus(args), cal_mode=bool(args.xcp_cal_mode))
+    if args.xcp_dev:
+        print("vehest-can daemon: XCP development mode: seed & key with the fixed, public development key "
+              "(anyone can unlock calibration: a bench, never a car)", file=sys.stderr, flush=True)
     if args.xcp_cal:
         load_calibration(ecu, args.xcp_cal)
     return desc
 
 
 _BUS_KEYS = ("interface", "channel", "bitrate", "data_bitrate", "timing", "bus_kwargs")
+
+
+def own_bus(args) -> bool:
+    """XCP on a bus of its own: the flags name one (the slave then listens there only)."""
+    return any(getattr(args, f"xcp_{k}", None) is not None for k in ("interface", "channel")) or \
+        bool(getattr(args, "xcp_bus_context", None))
 
 
 def bus_config(args, desc: Description | None) -> dict | None:
@@ -217,4 +286,5 @@ def bus_config(args, desc: Description | None) -> dict | None:
 
 def summary(ecu: Ecu) -> str:
     n = {k: v for k, v in counters(ecu).items() if v}
-    return "xcp: " + (", ".join(f"{k}={v}" for k, v in n.items()) if n else "no traffic")
+    text = "xcp: " + (", ".join(f"{k}={v}" for k, v in n.items()) if n else "no traffic")
+    return text + ("; seed & key LOCKED OUT (too many wrong keys) until restart" if ecu.c.xcp.slave.locked_out else "")

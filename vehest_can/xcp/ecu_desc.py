@@ -18,7 +18,7 @@ import tomllib
 from pathlib import Path
 
 from . import a2l
-from .description import C_TYPES, Description, DescriptionError, Event, Item
+from .description import C_TYPES, SAFETY_CLASSES, Description, DescriptionError, Event, Item
 
 ECU_TOML = Path(__file__).with_name("ecu.toml")
 A2L_NAME = "VEHEST_ECU"
@@ -29,7 +29,7 @@ _VH_XCP_TYPE = {"uint8_t": "VH_XCP_U8", "int8_t": "VH_XCP_I8", "uint16_t": "VH_X
                 "int16_t": "VH_XCP_I16", "uint32_t": "VH_XCP_U32", "int32_t": "VH_XCP_I32",
                 "float": "VH_XCP_F32", "double": "VH_XCP_F64"}
 _TOKEN = re.compile(r"\.?([A-Za-z_]\w*)|\[(\d+)\]")
-_ROW_KEYS = {"c", "elements", "unit", "min", "max", "factor", "offset", "comment"}
+_ROW_KEYS = {"c", "elements", "unit", "min", "max", "factor", "offset", "comment", "class"}
 
 
 def _parse_path(path: str) -> list[str | int]:
@@ -82,6 +82,8 @@ def _measurements(ffi, rows: list[dict], base: int) -> list[Item]:
     items = []
     for row in rows:
         path, comment = row["c"], row.get("comment", "")
+        if "class" in row:
+            raise DescriptionError(f"measurement {path!r}: a class is a characteristic's (measurements are read-only)")
         if path.endswith(".*"):
             t, _ = _member(ffi, MEAS_STRUCT, path[:-2])
             if t.kind != "struct":
@@ -111,8 +113,11 @@ def _characteristics(ffi, rows: list[dict], base: int) -> list[Item]:
             shape, t = (t.length,), t.item
         if "min" not in row or "max" not in row:
             raise DescriptionError(f"characteristic {path!r}: writes are range-checked, give min and max")
+        if row.get("class") not in SAFETY_CLASSES:
+            raise DescriptionError(f"characteristic {path!r}: give its class, one of {', '.join(SAFETY_CLASSES)}")
         items.append(Item(name=CAL_PREFIX + path, ctype=_primitive(t, path), kind="characteristic",
-                          address=base + off, shape=shape, comment=row.get("comment", ""), **_common(row)))
+                          address=base + off, shape=shape, comment=row.get("comment", ""),
+                          safety_class=row["class"], **_common(row)))
     return items
 
 
@@ -162,23 +167,45 @@ def _c_double(v: float) -> str:
     return repr(float(v))  # shortest repr round-trips: the C compiler reads the same double
 
 
+def regions(desc: Description) -> list[tuple[Item, int]]:
+    """The readable measurement memory: (first item, size) per run of adjacent measurements, in
+    address order. Only described bytes: a gap between two items (padding, a pointer, a member
+    not described) ends a region."""
+    out: list[list] = []
+    for it in sorted(desc.measurements, key=lambda m: m.address):
+        if out and it.address <= out[-1][0].address + out[-1][1]:
+            out[-1][1] = max(out[-1][1], it.address + it.size - out[-1][0].address)
+        else:
+            out.append([it, it.size])
+    return [(it, size) for it, size in out]
+
+
 def c_table(desc: Description) -> str:
-    """c_core/ecu/vh_ecu_xcp_table.inc: the characteristics with the A2L's limits, by offsetof
-    (included by vh_ecu_xcp.c only; not a header, so the cdef never reads it)."""
+    """c_core/ecu/vh_ecu_xcp_table.inc: the characteristics with the A2L's limits and safety classes
+    and the readable measurement regions, by offsetof (included by vh_ecu_xcp.c only; not a header,
+    so the cdef never reads it)."""
+    regs = regions(desc)
     lines = [
         "/* vh_ecu_xcp_table.inc - GENERATED from vehest_can/xcp/ecu.toml by vehest_can/xcp/ecu_desc.py",
         " * (c_core/vehest_build.py); do not edit. The characteristics of the ECU's calibration segment",
-        " * with the raw limits of the A2L: the slave refuses a DOWNLOAD outside them. */",
+        " * with the raw limits of the A2L (the slave refuses a DOWNLOAD outside them) and their safety",
+        " * class; the measurement regions: the described members of vh_ecu_t, adjacent ones merged, the",
+        " * only memory UPLOAD and DAQ read. */",
         "#include <stddef.h>", "",
         f'#define VH_ECU_XCP_A2L_NAME "{desc.name}"',
-        f"#define VH_ECU_XCP_N_CHARS {len(desc.characteristics)}u", "",
+        f"#define VH_ECU_XCP_N_CHARS {len(desc.characteristics)}u",
+        f"#define VH_ECU_XCP_N_REGIONS {len(regs)}u", "",
         "static const vh_xcp_char_t VH_ECU_XCP_CHARS[] = {",
     ]
     for it in desc.characteristics:
         lo, hi = raw_limits(it)
         member = it.name[len(CAL_PREFIX):]
+        flags = "VH_XCP_CHAR_SAFETY" if it.safety_class == "safety" else "0u"
         lines.append(f"    {{VH_ECU_XCP_CAL_ADDRESS + offsetof({CAL_STRUCT}, {member}), {it.count}u, "
-                     f"{_VH_XCP_TYPE[it.ctype]}, {_c_double(lo)}, {_c_double(hi)}}},")
+                     f"{_VH_XCP_TYPE[it.ctype]}, {flags}, {_c_double(lo)}, {_c_double(hi)}}},")
+    lines += ["};", "", "static const struct {", "    uint32_t offset, size;", "} VH_ECU_XCP_REGIONS[] = {"]
+    for it, size in regs:
+        lines.append(f"    {{(uint32_t)offsetof({MEAS_STRUCT}, {it.name}), {size}u}},")
     lines += ["};", ""]
     return "\n".join(lines)
 

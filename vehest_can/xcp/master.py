@@ -12,10 +12,12 @@ import can
 
 from ..errors import VehestError
 from .description import C_TYPES, Description, Item
+from .keys import key_for
 
 ERRORS = {0x10: "ERR_CMD_BUSY", 0x11: "ERR_DAQ_ACTIVE", 0x20: "ERR_CMD_UNKNOWN", 0x21: "ERR_CMD_SYNTAX",
           0x22: "ERR_OUT_OF_RANGE", 0x23: "ERR_WRITE_PROTECTED", 0x24: "ERR_ACCESS_DENIED",
-          0x25: "ERR_ACCESS_LOCKED", 0x26: "ERR_PAGE_NOT_VALID", 0x29: "ERR_SEQUENCE", 0x31: "ERR_GENERIC"}
+          0x25: "ERR_ACCESS_LOCKED", 0x26: "ERR_PAGE_NOT_VALID", 0x29: "ERR_SEQUENCE", 0x31: "ERR_GENERIC",
+          0x33: "ERR_RESOURCE_TEMPORARY_NOT_ACCESSIBLE"}
 EXT = 0x80000000
 RES_CALPAG = 0x01
 
@@ -44,13 +46,15 @@ class Master:
         raise XcpError(f"no XCP answer to {name} on CRO 0x{d.cro_id:X} within {self.timeout:g} s: is the "
                        "ECU daemon running on this bus, with --xcp on and the same identifiers?")
 
-    def connect(self, key_for=None) -> None:
-        """CONNECT and, with `key_for(seed) -> key`, unlock calibration (seed & key)."""
+    def connect(self, key: bytes | None = None) -> None:
+        """CONNECT and, with the seed & key `key` (keys.load_key), unlock calibration."""
         self._cmd("CONNECT", 0xFF, 0x00)
-        if key_for is not None:
+        if key is not None:
             seed = self._cmd("GET_SEED", 0xF8, 0x00, RES_CALPAG)
-            key = key_for(seed[2:2 + seed[1]])
-            self._cmd("UNLOCK", 0xF7, len(key), *key)
+            if seed[1] == 0:
+                return  # unlocked already
+            answer = key_for(seed[2:2 + seed[1]], RES_CALPAG, key)
+            self._cmd("UNLOCK", 0xF7, len(answer), *answer)
 
     def disconnect(self) -> None:
         self._cmd("DISCONNECT", 0xFE)

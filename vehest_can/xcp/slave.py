@@ -20,7 +20,7 @@ XCP_ERRORS = {
     0x23: "ERR_WRITE_PROTECTED", 0x24: "ERR_ACCESS_DENIED", 0x25: "ERR_ACCESS_LOCKED",
     0x26: "ERR_PAGE_NOT_VALID", 0x27: "ERR_MODE_NOT_VALID", 0x28: "ERR_SEGMENT_NOT_VALID",
     0x29: "ERR_SEQUENCE", 0x2A: "ERR_DAQ_CONFIG", 0x30: "ERR_MEMORY_OVERFLOW", 0x31: "ERR_GENERIC",
-    0x32: "ERR_VERIFY",
+    0x32: "ERR_VERIFY", 0x33: "ERR_RESOURCE_TEMPORARY_NOT_ACCESSIBLE",
 }
 EXTENDED = 0x80000000  # XCP-on-CAN convention: bit 31 of an identifier marks a 29-bit one
 COUNTERS = [f[0] for f in ffi.typeof("vh_xcp_counters_t").fields]
@@ -38,10 +38,14 @@ class Frame:
     data: bytes
 
 
-def key_for(seed: bytes, secret: int) -> bytes:
-    """The key the slave expects for a 4-byte seed (the same algorithm as vh_xcp_key)."""
-    (s,) = struct.unpack("<I", seed)
-    return struct.pack("<I", lib.vh_xcp_key(s, secret))
+def firmware_key_for(seed: bytes, resource: int, key: bytes) -> bytes:
+    """The key as this slave's C computes it (vh_xcp_key); keys.key_for is the independent master's."""
+    k = ffi.new("vh_cmac_key_t *")
+    if lib.vh_cmac_init(k, key) != 0:
+        raise XcpConfigError("the AES backend refused the key")
+    out = ffi.new("uint8_t[]", lib.VH_XCP_KEY_LEN)
+    lib.vh_xcp_key(k, resource, seed, out)
+    return bytes(out)
 
 
 def _f32(v: float) -> float:
@@ -58,12 +62,19 @@ def raw_limits_for_c(item: Item) -> tuple[float, float]:
 class Slave:
     """One C slave instance and the memory it serves (all kept alive by this object)."""
 
-    def __init__(self, desc: Description, *, secret: int = 0x5EC0DE42, protect: int = 0x05,
+    def __init__(self, desc: Description, *, key: bytes, protect: int = 0x05,
                  tick_us: int | None = None, open_ticks: int = 200, pad8: bool = False,
-                 ident: str = "vehest-can ECU XCP slave"):
+                 ident: str = "vehest-can ECU XCP slave", salt: bytes = bytes(8),
+                 unlock_delay_ticks: int = 1000, unlock_attempts: int = 5, safe: bool | None = None):
+        """`key`: the 16-byte seed & key key; `safe`: None (no safe state: every class writable), or
+        the initial value of a safe-state flag the caller sets with ``set_safe``."""
         self.desc = desc
-        self.secret = secret
+        self.key = key
         self._keep = []
+        self._cmac = ffi.new("vh_cmac_key_t *")
+        if len(key) != 16 or lib.vh_cmac_init(self._cmac, key) != 0:
+            raise XcpConfigError("the seed & key key must be 16 bytes (AES-128)")
+        self._safe = ffi.new("uint8_t *", int(bool(safe)))
         self.measurements = ffi.new("uint8_t[]", max(desc.measurement_size, 1))
         cal = max(desc.calibration_size, 1)
         self.cal_ref = ffi.new("uint8_t[]", self._reference_image(cal))
@@ -79,6 +90,7 @@ class Slave:
             chars[i].address = c.address
             chars[i].count = c.count
             chars[i].type = c.type_code
+            chars[i].flags = lib.VH_XCP_CHAR_SAFETY if c.safety_class == "safety" else 0
             chars[i].min, chars[i].max = raw_limits_for_c(c)
         events = ffi.new("vh_xcp_event_t[]", max(len(desc.events), 1))
         for i, ev in enumerate(desc.events):
@@ -91,7 +103,9 @@ class Slave:
         cfg = ffi.new("vh_xcp_config_t *")
         cfg.cro_id, cfg.dto_id = desc.cro_id, desc.dto_id
         cfg.max_cto, cfg.max_dto, cfg.fd, cfg.pad8 = desc.max_cto, desc.max_dto, desc.fd, pad8
-        cfg.protect, cfg.secret, cfg.open_ticks = protect, secret, open_ticks
+        cfg.protect, cfg.key, cfg.salt, cfg.open_ticks = protect, self._cmac, salt, open_ticks
+        cfg.unlock_delay_ticks, cfg.unlock_attempts = unlock_delay_ticks, unlock_attempts
+        cfg.safe = ffi.NULL if safe is None else self._safe
         cfg.tick_us = desc.tick_us if tick_us is None else tick_us
         cfg.regions, cfg.n_regions = regions, 1
         cfg.cal_address, cfg.cal_size = desc.calibration_address, desc.calibration_size
@@ -134,6 +148,10 @@ class Slave:
 
     def counters(self) -> dict[str, int]:
         return {name: getattr(self.x.n, name) for name in COUNTERS}
+
+    def set_safe(self, safe: bool) -> None:
+        """The caller's safe state (given `safe` at construction)."""
+        self._safe[0] = int(bool(safe))
 
     # -- the memory image -----------------------------------------------------------------------
     def _buf(self, item: Item, which: str):

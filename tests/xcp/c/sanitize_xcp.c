@@ -35,12 +35,17 @@ static const uint8_t KNOWN[] = {0xFF, 0xFE, 0xFD, 0xFC, 0xFB, 0xFA, 0xF8, 0xF7, 
 #define CAL_ADDR 0x20000000u
 
 static uint8_t meas[64], meas_copy[64];
+static uint8_t safe = 1u; /* the caller's safe state: toggled by the random run */
+/* RFC 4493's published AES-128 test key: a test vector, not a secret */
+static const uint8_t TEST_KEY[16] = {0x2b, 0x7e, 0x15, 0x16, 0x28, 0xae, 0xd2, 0xa6,
+                                     0xab, 0xf7, 0x15, 0x88, 0x09, 0xcf, 0x4f, 0x3c};
+static vh_cmac_key_t key;
 static uint8_t cal_ref[40], cal_work[40], cal_ecu[40];
 static const vh_xcp_char_t CHARS[] = {
-    {CAL_ADDR + 0u, 4u, VH_XCP_F32, 0.0, 100.0},   /* float[4] */
-    {CAL_ADDR + 16u, 1u, VH_XCP_I16, -400.0, 400.0},
-    {CAL_ADDR + 18u, 1u, VH_XCP_U8, 1.0, 200.0},
-    {CAL_ADDR + 24u, 2u, VH_XCP_F64, -1.0, 1.0},    /* double[2], a gap before it */
+    {CAL_ADDR + 0u, 4u, VH_XCP_F32, 0u, 0.0, 100.0},   /* float[4] */
+    {CAL_ADDR + 16u, 1u, VH_XCP_I16, VH_XCP_CHAR_SAFETY, -400.0, 400.0}, /* written only while `safe` */
+    {CAL_ADDR + 18u, 1u, VH_XCP_U8, 0u, 1.0, 200.0},
+    {CAL_ADDR + 24u, 2u, VH_XCP_F64, VH_XCP_CHAR_SAFETY, -1.0, 1.0},    /* double[2], a gap before it */
 };
 static const vh_xcp_region_t REGIONS[] = {
     {MEAS_ADDR, 48u, VH_XCP_ACC_READ | VH_XCP_ACC_DAQ, meas},
@@ -133,7 +138,6 @@ static void wr32le(uint8_t *p, uint32_t v)
 static void unlock(vh_xcp_t *x, uint8_t res)
 {
     uint8_t r[64], c[8] = {0xF8, 0x00, 0};
-    uint32_t seed, key;
     c[2] = res;
     if (ok(x, c, 3, 0, r) != 0xFFu) {
         FAIL("GET_SEED");
@@ -141,11 +145,9 @@ static void unlock(vh_xcp_t *x, uint8_t res)
     if (r[1] == 0u) {
         return;
     }
-    seed = (uint32_t)r[2] | ((uint32_t)r[3] << 8) | ((uint32_t)r[4] << 16) | ((uint32_t)r[5] << 24);
-    key = vh_xcp_key(seed, 0x5EC0DE42u);
-    c[0] = 0xF7; c[1] = 4;
-    wr32le(&c[2], key);
-    if (ok(x, c, 6, 0, r) != 0xFFu) {
+    vh_xcp_key(&key, res, &r[2], &c[2]);
+    c[0] = 0xF7; c[1] = VH_XCP_KEY_LEN;
+    if (ok(x, c, 2 + VH_XCP_KEY_LEN, 0, r) != 0xFFu) {
         FAIL("UNLOCK");
     }
 }
@@ -203,7 +205,8 @@ static void run_variant(int fd, int big, int pad8, unsigned rounds)
     cfg.cro_id = 0x7F0u; cfg.dto_id = 0x800007F1u;
     cfg.max_cto = fd ? 64u : 8u; cfg.max_dto = fd ? 64u : 8u;
     cfg.fd = (uint8_t)fd; cfg.pad8 = (uint8_t)pad8; cfg.big_endian = (uint8_t)big;
-    cfg.protect = VH_XCP_RES_CALPAG | VH_XCP_RES_DAQ; cfg.secret = 0x5EC0DE42u;
+    cfg.protect = VH_XCP_RES_CALPAG | VH_XCP_RES_DAQ; cfg.key = &key; cfg.safe = &safe;
+    /* no delay, no lockout here: random UNLOCKs would lock the scripted parts out (the fuzz target has them) */
     cfg.tick_us = 500u; cfg.open_ticks = 50u;
     cfg.regions = REGIONS; cfg.n_regions = 2u;
     cfg.cal_address = CAL_ADDR; cfg.cal_size = sizeof cal_ref;
@@ -265,8 +268,15 @@ static void run_variant(int fd, int big, int pad8, unsigned rounds)
         send(x, (len == 0u && (rnd() & 1u)) ? NULL : c, len, tick);
         (void)answers(x, cfg.max_cto, cfg.max_dto, -1);
         if ((rnd() % 4u) == 0u) {
+            uint8_t held[40];
             tick++;
+            safe = (uint8_t)((rnd() % 3u) != 0u);
+            memcpy(held, cal_ecu, sizeof held);
             vh_xcp_tick(x, tick);
+            /* outside the safe state no safety-relevant byte of the ECU page changes */
+            if (!safe && (memcmp(held + 16, cal_ecu + 16, 2) != 0 || memcmp(held + 24, cal_ecu + 24, 16) != 0)) {
+                FAIL("a safety-relevant characteristic changed outside the safe state");
+            }
             meas[0] = (uint8_t)tick; /* the ECU writing its measurements */
             meas_copy[0] = meas[0];
             vh_xcp_event(x, (uint16_t)(rnd() % 4u)); /* channel 3 does not exist */
@@ -298,6 +308,9 @@ int main(int argc, char **argv)
 {
     unsigned rounds = (argc > 1) ? (unsigned)strtoul(argv[1], NULL, 10) : 200000u;
     int fd, big, pad8;
+    if (vh_cmac_init(&key, TEST_KEY) != 0) {
+        FAIL("key");
+    }
     for (fd = 0; fd < 2; ++fd) {
         for (big = 0; big < 2; ++big) {
             for (pad8 = 0; pad8 < 2; ++pad8) {
