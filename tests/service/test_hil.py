@@ -224,6 +224,20 @@ def test_dbc_files_that_do_not_load_or_do_not_match_the_firmware(tmp_path):
     assert cfg.real == ("DLS", "SIM", "CIS") and cfg.buses[0].dbc == tmp_path / "moved.dbc"
 
 
+def test_a_cyclic_frame_with_cycle_time_0_is_invalid(tmp_path, capsys):
+    """Counted as an event frame, the 2 kHz DLS_Sensors would leave the bus load (29 % instead of 54 %)."""
+    path = custom_dbc(tmp_path, "zero.dbc")
+    line = 'BA_ "CycleTimeUs" BO_ 256 500;'
+    path.write_text(path.read_text().replace(line, line.replace("500", "0")))
+    config = write(tmp_path, mutate(buses__pt__dbc="zero.dbc"))
+    with pytest.raises(ConfigError, match=r"hil.toml: buses\.pt\.dbc: zero\.dbc: DLS_Sensors \(0x100\) is cyclic "
+                                          r"\(GenMsgSendType = Cyclic; CycleTimeUs = 0; .*\) but has no cycle time"):
+        load_hil_config(config)
+    assert main(["hil", str(config), "--check"]) == 1
+    captured = capsys.readouterr()
+    assert "valid" not in captured.out and captured.err.startswith(f"error: {config}: buses.pt.dbc: ")
+
+
 def test_nodes_of_other_dbcs_must_be_declared_and_only_ours_can_be_simulated(tmp_path):
     custom_dbc(tmp_path, "gw.dbc", nodes="DLS VEHEST SIM GW")
     doc = mutate(buses__pt__dbc="gw.dbc")

@@ -26,7 +26,7 @@ from typing import Any
 import can
 
 from ..bus import bus as busmod
-from ..bus.busload import bus_load, load_dbc
+from ..bus.busload import bus_load, check_cycles, load_dbc
 from ..bus.frames import BUSES, database
 from ..errors import ConfigError, ScenarioError, VehestError
 from ..paths import dbc_dir
@@ -428,6 +428,10 @@ def _bus(c: _Checker, name: str, doc, base: Path, databases: dict) -> HilBus:
         except ConfigError as exc:
             c.fail(f"{key}.dbc", str(exc))
     db = databases[dbc]
+    try:
+        check_cycles(db, dbc.name)
+    except ConfigError as exc:
+        c.fail(f"{key}.dbc", str(exc))
     fd_frames = [m for m in db.messages if m.is_fd or m.length > 8]
     if fd_frames and not fd:
         listed = ", ".join(f"{m.name} ({m.length} bytes)" for m in fd_frames[:3])
