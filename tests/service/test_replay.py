@@ -335,7 +335,7 @@ def test_the_mf4_table_holds_the_logged_estimates(lockstep_log, tmp_path):
     (["-o", "{tmp}/x.xyz"], "unknown log format"),
     (["-c", "x"], "apply to --play only"),
     (["--play", "--table", "{tmp}/x.csv"], "--play only sends the log"),
-    (["--max-gap", "nan"], "--max-gap must be a positive"),
+    (["--max-gap", "nan"], "--max-gap must be a finite number of seconds in 0.0005..3600, not nan"),
 ])
 def test_bad_replay_arguments_are_clear_errors(lockstep_log, tmp_path, capsys, args, problem):
     from vehest_can.cli import main

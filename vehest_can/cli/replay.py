@@ -1,15 +1,16 @@
 """``vehest-can replay LOG``: run a recorded log through the ECU offline, or play it onto a bus."""
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 from ..bus import bus as busmod
+from ..bus.frames import TICK_S
 from ..bus.log import SessionLog, check_log_file, check_log_frames, check_log_path
 from ..errors import ConfigError
 from ..progress import Progress
 from ..service.estimates import TABLE_FORMATS, EstimateTable, check_table_path
 from ..service.replay import ECU_TX, MAX_GAP_S, play, replay_file
+from ._common import check_range
 
 _BUS_FLAGS = ("interface", "channel", "bitrate", "fd", "data_bitrate", "timing", "bus_kwargs", "bus_config", "bus_context")
 
@@ -30,7 +31,7 @@ def add_subparser(subparsers) -> None:
     p.add_argument("--max-gap", type=float, default=MAX_GAP_S, metavar="S",
                    help=f"a gap between frames longer than S seconds is not stepped through tick by tick: the ECU "
                         f"steps S seconds of idle ticks, then the clock jumps to the next frame; with --play, the "
-                        f"gap is shortened to S (default {MAX_GAP_S:g})")
+                        f"gap is shortened to S (default {MAX_GAP_S:g}; {TICK_S:g}..3600)")
     p.add_argument("--play", action="store_true",
                    help="send the log's frames (not the ECU's own) onto the bus of -i/-c at their recorded pace "
                         "(default: udp_multicast on this host only)")
@@ -39,8 +40,8 @@ def add_subparser(subparsers) -> None:
 
 
 def run(args) -> int:
-    if not (math.isfinite(args.max_gap) and args.max_gap > 0):
-        raise ConfigError(f"--max-gap must be a positive number of seconds, not {args.max_gap}")
+    # a gap shorter than a tick is no gap; an hour of idle ticks is 7.2 M steps of the ECU
+    check_range(args.max_gap, "--max-gap", TICK_S, 3600.0, "seconds")
     if args.play:
         return _play(args)
     given = [f for f in _BUS_FLAGS if getattr(args, f, None) not in (None, False, [], {})]  # python-can's: absent if not given
