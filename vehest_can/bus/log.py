@@ -25,7 +25,7 @@ from __future__ import annotations
 import json
 import mmap
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Generator, Iterable, Iterator
 from pathlib import Path
 
 import can
@@ -170,7 +170,7 @@ def no_frames(path: Path) -> ConfigError:
     return ConfigError(f"{path}: no CAN data frames in this log ({what})")
 
 
-def iter_log(path: str | Path) -> Iterator[can.Message]:
+def iter_log(path: str | Path) -> Generator[can.Message, None, None]:
     """The data frames of a log, one by one (error and remote frames skipped); a malformed file,
     a log without a data frame or an ID beyond 29 bits is a ConfigError."""
     path = check_log_file(path)

@@ -18,6 +18,7 @@ import queue
 import threading
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import can
 import numpy as np
@@ -210,7 +211,7 @@ class Recording:
     def __init__(self) -> None:
         self._frames: list[np.ndarray] = []
         self._ticks: list[np.ndarray] = []
-        self._c = None  # the last chunk as vh_frame_t[]
+        self._c: Any = None  # the last chunk as vh_frame_t[]
         self._i = self.CHUNK
         self.n = 0
 
