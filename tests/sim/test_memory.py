@@ -2,7 +2,8 @@
 frames go to --log as they come): measured as bytes retained per frame sent, not as a timed figure.
 
 Once every frame stayed in a list as a ``can.Message`` and the truth of every tick in an array:
-`vehest-can sim --duration 600` grew from 8 MB to 819 MB (docs/hil.md has the long-run figures)."""
+`vehest-can sim --duration 600` grew by about 0.8 MB per simulated second (docs/hil.md, "Memory over a
+long run")."""
 import threading
 import tracemalloc
 
