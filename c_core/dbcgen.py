@@ -29,10 +29,12 @@ For each ``dbc/vehest_<bus>.dbc`` this writes into the output folder:
   senders of every DBC in name order; c_core/secoc/vh_secoc_bus.h).
 
 A cycle time that is not a whole number of ECU ticks cannot build: the meta header asserts it
-against ``VH_TICK_US`` at compile time.
+against ``VH_TICK_US`` at compile time. A frame the DBC marks cyclic without a cycle time does not
+generate (vehest_can/bus/cyclic.py, loaded alone: the build does not import the package).
 """
 from __future__ import annotations
 
+import importlib.util
 import re
 import sys
 from fractions import Fraction
@@ -43,6 +45,10 @@ from cantools.database.can.c_source import camel_to_snake_case, generate
 
 ROOT = Path(__file__).resolve().parent.parent
 DBC_DIR = ROOT / "dbc"
+# which frames must have a cycle time: the rule `vehest-can busload` applies, from its file alone
+_spec = importlib.util.spec_from_file_location("vh_cyclic", ROOT / "vehest_can" / "bus" / "cyclic.py")
+cyclic = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(cyclic)
 
 
 def db_name(dbc_path: Path) -> str:
@@ -162,6 +168,8 @@ def meta_header(db, name: str) -> str:
         "",
     ]
     for m in db.messages:
+        if error := cyclic.zero_cycle_error(m, cycle_time_us(m)):
+            raise ValueError(f"{name}: {error}")
         pre = f"{up}_{camel_to_snake_case(m.name).upper()}"
         lines.append(f"#define {pre}_CYCLE_TIME_US ({cycle_time_us(m)}u)")
         lines.append(f"#define {pre}_E2E_DATA_ID ({int(_attr(m, 'E2EDataID', 0))}u)")

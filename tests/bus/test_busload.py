@@ -8,6 +8,9 @@ from __future__ import annotations
 
 import itertools
 import json
+import re
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -300,6 +303,98 @@ def test_cycle_time_us_and_odd_lengths(tmp_path):
     assert (odd.fd, odd.brs, odd.wire_length) == (True, False, 16)
     assert any("16" in n for n in odd.notes) and any("bit rate switching" in n for n in odd.notes)
     assert odd.bits_worst == (sum(fd_expected(16, False, True)), 0)
+
+
+# --- cyclic frames without a cycle time ---------------------------------------------------------------
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def zero_cycle_pt(tmp_path) -> Path:
+    """The project's powertrain DBC with the 2 kHz DLS_Sensors given cycle time 0."""
+    text = dbc_path("pt").read_text()
+    line = 'BA_ "CycleTimeUs" BO_ 256 500;'
+    assert line in text
+    path = tmp_path / "zero.dbc"
+    path.write_text(text.replace(line, line.replace("500", "0")))
+    return path
+
+
+ZERO_CYCLE = r"DLS_Sensors \(0x100\) is cyclic \(GenMsgSendType = Cyclic; CycleTimeUs = 0; RxTimeoutCycles = 4: " \
+             r"received with a timeout\) but has no cycle time"
+
+
+def test_a_2khz_frame_with_cycle_time_0_is_an_error_not_an_event_frame(tmp_path, capsys):
+    path = zero_cycle_pt(tmp_path)
+    with pytest.raises(ConfigError, match=rf"zero\.dbc: {ZERO_CYCLE}"):
+        bus_load(path)
+    assert main(["busload", str(path)]) == 1
+    err = capsys.readouterr().err
+    assert re.match(rf"error: .*zero\.dbc: {ZERO_CYCLE}: give it a CycleTimeUs", err) and "Traceback" not in err
+    assert err.count("\n") == 1
+
+
+ONE_FRAME = """VERSION ""
+
+NS_ :
+
+BS_:
+
+BU_: ECU
+
+BO_ 291 Fast: 8 ECU
+ SG_ A : 0|16@1+ (1,0) [0|65535] "" Vector__XXX
+
+BA_DEF_ BO_ "CycleTimeUs" INT 0 100000000;
+BA_DEF_ BO_ "GenMsgCycleTime" INT 0 65535;
+BA_DEF_ BO_ "GenMsgSendType" ENUM "Cyclic","Event";
+BA_DEF_ BO_ "RxTimeoutCycles" INT 0 255;
+BA_DEF_DEF_ "CycleTimeUs" 0;
+BA_DEF_DEF_ "GenMsgCycleTime" 0;
+BA_DEF_DEF_ "GenMsgSendType" "Event";
+BA_DEF_DEF_ "RxTimeoutCycles" 0;
+"""
+
+
+def one_frame_dbc(tmp_path, attributes: str) -> Path:
+    path = tmp_path / "one.dbc"
+    path.write_text(ONE_FRAME + attributes)
+    return path
+
+
+@pytest.mark.parametrize("attributes, why", [
+    ('BA_ "GenMsgSendType" BO_ 291 0;\n', "GenMsgSendType = Cyclic"),
+    ('BA_ "GenMsgCycleTime" BO_ 291 0;\n', "GenMsgCycleTime = 0"),
+    ('BA_ "CycleTimeUs" BO_ 291 0;\n', "CycleTimeUs = 0"),
+    ('BA_ "RxTimeoutCycles" BO_ 291 3;\n', "RxTimeoutCycles = 3: received with a timeout"),
+])
+def test_each_way_a_dbc_marks_a_frame_cyclic(tmp_path, attributes, why):
+    path = one_frame_dbc(tmp_path, attributes)
+    with pytest.raises(ConfigError, match=rf"Fast \(0x123\) is cyclic \({re.escape(why)}\) but has no cycle time"):
+        bus_load(path, 500_000)
+    # the same frame with its cycle time: 54 % of the bus, as a 2 kHz 8-byte frame is
+    ok = one_frame_dbc(tmp_path, attributes + 'BA_ "CycleTimeUs" BO_ 291 500;\n')  # the last BA_ counts
+    assert bus_load(ok, 500_000).worst_pct == pytest.approx(54.0)
+
+
+@pytest.mark.parametrize("attributes", [
+    "",                                                                  # nothing says cyclic
+    'BA_ "GenMsgSendType" BO_ 291 1;\nBA_ "GenMsgCycleTime" BO_ 291 0;\n',  # Event, as tools write it
+])
+def test_event_frames_stay_event_frames(tmp_path, attributes):
+    (frame,) = bus_load(one_frame_dbc(tmp_path, attributes), 500_000).frames
+    assert frame.event and frame.worst_pct == 0
+
+
+def test_the_firmware_build_refuses_the_same_frames(tmp_path):
+    """c_core/dbcgen.py applies the same rule, loading vehest_can/bus/cyclic.py alone (no package import)."""
+    code = ("import sys; sys.path.insert(0, 'c_core'); import dbcgen, cantools; "
+            "assert not [m for m in sys.modules if m.startswith('vehest_can')], 'dbcgen imported vehest_can'; "
+            f"dbcgen.meta_header(cantools.database.load_file({str(dbc_path('pt'))!r}), 'vh_pt'); "
+            f"dbcgen.meta_header(cantools.database.load_file({str(zero_cycle_pt(tmp_path))!r}), 'vh_pt')")
+    r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 1 and "dbcgen imported" not in r.stderr, r.stderr
+    assert re.search(rf"ValueError: vh_pt: {ZERO_CYCLE}", r.stderr), r.stderr
 
 
 # --- CLI -------------------------------------------------------------------------------------------------

@@ -223,6 +223,39 @@ def test_daemon_with_bad_bus_kwargs_is_an_error_not_a_traceback(capsys):
     assert "Traceback" not in err
 
 
+@pytest.mark.parametrize("kwargs, problem", [
+    (["bogus_kw=1"], "bus keyword argument bogus_kw=1: python-can's udp_multicast interface takes no argument "
+                     "'bogus_kw' (it takes: can_filters, channel, fd, hop_limit, multicast_interface, port, "
+                     "receive_own_messages)"),
+    (["fd=maybe"], "bus keyword argument fd=maybe: python-can's udp_multicast interface takes fd as bool "
+                   "(true or false), not 'maybe'"),
+    (["port=1.5"], "bus keyword argument port=1.5: python-can's udp_multicast interface takes port as int, not 1.5"),
+    (["port=50000", "hop_limt=1"], "takes no argument 'hop_limt' (did you mean 'hop_limit'?"),
+])
+@pytest.mark.parametrize("verb", [["monitor", "--duration", "0.1"], ["daemon", "--duration", "0.1"],
+                                  ["sim", "launch_2nd", "--duration", "0.1"]])
+def test_unknown_or_mistyped_bus_kwargs_are_refused_with_what_the_interface_takes(capsys, verb, kwargs, problem):
+    """Once accepted and ignored: python-can hands unknown keyword arguments to BusABC, which drops them."""
+    rc = main([*verb, "--bus-kwargs", *kwargs])
+    err = capsys.readouterr().err
+    assert rc == 1 and err.startswith("error: ") and problem in err and "Traceback" not in err, err
+
+
+def test_bus_kwargs_are_checked_against_each_interfaces_signature():
+    """python-can's own classes, introspected: what each takes and the simple types of its values."""
+    ok = {"virtual": {"rx_queue_size": 10, "preserve_timestamps": True, "receive_own_messages": 1},
+          "socketcan": {"local_loopback": False, "fd": True, "ignore_rx_error_frames": True},
+          "udp_multicast": {"port": 50000, "hop_limit": 1, "multicast_interface": "eth0", "fd": False,
+                            "can_filters": [1]}}
+    for interface, kwargs in ok.items():
+        assert busmod.check_bus_kwargs(interface, kwargs) == ([], "")
+    problems, _ = busmod.check_bus_kwargs("virtual", {"rx_queue_size": 1.5, "protocol": "x", "bogus": 1})
+    assert [k for k, _ in problems] == ["rx_queue_size", "bogus"]  # protocol is an enum: not checked
+    assert "takes rx_queue_size as int, not 1.5" in problems[0][1]
+    args, _ = busmod.interface_arguments("socketcan")
+    assert args is not None and args["fd"] == (bool,) and args["can_filters"] is None and "kwargs" not in args
+
+
 @pytest.mark.parametrize("where", ["env", "file"])
 def test_a_bogus_interface_named_outside_the_flags_is_an_error_not_the_default_bus(tmp_path, monkeypatch, capsys, where):
     """python-can refuses an unknown interface; so does vehest-can, wherever it was named (a bench

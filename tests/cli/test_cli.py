@@ -93,7 +93,41 @@ def test_missing_files_are_errors_not_tracebacks(tmp_path, capsys):
 
 def test_bad_daemon_burst_limit_is_an_error(capsys):
     assert main(["daemon", "--rx-burst-limit", "300"]) == 1
-    assert "rx_burst_frames must be 0..255" in capsys.readouterr().err
+    assert "error: --rx-burst-limit must be a finite number of frames per message and tick in 0..255, not 300" \
+        in capsys.readouterr().err
+
+
+FLOATS = ("nan", "inf", "-inf", "-1", "0", "1e300")
+RANGES = [  # (verb and flags, the flag, its range and unit in the error, values out of it)
+    (["camber", "bound"], "--lsb-mg", "mg in 0.0001..500", (*FLOATS, "1e-300", "501")),
+    (["camber", "measure", "--from-log", "x.log"], "--timeout", "seconds > 0 and at most 3600", (*FLOATS, "3601")),
+    (["camber", "calibrate", "-o", "cal.json", "--x-down", "x.log", "--z-down", "z.log"], "--timeout",
+     "seconds > 0 and at most 3600", FLOATS),
+    (["camber", "calibrate", "-o", "cal.json", "--x-down", "x.log", "--z-down", "z.log"], "--samples",
+     "samples per pose in 2..1000000", ("1", "-5", "1000001")),
+    (["replay", "x.log"], "--max-gap", "seconds in 0.0005..3600", (*FLOATS, "1e-300", "0.0004", "3601")),
+    (["daemon"], "--rx-burst-limit", "frames per message and tick in 0..255", ("-1", "256")),
+    (["faults"], "--tx-queue", "frames in 1..10000", ("0", "10001")),
+]
+
+
+@pytest.mark.parametrize("argv, flag, bound, values", RANGES, ids=[f"{r[0][0]}{r[1]}" for r in RANGES])
+def test_physical_arguments_out_of_range_are_errors(tmp_path, monkeypatch, capsys, argv, flag, bound, values):
+    """Once `camber bound --lsb-mg 1e-300` printed 0.0000 deg: every such flag has its physical range,
+    checked before any file is read or bus opened."""
+    monkeypatch.chdir(tmp_path)
+    for value in values:
+        assert main([*argv, f"{flag}={value}"]) == 1, value
+        err = capsys.readouterr().err
+        assert err.startswith(f"error: {flag} must be a finite number of {bound}") and "Traceback" not in err, err
+        assert err.count("\n") == 1
+
+
+def test_camber_bound_prints_its_figure_with_four_significant_digits(capsys):
+    assert main(["camber", "bound", "--lsb-mg", "4"]) == 0
+    assert "with 4 mg per axis: 0.2292 deg" in capsys.readouterr().out
+    assert main(["camber", "bound", "--lsb-mg", "0.0001"]) == 0
+    assert "with 0.0001 mg per axis: 5.73e-06 deg" in capsys.readouterr().out
 
 
 def test_unknown_verb_and_flags(capsys):

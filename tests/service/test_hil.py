@@ -182,6 +182,10 @@ CASES = [
      "buses.pt.kwargs.loopback", "takes no argument 'loopback' (did you mean 'local_loopback'?"),
     (dict(buses__pt__interface="virtual", buses__pt__kwargs={"recieve_own_messages": True}),
      "buses.pt.kwargs.recieve_own_messages", "did you mean 'receive_own_messages'?"),
+    (dict(buses__pt__interface="virtual", buses__pt__kwargs={"rx_queue_size": "big"}),
+     "buses.pt.kwargs.rx_queue_size", "python-can's virtual interface takes rx_queue_size as int, not 'big'"),
+    (dict(buses__pt__interface="socketcan", buses__pt__channel="vcan0", buses__pt__kwargs={"local_loopback": 2}),
+     "buses.pt.kwargs.local_loopback", "takes local_loopback as bool (true or false), not 2"),
     (dict(buses__pt__interface="kvaser", buses__pt__channel="can0"), "buses.pt.channel",
      "a Kvaser channel is a channel number"),
     (dict(buses__pt__interface="pcan", buses__pt__channel="PCAN_USB1", buses__pt__timing=FD_TIMING),
@@ -222,6 +226,20 @@ def test_dbc_files_that_do_not_load_or_do_not_match_the_firmware(tmp_path):
     cfg = load_hil_config(write(tmp_path, mutate(buses__pt__dbc="moved.dbc", nodes__simulated=["VEHEST"],
                                                  nodes__real=["DLS", "SIM"], scenario=None)))
     assert cfg.real == ("DLS", "SIM", "CIS") and cfg.buses[0].dbc == tmp_path / "moved.dbc"
+
+
+def test_a_cyclic_frame_with_cycle_time_0_is_invalid(tmp_path, capsys):
+    """Counted as an event frame, the 2 kHz DLS_Sensors would leave the bus load (29 % instead of 54 %)."""
+    path = custom_dbc(tmp_path, "zero.dbc")
+    line = 'BA_ "CycleTimeUs" BO_ 256 500;'
+    path.write_text(path.read_text().replace(line, line.replace("500", "0")))
+    config = write(tmp_path, mutate(buses__pt__dbc="zero.dbc"))
+    with pytest.raises(ConfigError, match=r"hil.toml: buses\.pt\.dbc: zero\.dbc: DLS_Sensors \(0x100\) is cyclic "
+                                          r"\(GenMsgSendType = Cyclic; CycleTimeUs = 0; .*\) but has no cycle time"):
+        load_hil_config(config)
+    assert main(["hil", str(config), "--check"]) == 1
+    captured = capsys.readouterr()
+    assert "valid" not in captured.out and captured.err.startswith(f"error: {config}: buses.pt.dbc: ")
 
 
 def test_nodes_of_other_dbcs_must_be_declared_and_only_ours_can_be_simulated(tmp_path):

@@ -335,7 +335,7 @@ def test_the_mf4_table_holds_the_logged_estimates(lockstep_log, tmp_path):
     (["-o", "{tmp}/x.xyz"], "unknown log format"),
     (["-c", "x"], "apply to --play only"),
     (["--play", "--table", "{tmp}/x.csv"], "--play only sends the log"),
-    (["--max-gap", "nan"], "--max-gap must be a positive"),
+    (["--max-gap", "nan"], "--max-gap must be a finite number of seconds in 0.0005..3600, not nan"),
 ])
 def test_bad_replay_arguments_are_clear_errors(lockstep_log, tmp_path, capsys, args, problem):
     from vehest_can.cli import main
@@ -436,3 +436,107 @@ def test_the_table_of_a_timestamp_paced_log_is_on_its_clock(session, tmp_path):
     assert np.allclose(df["time"] - inputs[0].timestamp, [m.timestamp for m in ref_prod], rtol=0, atol=1e-6)
     assert np.allclose(df["tick"] * TICK_S, [m.timestamp for m in ref_prod], rtol=0, atol=1e-9)
     assert [int(x, 16) for x in df["frame_id"]] == [m.arbitration_id for m in ref_prod]
+
+
+# -- logs that hold nothing, and time that goes backwards --------------------------------------------
+
+@pytest.mark.parametrize("name, content, problem", [
+    ("empty.asc", b"", "no CAN data frames in this log (the file is empty)"),
+    ("empty.log", b"", "no CAN data frames in this log (the file is empty)"),
+    ("words.asc", b"hello\nnot a log at all\n", "no CAN data frames in this log (nothing in it reads as a .asc frame)"),
+    ("blank.log", b"\n\n", "no CAN data frames in this log (nothing in it reads as a .log frame)"),
+    ("noise.asc", bytes(range(128, 256)) * 8, "not a readable CAN log"),
+    ("noise.blf", bytes(range(256)) * 8, "not a readable CAN log"),
+    ("noise.log", b"garbage\n", "line 1: not a candump -L frame|not a readable CAN log"),  # C reader | --play's
+])
+@pytest.mark.parametrize("play", [False, True])
+def test_an_empty_or_unreadable_log_is_an_error(tmp_path, capsys, name, content, problem, play):
+    """Once these replayed '100 %' with exit status 0 (python-can's readers skip what they do not know)."""
+    from vehest_can.bus.bus import cli_args, private_multicast
+    from vehest_can.cli import main
+
+    path = tmp_path / name
+    path.write_bytes(content)
+    assert main(["replay", str(path), *(["--play", *cli_args(private_multicast())] if play else [])]) == 1
+    captured = capsys.readouterr()
+    problem = problem.split("|")[play if "|" in problem else 0]
+    assert captured.err.startswith(f"error: {path}: ") and problem in captured.err, captured.err
+    assert "Traceback" not in captured.err and captured.out == ""
+    assert captured.err.count("\n") == 1
+
+
+def candump_lines(msgs, times) -> str:
+    """candump -L text with the given times (s, or whole µs as ints): python-can's writer would clamp a
+    time that goes back."""
+    def stamp(t):
+        return f"{t // 1_000_000}.{t % 1_000_000:06d}" if isinstance(t, (int, np.integer)) else f"{t:.6f}"
+    return "".join(f"({stamp(t)}) pt {m.arbitration_id:03X}##{int(m.bitrate_switch)}{bytes(m.data).hex().upper()}\n"
+                   for m, t in zip(msgs, times))
+
+
+def test_a_jump_back_in_time_is_counted_not_stepped_as_a_gap(session, tmp_path, capsys):
+    """A timestamp-paced log whose clock is set back 100 s halfway: once sorted into a 100 s forward
+    gap without a word (the second half handed in first, then 200,000 idle ticks). Now counted, and
+    the clock goes on from the frame before: the replay is that of the log without the jump."""
+    from vehest_can.cli import main
+
+    msgs = [m for m in session.messages() if m.arbitration_id not in ECU_TX]
+    # whole µs, every frame but the first 200 µs into its tick (a µs of rounding moves none to another)
+    t = np.array([1764620000_000000 + round(m.timestamp * 1e6) + (200 if i else 0) for i, m in enumerate(msgs)])
+    j = len(t) // 2
+    jumped = t.copy()
+    jumped[j:] -= 100_000_000
+    joined = t.copy()                   # the same log, its second half on from the frame before the jump
+    joined[j:] += t[j - 1] - t[j]
+    (tmp_path / "jump.log").write_text(candump_lines(msgs, jumped))
+    (tmp_path / "joined.log").write_text(candump_lines(msgs, joined))
+
+    r = replay_file(tmp_path / "jump.log")
+    assert (r.backwards, r.jumps_back, r.gaps, r.idle_ticks_skipped) == (1, 1, 0, 0)
+    assert r.backward_max_s == pytest.approx(100.0 - (t[j] - t[j - 1]) * 1e-6, abs=1e-6)
+    ref = replay(read_log(tmp_path / "joined.log"))
+    got = replay(read_log(tmp_path / "jump.log"))
+    assert got.jumps_back == 1 and ref.backwards == 0 and len(ref.produced) > 1000
+    assert wire(got.produced) == wire(ref.produced) and got.counters == ref.counters
+    assert r.ticks == ref.ticks and r.counters == ref.counters and r.counters["timeout"] == 0
+
+    assert main(["replay", str(tmp_path / "jump.log")]) == 0
+    out = capsys.readouterr().out
+    assert "backwards in time: 1 frames earlier than the frame before them (largest step back 99.9995 s); " \
+           "1 more than 1 s back: the log's clock went on from the frame before" in out, out
+    assert "gaps:" not in out
+
+
+def test_small_steps_back_are_counted_and_sorted(session, tmp_path):
+    """Neighbours swapped in the file (merged channels): counted, and replayed in time order as before."""
+    msgs = [m for m in session.messages() if m.arbitration_id not in ECU_TX]
+    t = [1764620000.0 + m.timestamp + 0.0001 * (i % 2) for i, m in enumerate(msgs)]
+    for i in range(5, len(msgs) - 1, 97):
+        t[i], t[i + 1] = t[i + 1], t[i]
+    (tmp_path / "swapped.log").write_text(candump_lines(msgs, t))
+    r = replay_file(tmp_path / "swapped.log")
+    assert r.backwards == len(range(5, len(msgs) - 1, 97)) > 5 and r.jumps_back == 0 and r.gaps == 0
+    ref_prod, _, ref_counters = reference_replay(read_log(tmp_path / "swapped.log"))
+    assert r.n_produced == len(ref_prod) and r.counters == ref_counters
+
+
+def test_play_goes_on_from_the_frame_before_a_jump_back(tmp_path):
+    """Played onto a bus, a jump back is counted and the pace goes on (no burst of 'late' frames)."""
+    from vehest_can.service.replay import play
+
+    sensor = frame_id_of("DLS_Sensors")
+    times = [1764620100.0, 1764620100.2, 1764620000.0, 1764620000.2, 1764620000.15]
+    msgs = [can.Message(arbitration_id=sensor, is_extended_id=False, is_fd=True, data=bytes([i]) * 16)
+            for i in range(len(times))]
+    (tmp_path / "back.log").write_text(candump_lines(msgs, times))
+    channel = f"back{random.random()}"
+    with can.Bus(interface="virtual", channel=channel, receive_own_messages=False) as tx, \
+            can.Bus(interface="virtual", channel=channel) as rx:
+        r = play(tmp_path / "back.log", tx, max_gap_s=1.0)
+        got = []
+        while (m := rx.recv(0.5)) is not None:
+            got.append(m)
+    assert (r.sent, r.backwards, r.jumps_back, r.gaps) == (5, 2, 1, 0)
+    assert r.backward_max_s == pytest.approx(100.2, abs=1e-6)
+    dt = np.diff([m.timestamp for m in got])
+    assert np.allclose(dt, [0.2, 0.0, 0.2, 0.0], atol=0.08), dt

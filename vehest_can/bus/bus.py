@@ -11,17 +11,22 @@ TTL 0 (:class:`HostMulticastBus`), unless the user names another interface and a
 from __future__ import annotations
 
 import argparse
+import difflib
+import importlib
+import inspect
 import ipaddress
 import logging
 import math
 import os
 import random
+import re
 import signal
 import socket
 import struct
 import sys
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import can
 from can.cli import add_bus_arguments
@@ -84,7 +89,8 @@ def bus_config(args: argparse.Namespace, **overrides) -> dict:
     for key in ("interface", "channel", "bitrate", "fd", "data_bitrate", "timing"):
         if key in args and getattr(args, key) is not None:
             given[key] = getattr(args, key)
-    given.update(getattr(args, "bus_kwargs", None) or {})
+    extra = getattr(args, "bus_kwargs", None) or {}
+    given.update(extra)
     path = getattr(args, "bus_config", None)
     try:
         config = dict(can.util.load_config(path=path, config=given, context=getattr(args, "bus_context", None)))
@@ -97,10 +103,100 @@ def bus_config(args: argparse.Namespace, **overrides) -> dict:
         config = {"interface": DEFAULT_INTERFACE, "channel": DEFAULT_CHANNEL, **given}
     except (can.CanError, ValueError, KeyError) as exc:
         raise BusError(f"bus configuration: {exc}") from exc
+    problems, _ = check_bus_kwargs(config["interface"], extra)
+    if problems:
+        key, problem = problems[0]
+        raise BusError(f"bus keyword argument {key}={extra[key]}: {problem}")
     if config["interface"] in ("udp_multicast", "virtual", "socketcan") and "fd" not in config:
         config["fd"] = True  # the PT bus is CAN FD; these interfaces carry it as is
     config.update(overrides)
     return config
+
+
+_PARAM = re.compile(r":param\s+(?:[\w\[\], .|]+\s+)?(\w+)\s*:")
+_SIMPLE_TYPES: dict[str, type] = {"bool": bool, "int": int, "float": float, "str": str}
+_TYPE_WORDS = {"typing", "Optional", "typing.Optional", "Union", "typing.Union", "None", "NoneType"}
+
+
+def import_quietly(module: str):
+    """python-can's interface modules log warnings at import about missing vendor libraries: not ours to show."""
+    quiet = logging.getLogger("can")
+    level = quiet.level
+    quiet.setLevel(logging.ERROR)
+    try:
+        return importlib.import_module(module)
+    finally:
+        quiet.setLevel(level)
+
+
+def _value_types(param: inspect.Parameter) -> tuple[type, ...] | None:
+    """The simple types (bool, int, float, str) an argument's value may have, from its annotation (else
+    its default's type); None when it takes anything else too (a sequence, a BitTiming: not checked)."""
+    ann = param.annotation
+    if ann is param.empty:
+        return (type(param.default),) if type(param.default) in _SIMPLE_TYPES.values() else None
+    text = ann if isinstance(ann, str) else ann.__name__ if isinstance(ann, type) else str(ann)
+    words = set(re.findall(r"[A-Za-z_][\w.]*", text)) - _TYPE_WORDS
+    if not words or not words <= set(_SIMPLE_TYPES):
+        return None
+    return tuple(_SIMPLE_TYPES[w] for w in sorted(words))
+
+
+def interface_arguments(interface: str) -> tuple[dict[str, tuple[type, ...] | None] | None, str]:
+    """The keyword arguments python-can's `interface` bus takes (its class's ``__init__`` signature and
+    documented parameters, and ``can.BusABC``'s), each with the types its value may have (None: any),
+    or (None, why) when the interface's module does not import here (a vendor library missing)."""
+    cls: Any
+    if interface == "udp_multicast":
+        cls = HostMulticastBus
+    else:
+        try:
+            module, name = can.interfaces.BACKENDS[interface]
+            cls = getattr(import_quietly(module), name)
+        except Exception as exc:  # noqa: BLE001 - any import failure of a vendor module means the same
+            return None, f"its module does not import here: {exc}"
+    args: dict[str, tuple[type, ...] | None] = {"can_filters": None}  # can.BusABC's own
+    for klass in (cls, can.BusABC):
+        for doc in (inspect.getdoc(klass.__init__), inspect.getdoc(klass)):
+            for p in _PARAM.findall(doc or ""):
+                args.setdefault(p, None)
+        for p, v in inspect.signature(klass.__init__).parameters.items():
+            if v.kind not in (v.VAR_KEYWORD, v.VAR_POSITIONAL) and p != "self":
+                args[p] = _value_types(v) if klass is cls or p not in args else args[p]
+    args.pop("kwargs", None)  # BusABC documents its **kwargs
+    return args, ""
+
+
+def _fits(value, types: tuple[type, ...]) -> bool:
+    if isinstance(value, bool):
+        return bool in types
+    if isinstance(value, int):
+        return bool(int in types or float in types or str in types or (bool in types and value in (0, 1)))
+    if isinstance(value, float):
+        return float in types or str in types
+    return isinstance(value, str) and str in types
+
+
+def check_bus_kwargs(interface: str, kwargs: dict) -> tuple[list[tuple[str, str]], str]:
+    """What python-can's `interface` would refuse or silently ignore of the extra `kwargs`: an argument
+    it does not take, a value of the wrong type (fd=maybe). Returns (key, problem) pairs and why the
+    arguments could not be checked ("" when they were)."""
+    known, why = interface_arguments(interface)
+    if known is None:
+        return [], (f"not checked against python-can's {interface} interface ({why})" if kwargs else "")
+    problems = []
+    for k, v in kwargs.items():
+        if k not in known:
+            near = difflib.get_close_matches(k, sorted(known), n=1)
+            problems.append((k, f"python-can's {interface} interface takes no argument {k!r} "
+                                f"({f'did you mean {near[0]!r}? ' if near else ''}it takes: {', '.join(sorted(known))})"))
+            continue
+        types = known[k]
+        if types is not None and not isinstance(v, list) and not _fits(v, types):
+            hint = " (true or false)" if types == (bool,) else ""
+            problems.append((k, f"python-can's {interface} interface takes {k} as "
+                                f"{' or '.join(t.__name__ for t in types)}{hint}, not {v!r}"))
+    return problems, ""
 
 
 def _named_where(given: dict, path) -> str:

@@ -38,7 +38,9 @@ Frame length in bits (upper bound "worst case" with bit stuffing, and "nominal" 
 
 Cycle time of a frame: the message attribute ``CycleTimeUs`` (project convention for sub-millisecond
 frames, in microseconds) when present and non-zero, else cantools' ``message.cycle_time`` (GenMsgCycleTime,
-ms). Frames with neither are event frames: listed, but not part of the cyclic load.
+ms). Frames with neither are event frames: listed, but not part of the cyclic load. A frame the DBC
+marks cyclic (``vehest_can.bus.cyclic``: GenMsgSendType, a cycle attribute set to 0, RxTimeoutCycles)
+without a cycle time is a ConfigError, not an event frame.
 """
 from __future__ import annotations
 
@@ -50,6 +52,7 @@ from pathlib import Path
 import cantools
 
 from ..errors import ConfigError
+from .cyclic import zero_cycle_error
 
 #: Payload lengths a CAN FD frame can have (DLC 0..15).
 FD_LENGTHS = (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)
@@ -211,7 +214,8 @@ def _rate(value, what: str, source: str) -> int | None:
 
 
 def _cycle_us(db, message, source: str) -> tuple[float | None, str]:
-    """Cycle time in µs and where it came from; (None, "") for an event frame."""
+    """Cycle time in µs and where it came from; (None, "") for an event frame. A frame the DBC marks
+    cyclic without a cycle time is a ConfigError."""
     if message.dbc is not None:
         value, _ = _dbc_attribute(db, ("CycleTimeUs",), message.dbc.attributes or {})
         try:
@@ -222,7 +226,16 @@ def _cycle_us(db, message, source: str) -> tuple[float | None, str]:
             return us, "CycleTimeUs"
     if message.cycle_time and message.cycle_time > 0:
         return 1000.0 * message.cycle_time, "GenMsgCycleTime"
+    error = zero_cycle_error(message, None)
+    if error:
+        raise ConfigError(f"{source}: {error}")
     return None, ""
+
+
+def check_cycles(db, source: str = "<database>") -> None:
+    """ConfigError when a frame of `db` is cyclic without a cycle time (see ``_cycle_us``)."""
+    for message in db.messages:
+        _cycle_us(db, message, source)
 
 
 def bus_load(dbc, bitrate: int | None = None, data_bitrate: int | None = None, *,

@@ -16,14 +16,16 @@ frames, and both buses are CAN FD; not ``.csv``: it keeps no channel, direction 
   ``x-pt.log`` and ``x-ch.log``).
 
 Read (:func:`read_log`): whatever python-can's ``LogReader`` reads; any reader's failure on a
-malformed file is a :class:`ConfigError` naming the file.
+malformed file is a :class:`ConfigError` naming the file, and so is a log without a data frame (an
+empty file, or one whose lines the reader skips: python-can's text readers skip what they do not
+recognise).
 """
 from __future__ import annotations
 
 import json
 import mmap
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Generator, Iterable, Iterator
 from pathlib import Path
 
 import can
@@ -162,10 +164,17 @@ def check_log_file(path: str | Path) -> Path:
     return path
 
 
-def iter_log(path: str | Path) -> Iterator[can.Message]:
-    """The data frames of a log, one by one (error and remote frames skipped); a malformed file or
-    an ID beyond 29 bits is a ConfigError."""
+def no_frames(path: Path) -> ConfigError:
+    """The error of a log without a data frame."""
+    what = "the file is empty" if path.stat().st_size == 0 else f"nothing in it reads as a {path.suffix or 'CAN'} frame"
+    return ConfigError(f"{path}: no CAN data frames in this log ({what})")
+
+
+def iter_log(path: str | Path) -> Generator[can.Message, None, None]:
+    """The data frames of a log, one by one (error and remote frames skipped); a malformed file,
+    a log without a data frame or an ID beyond 29 bits is a ConfigError."""
     path = check_log_file(path)
+    data_frames = 0
     try:
         for i, m in enumerate(can.LogReader(str(path))):
             if m.is_error_frame or m.is_remote_frame:
@@ -173,13 +182,24 @@ def iter_log(path: str | Path) -> Iterator[can.Message]:
             if not 0 <= m.arbitration_id <= (MAX_EXT_ID if m.is_extended_id else 0x7FF) or len(m.data) > 64:
                 raise ConfigError(f"{path}: frame {i + 1}: ID 0x{m.arbitration_id:X} or length {len(m.data)} "
                                   f"does not fit a CAN frame ({'29' if m.is_extended_id else '11'}-bit ID, <= 64 bytes)")
+            data_frames += 1
             yield m
+        if not data_frames:
+            raise no_frames(path)
     except ConfigError:
         raise
     except Exception as exc:  # noqa: BLE001 - third-party readers of an untrusted file raise anything
         # (BLFParseError, sqlite3.DatabaseError, asammdf's MdfException, struct.error, zlib.error ...);
         # the cause stays chained for --debug
         raise ConfigError(f"{path}: not a readable CAN log ({type(exc).__name__}: {exc})") from exc
+
+
+def check_log_frames(path: str | Path) -> Path:
+    """A log to read that holds a data frame (:func:`iter_log`'s errors, found before a run starts)."""
+    frames = iter_log(path)
+    next(frames)
+    frames.close()
+    return Path(path)
 
 
 def read_log(path: str | Path) -> list[can.Message]:
@@ -218,8 +238,9 @@ def iter_log_arrays(path: str | Path, chunk: int = CHUNK_FRAMES, progress=None,
     turn = 0
     n_out, used, lines, skipped = (ffi.new("size_t *") for _ in range(4))
     if total == 0:
-        return
+        raise no_frames(path)
     line_no = 0  # lines before `pos`
+    data_frames = 0
     pos = dropped = 0
     # The file mapped, not read: the C parser reads the page cache in place (no copies into bytes
     # objects, no fresh pages to fault in), and the pages behind it are dropped from this
@@ -238,6 +259,9 @@ def iter_log_arrays(path: str | Path, chunk: int = CHUNK_FRAMES, progress=None,
                     raise ConfigError(f"{path}: line {line_no + 1}: not a candump -L frame: "
                                       f"{bad.decode('utf-8', 'replace')!r}")
                 pos += used[0]
+                data_frames += n_out[0]
+                if not data_frames and n_out[0] < chunk:  # the whole file parsed: nothing in it
+                    raise no_frames(path)
                 if pos - dropped >= _BLOCK_BYTES or pos == total:
                     end = pos - pos % mmap.PAGESIZE
                     if end > dropped:

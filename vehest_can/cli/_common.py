@@ -96,6 +96,18 @@ def check_seconds(value: float | None, option: str, *, maximum: float = MAX_SESS
                           f"not {value}")
 
 
+def check_range(value: float | None, option: str, low: float, high: float, unit: str) -> None:
+    """A physical flag (a resolution, a count, a duration with a physical bound): a finite number in
+    [low, high], its physical range, else a ConfigError naming flag, range and unit (NaN and inf
+    included: a value out of range would print a meaningless figure, not an error)."""
+    if value is None:
+        return
+    if not (math.isfinite(value) and low <= value <= high):
+        def text(x: float) -> str:
+            return str(int(x)) if math.isfinite(x) and x == int(x) and abs(x) < 1e15 else f"{x:g}"
+        raise ConfigError(f"{option} must be a finite number of {unit} in {text(low)}..{text(high)}, not {text(value)}")
+
+
 def check_plot_path(path: str) -> Path:
     p = Path(path)
     if p.suffix.lower() not in PLOT_FORMATS:

@@ -3,10 +3,10 @@ from __future__ import annotations
 
 import json
 
-from ..errors import ConfigError
 from ..sim.scenario import load_scenario, scenario_dir
 from ..sim.session import drive_from_scenario
 from ..tools import bench, replay_bench
+from ._common import check_range
 
 
 def add_subparser(subparsers) -> None:
@@ -22,8 +22,7 @@ def add_subparser(subparsers) -> None:
 
 
 def run(args) -> int:
-    if args.replay_frames < 0:
-        raise ConfigError("--replay-frames must be 0 or more")
+    check_range(args.replay_frames, "--replay-frames", 0, 100_000_000, "frames")  # 100 M: a 6 GB log
     frames = min(args.replay_frames, 1_000_000) if args.quick else args.replay_frames
     rep = replay_bench.run(frames, repeats=1 if args.quick else 3) if frames else None
     if args.replay_only:

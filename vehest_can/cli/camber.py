@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import json
-import math
 import sys
 
 from ..bus import bus as busmod
@@ -10,7 +9,12 @@ from ..bus.log import read_log
 from ..errors import ConfigError
 from ..systems.camber import inspection
 from ..systems.camber.api import WHEELS, save_calibrations
-from ._common import DeprecatedAlias, check_plot_path
+from ._common import DeprecatedAlias, check_plot_path, check_range, check_seconds
+
+#: accelerometer resolution per axis, mg: a 24-bit part at +-2 g counts 0.00024 mg; 500 mg is a 2-bit sensor
+LSB_MG_RANGE = (1e-4, 500.0)
+SAMPLES_RANGE = (2, 1_000_000)   # per pose: a mean needs two; a million at 100 Hz is almost three hours
+MAX_LISTEN_S = 3600.0            # a live capture or measurement waits at most an hour
 
 
 def add_subparser(subparsers) -> None:
@@ -27,8 +31,8 @@ def add_subparser(subparsers) -> None:
     c.add_argument("--x-down", metavar="LOG", help="log of CIS_Accel frames with each device's x axis down")
     c.add_argument("--z-down", metavar="LOG", help="log of CIS_Accel frames with each device's z axis down")
     c.add_argument("--wheel", action="append", choices=WHEELS, help="only these wheels (default: every device seen)")
-    c.add_argument("--samples", type=int, default=512, metavar="N", help="live capture: samples per pose (512)")
-    c.add_argument("--timeout", type=float, default=30.0, metavar="S", help="live capture: give up after S s")
+    c.add_argument("--samples", type=int, default=512, metavar="N", help="live capture: samples per pose (512; 2..1000000)")
+    c.add_argument("--timeout", type=float, default=30.0, metavar="S", help="live capture: give up after S s (30; at most 3600)")
     c.add_argument("--yes", action="store_true", help="live capture: do not wait for Enter between poses")
     busmod.add_arguments(c)
     c.set_defaults(func=calibrate_cmd)
@@ -38,13 +42,13 @@ def add_subparser(subparsers) -> None:
     m.add_argument("--from-log", metavar="LOG", help="read a recorded log instead of the bus")
     m.add_argument("--log", dest="from_log", metavar="LOG", action=DeprecatedAlias, new="--from-log",
                    help="deprecated name of --from-log")
-    m.add_argument("--timeout", type=float, default=5.0, metavar="S", help="live: listen for S seconds (5)")
+    m.add_argument("--timeout", type=float, default=5.0, metavar="S", help="live: listen for S seconds (5; at most 3600)")
     m.add_argument("--json", action="store_true", help="print JSON")
     busmod.add_arguments(m)
     m.set_defaults(func=measure_cmd)
 
     b = sub.add_parser("bound", help="the worst-case camber error of eq. 22 (and the paper's Fig. 5)")
-    b.add_argument("--lsb-mg", type=float, default=4.0, help="accelerometer resolution per axis, mg (4)")
+    b.add_argument("--lsb-mg", type=float, default=4.0, help="accelerometer resolution per axis, mg (4; 0.0001..500)")
     b.add_argument("--plot", metavar="PNG", help="write the error map over camber and misalignment")
     b.set_defaults(func=bound_cmd)
 
@@ -65,8 +69,8 @@ def _live_capture(args, pose: str) -> inspection.Capture:
 def calibrate_cmd(args) -> int:
     if bool(args.x_down) != bool(args.z_down):
         raise ConfigError("give both --x-down and --z-down logs, or neither (live capture)")
-    if args.samples < 2:
-        raise ConfigError("--samples must be at least 2")
+    check_range(args.samples, "--samples", *SAMPLES_RANGE, "samples per pose")
+    check_seconds(args.timeout, "--timeout", maximum=MAX_LISTEN_S)
     if args.x_down:
         x = inspection.capture_messages(read_log(args.x_down))
         z = inspection.capture_messages(read_log(args.z_down))
@@ -85,6 +89,7 @@ def calibrate_cmd(args) -> int:
 
 
 def measure_cmd(args) -> int:
+    check_seconds(args.timeout, "--timeout", maximum=MAX_LISTEN_S)
     if args.from_log:
         messages = read_log(args.from_log)
     else:
@@ -112,10 +117,9 @@ def measure_cmd(args) -> int:
 def bound_cmd(args) -> int:
     if args.plot:
         check_plot_path(args.plot)
-    if not (math.isfinite(args.lsb_mg) and args.lsb_mg > 0):
-        raise ConfigError("--lsb-mg must be positive")
+    check_range(args.lsb_mg, "--lsb-mg", *LSB_MG_RANGE, "mg")
     print(f"worst-case camber error at camber 0 with {args.lsb_mg:g} mg per axis: "
-          f"{inspection.min_worst_case_deg(args.lsb_mg):.4f} deg (paper, 4 mg: 0.2292 deg)")
+          f"{inspection.min_worst_case_deg(args.lsb_mg):.4g} deg (paper, 4 mg: 0.2292 deg)")
     if args.plot:
         print(f"plot: {inspection.bound_plot(check_plot_path(args.plot), args.lsb_mg)}")
     return 0

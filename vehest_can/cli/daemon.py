@@ -16,7 +16,15 @@ from ..service.hil import load_hil_config
 from ..systems.camber.api import load_calibrations
 from ..systems.ecu import Ecu, EcuConfig
 from ..xcp import ecu as xcp_ecu
-from ._common import add_log_arguments, add_secoc_arguments, check_log_arguments, check_seconds, open_session_log, secoc_from_args
+from ._common import (
+    add_log_arguments,
+    add_secoc_arguments,
+    check_log_arguments,
+    check_range,
+    check_seconds,
+    open_session_log,
+    secoc_from_args,
+)
 
 
 def add_subparser(subparsers) -> None:
@@ -53,6 +61,7 @@ def run(args) -> int:
     for flag, value in (("--duration", args.duration), ("--idle-timeout", args.idle_timeout),
                         ("--report-every", args.report_every)):
         check_seconds(value, flag, maximum=math.inf)
+    check_range(args.rx_burst_limit, "--rx-burst-limit", 0, 255, "frames per message and tick")  # a uint8 in C
     if args.mode == "realtime":
         given = [flag for flag, on in (("--idle-timeout", args.idle_timeout is not None),
                                         ("--exit-on-end", args.exit_on_end)) if on]

@@ -14,7 +14,7 @@ from ..faults.spec import DESCRIPTIONS, FaultConfig, faults_from_cli, load_fault
 from ..paths import dbc_path
 from ..progress import Progress
 from ..systems import load_any_scenario
-from ._common import check_seconds
+from ._common import check_range, check_seconds
 
 
 def add_subparser(subparsers) -> None:
@@ -70,8 +70,7 @@ def _config(args) -> FaultConfig | None:
 def run(args) -> int:
     check_seconds(args.duration, "--duration")
     check_seconds(args.bus_run, "--bus-run")
-    if args.tx_queue < 1:
-        raise ConfigError(f"--tx-queue {args.tx_queue}: must be at least 1")
+    check_range(args.tx_queue, "--tx-queue", 1, 10_000, "frames")  # a CAN controller holds a few dozen
     system, scenario = load_any_scenario(args.scenario)
     study = system.faults
     if study is None:

@@ -1,15 +1,16 @@
 """``vehest-can replay LOG``: run a recorded log through the ECU offline, or play it onto a bus."""
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 from ..bus import bus as busmod
-from ..bus.log import SessionLog, check_log_file, check_log_path
+from ..bus.frames import TICK_S
+from ..bus.log import SessionLog, check_log_file, check_log_frames, check_log_path
 from ..errors import ConfigError
 from ..progress import Progress
 from ..service.estimates import TABLE_FORMATS, EstimateTable, check_table_path
 from ..service.replay import ECU_TX, MAX_GAP_S, play, replay_file
+from ._common import check_range
 
 _BUS_FLAGS = ("interface", "channel", "bitrate", "fd", "data_bitrate", "timing", "bus_kwargs", "bus_config", "bus_context")
 
@@ -30,7 +31,7 @@ def add_subparser(subparsers) -> None:
     p.add_argument("--max-gap", type=float, default=MAX_GAP_S, metavar="S",
                    help=f"a gap between frames longer than S seconds is not stepped through tick by tick: the ECU "
                         f"steps S seconds of idle ticks, then the clock jumps to the next frame; with --play, the "
-                        f"gap is shortened to S (default {MAX_GAP_S:g})")
+                        f"gap is shortened to S (default {MAX_GAP_S:g}; {TICK_S:g}..3600)")
     p.add_argument("--play", action="store_true",
                    help="send the log's frames (not the ECU's own) onto the bus of -i/-c at their recorded pace "
                         "(default: udp_multicast on this host only)")
@@ -39,8 +40,8 @@ def add_subparser(subparsers) -> None:
 
 
 def run(args) -> int:
-    if not (math.isfinite(args.max_gap) and args.max_gap > 0):
-        raise ConfigError(f"--max-gap must be a positive number of seconds, not {args.max_gap}")
+    # a gap shorter than a tick is no gap; an hour of idle ticks is 7.2 M steps of the ECU
+    check_range(args.max_gap, "--max-gap", TICK_S, 3600.0, "seconds")
     if args.play:
         return _play(args)
     given = [f for f in _BUS_FLAGS if getattr(args, f, None) not in (None, False, [], {})]  # python-can's: absent if not given
@@ -65,6 +66,8 @@ def run(args) -> int:
     if result.gaps:
         print(f"gaps: {result.gaps} longer than {args.max_gap:g} s, {result.idle_ticks_skipped} idle ticks "
               f"not stepped ({result.idle_ticks_skipped * 0.0005:.1f} s)")
+    if result.backwards:
+        print(_backwards(result, args.max_gap))
     if result.out_of_order:
         print(f"out of order: {result.out_of_order} frames older than one before them (handed in late)")
     print(f"ECU frames: {result.n_produced} produced, {result.n_logged} in the log")
@@ -87,7 +90,7 @@ def _play(args) -> int:
     if offline:
         raise ConfigError(f"{' and '.join(offline)} write the offline replay's results; --play only sends the log "
                           "onto a bus (log the ECU there with `vehest-can daemon --log`)")
-    check_log_file(args.log)
+    check_log_frames(args.log)
     config = busmod.bus_config(args)
     bus = busmod.open_bus(config)
     try:
@@ -98,5 +101,16 @@ def _play(args) -> int:
     print(f"sent {r.sent} frames in {r.seconds:.2f} s ({r.not_sent} ECU frames of the log not sent"
           + (f", {r.send_failures} refused by the bus" if r.send_failures else "")
           + (f", {r.gaps} gaps shortened to {args.max_gap:g} s" if r.gaps else "") + ")")
+    if r.backwards:
+        print(_backwards(r, args.max_gap))
     print(f"latest frame: {1e3 * r.late_max_s:.1f} ms behind its recorded time")
     return 1 if r.send_failures else 0
+
+
+def _backwards(r, max_gap: float) -> str:
+    """The summary line of a log whose time goes backwards (a ReplayResult or a PlayResult)."""
+    text = (f"backwards in time: {r.backwards} frames earlier than the frame before them (largest step back "
+            f"{r.backward_max_s:.6g} s)")
+    if r.jumps_back:
+        text += f"; {r.jumps_back} more than {max_gap:g} s back: the log's clock went on from the frame before"
+    return text

@@ -51,14 +51,15 @@ def run(args) -> int:
     bus = busmod.open_bus(config)
     writer = open_session_log(args, CAR_NODES)
     progress = Progress(f"{sc.name} ({args.mode})")
-    master = SimMaster(bus, drive, log_writer=writer, progress=progress)
+    # Nothing kept: the frames go to --log as they come, so a long run's memory stays flat
+    master = SimMaster(bus, drive, log_writer=writer, progress=progress, keep=False)
     try:
         with busmod.serving(bus, writer, master.stop_event.set):
             session = master.run_lockstep() if args.mode == "lockstep" else master.run_realtime()
     finally:
         for s in master.car.secoc_hooks() if hasattr(master.car, "secoc_hooks") else ():
             s.close()  # the exact state of a clean end
-    progress.done(f"{len(session.truth)} ticks, {len(session.frames)} frames")
-    print(f"{sc.name}: {len(session.truth)} ticks, {len(session.frames)} frames, "
-          f"{session.stats.get('wall_s', 0):.1f} s", file=sys.stderr)
+    st = session.stats
+    progress.done(f"{st['ticks']} ticks, {st['frames']} frames")
+    print(f"{sc.name}: {st['ticks']} ticks, {st['frames']} frames, {st.get('wall_s', 0):.1f} s", file=sys.stderr)
     return 0

@@ -14,10 +14,7 @@ the problem; :class:`ResidualBus` runs the simulated nodes against the configure
 from __future__ import annotations
 
 import difflib
-import importlib
-import inspect
 import logging
-import re
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,7 +23,7 @@ from typing import Any
 import can
 
 from ..bus import bus as busmod
-from ..bus.busload import bus_load, load_dbc
+from ..bus.busload import bus_load, check_cycles, load_dbc
 from ..bus.frames import BUSES, database
 from ..errors import ConfigError, ScenarioError, VehestError
 from ..paths import dbc_dir
@@ -428,6 +425,10 @@ def _bus(c: _Checker, name: str, doc, base: Path, databases: dict) -> HilBus:
         except ConfigError as exc:
             c.fail(f"{key}.dbc", str(exc))
     db = databases[dbc]
+    try:
+        check_cycles(db, dbc.name)
+    except ConfigError as exc:
+        c.fail(f"{key}.dbc", str(exc))
     fd_frames = [m for m in db.messages if m.is_fd or m.length > 8]
     if fd_frames and not fd:
         listed = ", ".join(f"{m.name} ({m.length} bytes)" for m in fd_frames[:3])
@@ -500,7 +501,6 @@ def _kwargs(c: _Checker, doc, key: str) -> dict:
     return dict(doc)
 
 
-_PARAM = re.compile(r":param\s+(?:[\w\[\], .|]+\s+)?(\w+)\s*:")
 _IFNAMSIZ = 16  # Linux <net/if.h>: a network interface name is at most 15 bytes
 
 
@@ -528,56 +528,18 @@ def _check_opening(c: _Checker, key: str, interface: str, channel, kwargs: dict)
             near = difflib.get_close_matches(str(channel), names, n=1)
             c.fail(f"{key}.channel", f"unknown PCAN channel {channel!r} ({f'did you mean {near[0]!r}? ' if near else ''}"
                                      f"e.g. PCAN_USBBUS1)")
-    known, why = _interface_arguments(interface)
-    if known is None:
-        return f"not checked against python-can's {interface} interface ({why})" if kwargs else ""
-    for k in kwargs:
-        if k not in known:
-            near = difflib.get_close_matches(k, sorted(known), n=1)
-            c.fail(f"{key}.kwargs.{k}", f"python-can's {interface} interface takes no argument {k!r} "
-                                        f"({f'did you mean {near[0]!r}? ' if near else ''}it takes: "
-                                        f"{', '.join(sorted(known))})")
-    return ""
+    problems, not_checked = busmod.check_bus_kwargs(interface, kwargs)
+    for k, problem in problems:
+        c.fail(f"{key}.kwargs.{k}", problem)
+    return not_checked
 
 
 def _pcan_channels() -> list[str]:
     try:
-        names = _import_quietly("can.interfaces.pcan.basic").PCAN_CHANNEL_NAMES
+        names = busmod.import_quietly("can.interfaces.pcan.basic").PCAN_CHANNEL_NAMES
     except Exception:  # noqa: BLE001 - a module that does not import here: not checked
         return []
     return sorted(names)
-
-
-def _import_quietly(module: str):
-    """python-can's interface modules log warnings at import about missing vendor libraries: not ours to show."""
-    quiet = logging.getLogger("can")
-    level = quiet.level
-    quiet.setLevel(logging.ERROR)
-    try:
-        return importlib.import_module(module)
-    finally:
-        quiet.setLevel(level)
-
-
-def _interface_arguments(interface: str) -> tuple[set[str] | None, str]:
-    """The argument names a python-can interface's bus takes, or (None, why) when its module does not
-    import on this machine (a vendor library missing)."""
-    if interface == "udp_multicast":
-        cls: Any = busmod.HostMulticastBus
-    else:
-        module, name = can.interfaces.BACKENDS[interface]
-        try:
-            cls = getattr(_import_quietly(module), name)
-        except Exception as exc:  # noqa: BLE001 - any import failure of a vendor module means the same
-            return None, f"its module does not import here: {exc}"
-    names = {"can_filters"}  # can.BusABC's own
-    for klass in (cls, can.BusABC):
-        params = inspect.signature(klass.__init__).parameters
-        names.update(p for p, v in params.items() if v.kind not in (v.VAR_KEYWORD, v.VAR_POSITIONAL))
-        names.update(_PARAM.findall(inspect.getdoc(klass.__init__) or ""))
-        names.update(_PARAM.findall(inspect.getdoc(klass) or ""))
-    names.discard("self")
-    return names, ""
 
 
 def _dbc_file(c: _Checker, value: str, key: str, base: Path) -> Path:

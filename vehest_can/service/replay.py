@@ -5,7 +5,11 @@ reproduces the ECU's frames bit for bit), otherwise from its timestamps: a tick 
 the first frame, each frame handed in before the first tick at or after its timestamp. A gap of
 more than `max_gap_s` (1 s) between frames is not stepped through tick by tick: the ECU steps
 `max_gap_s` of idle ticks (every input times out, as it would), then the log's clock jumps to the
-next frame (counted in ``idle_ticks_skipped``).
+next frame (counted in ``idle_ticks_skipped``). Time that goes backwards in the file is counted
+(``backwards``, the largest step ``backward_max_s``); a step back longer than `max_gap_s` (a logger's
+clock set back, files joined) is a jump (``jumps_back``): the log's clock goes on from the frame
+before it, instead of sorting the later frames before the earlier ones and stepping the difference
+as a forward gap.
 
 The log is read and handed to the C ECU in batches (:func:`vehest_can.bus.log.iter_log_arrays`:
 candump -L parsed in C; ``vh_replay_run``: a batch of frames and ticks per call), and the ECU's
@@ -60,6 +64,9 @@ class ReplayResult:
     idle_ticks_skipped: int = 0
     gaps: int = 0
     out_of_order: int = 0         # frames older than one before them across batches (handed in late)
+    backwards: int = 0            # frames with an earlier timestamp than the frame before them in the file
+    backward_max_s: float = 0.0   # ... the largest such step back
+    jumps_back: int = 0           # steps back longer than max_gap_s: the clock went on from the frame before
     stats: dict = field(default_factory=dict)
 
     @property
@@ -99,6 +106,7 @@ class Replayer:
         self.keep = keep
         self.writer = writer
         self.table = table
+        self.max_gap_s = max_gap_s
         self.max_idle = max(1, int(round(max_gap_s / TICK_S)))
         self.paced_by: str | None = None
         self.frames_in = 0
@@ -107,6 +115,10 @@ class Replayer:
         self.k = 0                    # timestamps: ticks of the log's clock so far
         self.inputs = 0
         self.skipped = self.gaps = self.out_of_order = 0
+        self.backwards = self.jumps_back = 0
+        self.backward_max_s = 0.0
+        self._last_ts: float | None = None  # the log's last timestamp, in file order
+        self._shift = 0.0             # s added to the log's time after jumps back
         self.n_logged = self.n_produced = self._compared = 0
         self.first_mismatch: int | None = None
         self._aligned = True          # False once one side ran COMPARE_WINDOW frames ahead
@@ -186,6 +198,7 @@ class Replayer:
             self.first_ts = float(ts[0])
             if isinstance(self.writer, SessionLog) and self.writer.epoch is None:
                 self.writer.epoch = self.first_ts  # the replay's frames on the log's own time base
+        clock = self._clock(ts)
         ids = frames["id"]
         ext = (frames["flags"] & _EXT) != 0
         is_ecu = _IS_ECU_TX[ids & 0x7FF] & ~ext  # a standard frame's ID is <= 0x7FF
@@ -205,7 +218,26 @@ class Replayer:
             self._feed_sync(frames, ts, sync, is_ecu)
         else:
             at = np.flatnonzero(~is_ecu)
-            self._feed_timestamps(frames.take(at), ts[at])
+            self._feed_timestamps(frames.take(at), clock[at])
+
+    def _clock(self, ts: np.ndarray) -> np.ndarray:
+        """The log's time, steps back counted (in file order, every frame); after a step back longer
+        than max_gap_s the time goes on from the frame before it (what timestamp pacing uses)."""
+        prev = np.empty_like(ts)
+        prev[0] = ts[0] if self._last_ts is None else self._last_ts
+        prev[1:] = ts[:-1]
+        step = ts - prev
+        self._last_ts = float(ts[-1])
+        back = step < 0
+        if not back.any():
+            return ts + self._shift if self._shift else ts
+        self.backwards += int(np.count_nonzero(back))
+        self.backward_max_s = max(self.backward_max_s, float(-step.min()))
+        jump = step < -self.max_gap_s
+        self.jumps_back += int(np.count_nonzero(jump))
+        shift = self._shift + np.cumsum(np.where(jump, -step, 0.0))
+        self._shift = float(shift[-1])
+        return ts + shift
 
     def _feed_sync(self, frames: np.ndarray, ts: np.ndarray, sync: np.ndarray, is_ecu: np.ndarray) -> None:
         """In log order; the ECU frames of the log are events that do nothing. The log time of a
@@ -259,6 +291,7 @@ class Replayer:
             self.frames_in, self.ecu.tick, self.produced, self.logged, self.ecu.counters(), self.paced_by or "timestamps",
             n_produced=self.n_produced, n_logged=self.n_logged, first_mismatch=self.first_mismatch,
             idle_ticks_skipped=self.skipped, gaps=self.gaps, out_of_order=self.out_of_order,
+            backwards=self.backwards, backward_max_s=self.backward_max_s, jumps_back=self.jumps_back,
         )
 
 
@@ -335,6 +368,9 @@ class PlayResult:
     gaps: int            # gaps longer than max_gap_s, shortened to it
     late_max_s: float    # the furthest behind its recorded time a frame was sent
     seconds: float
+    backwards: int = 0   # frames with an earlier timestamp than the frame before them in the file
+    backward_max_s: float = 0.0  # ... the largest such step back
+    jumps_back: int = 0  # steps back longer than max_gap_s: the pace went on from the frame before
 
 
 def play(path: str | Path, bus: can.BusABC, *, max_gap_s: float = MAX_GAP_S, stop: threading.Event | None = None,
@@ -343,20 +379,30 @@ def play(path: str | Path, bus: can.BusABC, *, max_gap_s: float = MAX_GAP_S, sto
     python-can's ``can.player``, so that an ECU on that bus runs on them. The ECU's own frames
     (VEHEST_*) are not sent: the ECU on the bus sends its own. The schedule is absolute (the
     start plus the frame's time in the log), so one late frame does not delay the rest; a gap
-    longer than `max_gap_s` is shortened to it, as the offline replay does not step it either."""
-    sent = not_sent = failures = gaps = 0
-    late = 0.0
-    start = t0 = last = shift = 0.0
+    longer than `max_gap_s` is shortened to it, as the offline replay does not step it either; a
+    step back in time longer than `max_gap_s` is counted and the pace goes on from the frame before
+    (a shorter one: the frame goes at once), as the offline replay's clock does."""
+    sent = not_sent = failures = gaps = backwards = jumps_back = 0
+    late = back_max = 0.0
+    start = t0 = last = prev = shift = 0.0
     first = True
     t_start = clock()
     for m in iter_log(path):
         if stop is not None and stop.is_set():
             break
+        if first:
+            start, t0, last, prev, first = clock(), m.timestamp, m.timestamp, m.timestamp, False
+        if m.timestamp < prev:  # counted over every frame in file order, as the offline replay does
+            backwards += 1
+            back_max = max(back_max, prev - m.timestamp)
+            if prev - m.timestamp > max_gap_s:  # the log's clock set back: go on from the frame before
+                jumps_back += 1
+                shift -= prev - m.timestamp
+                last = m.timestamp
+        prev = m.timestamp
         if not m.is_extended_id and m.arbitration_id in ECU_SENT:
             not_sent += 1
             continue
-        if first:
-            start, t0, last, first = clock(), m.timestamp, m.timestamp, False
         if m.timestamp - last > max_gap_s:
             shift += m.timestamp - last - max_gap_s
             gaps += 1
@@ -372,4 +418,4 @@ def play(path: str | Path, bus: can.BusABC, *, max_gap_s: float = MAX_GAP_S, sto
             sent += 1
         except can.CanError:
             failures += 1
-    return PlayResult(sent, not_sent, failures, gaps, late, clock() - t_start)
+    return PlayResult(sent, not_sent, failures, gaps, late, clock() - t_start, backwards, back_max, jumps_back)

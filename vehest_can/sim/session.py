@@ -6,7 +6,10 @@
    then SIM_Sync, then wait for the ECU's frames and VEHEST_SyncAck. Identical results on any bus.
 3. ``SimMaster.run_realtime``: the car on its own 2 kHz wall clock; the ECU daemon runs its own.
 
-All three produce a ``Session``: the plant's truth per tick and every frame with its tick.
+All three produce a ``Session``: the plant's truth per tick and every frame with its tick. On a bus
+a session is kept compactly (a frame is 76 bytes: FRAME_DTYPE and its tick), or not at all
+(``SimMaster(keep=False)``: counts only, for a long run whose frames go to a log file, so its memory
+stays flat).
 """
 from __future__ import annotations
 
@@ -207,29 +210,67 @@ def _run_car_inprocess(car, ecu) -> Session:
                           "health": ecu.health()})
 
 
+class Recording:
+    """A session's frames and their ticks, in chunks of FRAME_DTYPE: 76 bytes a frame where a kept
+    ``can.Message`` and its list entry took ~300, and no copy at the end."""
+
+    CHUNK = 1 << 14
+
+    def __init__(self) -> None:
+        self._frames: list[np.ndarray] = []
+        self._ticks: list[np.ndarray] = []
+        self._c: Any = None  # the last chunk as vh_frame_t[]
+        self._i = self.CHUNK
+        self.n = 0
+
+    def add(self, msg: can.Message, tick: int) -> None:
+        if self._i == self.CHUNK:
+            self._frames.append(np.zeros(self.CHUNK, FRAME_DTYPE))
+            self._ticks.append(np.zeros(self.CHUNK, np.uint32))
+            self._c = ffi.from_buffer("vh_frame_t[]", self._frames[-1])
+            self._i = 0
+        to_frame(msg, self._c[self._i])
+        self._ticks[-1][self._i] = tick
+        self._i += 1
+        self.n += 1
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """(frames, ticks) so far."""
+        if not self._frames:
+            return np.zeros(0, FRAME_DTYPE), np.zeros(0, np.uint32)
+        last = slice(0, self._i)
+        return (np.concatenate([*self._frames[:-1], self._frames[-1][last]]),
+                np.concatenate([*self._ticks[:-1], self._ticks[-1][last]]))
+
+
 class SimMaster:
-    """The car on a bus: lockstep master or real-time node. Records every frame it sees or sends."""
+    """The car on a bus: lockstep master or real-time node. Records every frame it sees or sends
+    (with ``keep=False`` it counts them: a long run's memory stays flat, its frames go to the log)."""
 
     def __init__(self, bus: can.BusABC, drive, *, log_writer: can.Listener | None = None,
-                 ack_timeout: float = 2.0, progress=None):
+                 ack_timeout: float = 2.0, progress=None, keep: bool = True):
         """`drive`: a driveline Drive, or any car with Car's interface (e.g. a ChassisCar).
         `log_writer` gets every frame with its session time (tick * TICK_S) in ``timestamp``: a
-        :class:`vehest_can.bus.log.SessionLog` turns that into absolute time, direction and bus."""
+        :class:`vehest_can.bus.log.SessionLog` turns that into absolute time, direction and bus.
+        `keep`: the session holds the plant's truth and every frame; without, it holds neither
+        (empty arrays; ``stats`` has the counts ``ticks`` and ``frames``)."""
         self.bus = bus
         self.car = Car(drive) if isinstance(drive, Drive) else drive
         self.log_writer = log_writer
         self.ack_timeout = ack_timeout
         self.progress = progress
+        self.keep = keep
         self.stop_event = threading.Event()
-        self._frames: list = []
-        self._ticks: list[int] = []
+        self._recording = Recording()
+        self._frames_seen = 0
         self._own = sent_by(CAR_NODES)
         self._ecu = sent_by({"VEHEST"})
         self.foreign = 0  # frames from neither the car nor the ECU: not part of the session
 
     def _record(self, msg: can.Message, tick: int) -> None:
-        self._frames.append(msg)
-        self._ticks.append(tick)
+        self._frames_seen += 1
+        if self.keep:
+            self._recording.add(msg, tick)
         self._log(msg, tick)
 
     def _log(self, msg: can.Message, tick: int) -> None:
@@ -238,13 +279,14 @@ class SimMaster:
             msg.timestamp = tick * TICK_S
             self.log_writer.on_message_received(msg)
 
-    def _session(self, mode: str, truth: np.ndarray, stats: dict) -> Session:
-        frames = np.zeros(len(self._frames), dtype=FRAME_DTYPE)
-        cf = ffi.new("vh_frame_t *")
-        for i, m in enumerate(self._frames):
-            to_frame(m, cf)
-            frames[i] = np.frombuffer(ffi.buffer(cf), dtype=FRAME_DTYPE)[0]
-        return Session(self.car.name, mode, truth, frames, np.asarray(self._ticks, dtype=np.uint32), stats)
+    def _session(self, mode: str, truth: np.ndarray, ticks: int, stats: dict) -> Session:
+        frames, frame_ticks = self._recording.arrays()
+        return Session(self.car.name, mode, truth, frames, frame_ticks,
+                       {"ticks": ticks, "frames": self._frames_seen, **stats})
+
+    def _truth(self, n: int) -> np.ndarray:
+        """The plant's truth per tick, to fill (none when the session is not kept)."""
+        return np.zeros(n if self.keep else 0, dtype=self.car.truth_dtype)
 
     def _await_ack(self, tick: int, deadline_s: float) -> list[can.Message]:
         """ECU frames of this tick, up to and excluding its ack."""
@@ -298,7 +340,7 @@ class SimMaster:
         closed = hasattr(self.car, "rx")
         if closed:  # the car acts on the ECU's frames of each tick before its next: one tick in flight
             window = 1
-        truth = np.zeros(n, dtype=self.car.truth_dtype)
+        truth = self._truth(n)
         sent: dict[int, list] = {}
         t0 = time.perf_counter()
         k_sent = k_done = 0
@@ -308,7 +350,8 @@ class SimMaster:
                 for msg in sent[k_sent]:
                     self.bus.send(msg)
                 self.bus.send(lockstep.sync_message(k_sent))
-                truth[k_sent] = self.car.truth()
+                if self.keep:
+                    truth[k_sent] = self.car.truth()
                 k_sent += 1
             if k_done == k_sent:  # stopped
                 break
@@ -323,17 +366,17 @@ class SimMaster:
             k_done += 1
             if self.progress and k_done % 200 == 0:
                 self.progress(k_done, n)
-        truth = truth[:k_done]
         if end:
             self.bus.send(lockstep.sync_message(n, lockstep.END))
         wall = time.perf_counter() - t0
-        return self._session("lockstep", truth, {"wall_s": wall, "realtime_factor": len(truth) * TICK_S / wall})
+        return self._session("lockstep", truth[:k_done], k_done,
+                             {"wall_s": wall, "realtime_factor": k_done * TICK_S / wall})
 
     def run_realtime(self, *, settle_s: float = 0.2) -> Session:
         """Mode 3: send the car's frames on a 2 kHz wall clock; record what the ECU publishes."""
         self.car.reset()
         n = self.car.n
-        truth = np.zeros(n, dtype=self.car.truth_dtype)
+        truth = self._truth(n)
         inbox: queue.SimpleQueue = queue.SimpleQueue()
 
         errors = {"rx_undecodable": 0, "recv_errors": 0}
@@ -356,8 +399,7 @@ class SimMaster:
         closed = hasattr(self.car, "rx")
         notifier = can.Notifier(self.bus, [Inbox()], timeout=0.005)
         ticker = Ticker(TICK_S)
-        sent = 0
-        k = 0
+        sent = done = 0
         t0 = time.perf_counter()
         ticker.start()
         try:
@@ -373,7 +415,9 @@ class SimMaster:
                         raise BusError(f"send failed at tick {k}: {exc}") from exc
                     sent += 1
                     self._record(msg, k)
-                truth[k] = self.car.truth()
+                if self.keep:
+                    truth[k] = self.car.truth()
+                done = k + 1
                 while not inbox.empty():
                     msg = inbox.get_nowait()
                     self._record(msg, k)
@@ -383,11 +427,11 @@ class SimMaster:
                     self.progress(k, n)
             time.sleep(settle_s)  # the ECU's answers to the last ticks
             while not inbox.empty():
-                self._record(inbox.get_nowait(), k)
+                self._record(inbox.get_nowait(), max(done - 1, 0))
         finally:
             notifier.stop()
         wall = time.perf_counter() - t0
-        return self._session("realtime", truth[: k + 1], {
+        return self._session("realtime", truth[:done], done, {
             "wall_s": wall, "frames_sent": sent, "deadline_misses": ticker.misses,
             "lateness_us": percentiles_us(ticker.lateness), **errors,
         })
