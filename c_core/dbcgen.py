@@ -6,6 +6,12 @@ For each ``dbc/vehest_<bus>.dbc`` this writes into the output folder:
   (never edited by hand, never committed: regenerated on every build, so never stale);
 * ``vh_<bus>_meta.h``: per message the E2E data ID, the cycle time in microseconds and the
   RX timeout in cycles, read from the DBC's attributes (one source of truth for the frames);
+* ``vh_<bus>_e2e.h`` and a table appended to ``vh_<bus>.c``: per message its AUTOSAR E2E
+  configuration (``vh_e2e_cfg_t``, c_core/common/vh_e2e.h) from the attributes ``E2EProfile``
+  (P01, P02, P05 or empty), ``E2EDataID``, ``E2EDataIDMode`` (P01: BOTH, ALT, LOW, NIBBLE) and
+  ``E2EDataIDList`` (P02: 16 data IDs, one per counter value), checked against the profile's
+  layout (its CRC and counter signals); ``VH_<BUS>_<MSG>_E2E`` points at a message's entry and
+  ``vh_<bus>_e2e_cfg(frame_id)`` looks one up (NULL: not protected);
 * ``vh_<bus>_enc.h``: per scaled signal a rounding encoder ``..._encode_round(double)``: raw =
   round half up(value / scale), clamped to the DBC's [minimum, maximum], NaN -> the SNA value
   (0 without one). cantools' own ``_encode`` truncates toward zero, does not clamp and is
@@ -53,8 +59,95 @@ def cycle_time_us(message) -> int:
 
 
 def _attr(message, name, default):
+    """A message attribute's value (an ENUM's by its name: a DBC may give its index), else default."""
     attrs = message.dbc.attributes if message.dbc else {}
-    return attrs[name].value if name in attrs else default
+    if name not in attrs:
+        return default
+    attr = attrs[name]
+    choices = getattr(attr.definition, "choices", None)
+    if choices and isinstance(attr.value, int) and 0 <= attr.value < len(choices):
+        return choices[attr.value]
+    return attr.value
+
+
+E2E_PROFILES = {"P01": 1, "P02": 2, "P05": 5}  # VH_E2E_P01 ...
+E2E_ID_MODES = ("BOTH", "ALT", "LOW", "NIBBLE")  # VH_E2E_ID_BOTH ...
+#: each profile's header, as (start bit, length) of its CRC and counter signals (little endian)
+E2E_LAYOUT = {1: ((0, 8), (8, 4)), 2: ((0, 8), (8, 4)), 5: ((0, 16), (16, 8))}
+
+
+class DbcError(ValueError):
+    """A DBC the firmware cannot be built from; the message names the message and the attribute."""
+
+
+def e2e_config(message) -> tuple[int, int, int, bytes] | None:
+    """(profile, data ID mode, data ID, data ID list) of a message, None if it is not E2E-protected;
+    DbcError when its attributes or its layout do not make a profile the firmware implements."""
+    text = str(_attr(message, "E2EProfile", "") or "").strip().upper()
+    if not text:
+        return None
+    where = f"{message.name} (0x{message.frame_id:X})"
+    if text not in E2E_PROFILES:
+        raise DbcError(f"{where}: E2EProfile {text!r} is not one of {', '.join(E2E_PROFILES)}")
+    profile = E2E_PROFILES[text]
+    data_id = int(_attr(message, "E2EDataID", 0))
+    mode_text = str(_attr(message, "E2EDataIDMode", "BOTH") or "BOTH").upper()
+    if mode_text not in E2E_ID_MODES:
+        raise DbcError(f"{where}: E2EDataIDMode {mode_text!r} is not one of {', '.join(E2E_ID_MODES)}")
+    mode = E2E_ID_MODES.index(mode_text)
+    id_list = bytes(16)
+    if profile == 2:
+        words = str(_attr(message, "E2EDataIDList", "") or "").replace(",", " ").split()
+        try:
+            values = [int(w, 0) for w in words]
+        except ValueError:
+            values = []
+        if len(values) != 16 or not all(0 <= v <= 255 for v in values):
+            raise DbcError(f"{where}: P02 needs E2EDataIDList, 16 data IDs 0..255 (one per counter value), "
+                           f"not {_attr(message, 'E2EDataIDList', '')!r}")
+        id_list = bytes(values)
+    elif not 0 <= data_id <= 0xFFFF or (mode == 3 and data_id > 0xFFF) or (mode == 2 and data_id > 0xFF):
+        raise DbcError(f"{where}: E2EDataID {data_id} does not fit E2EDataIDMode {mode_text} "
+                       "(BOTH/ALT 16 bits, NIBBLE 12, LOW 8)")
+    have = {(s.start, s.length) for s in message.signals if s.byte_order == "little_endian" and not s.is_signed}
+    crc, counter = E2E_LAYOUT[profile]
+    if crc not in have or counter not in have:
+        raise DbcError(f"{where}: {text} puts its CRC at bits {crc[0]}..{sum(crc) - 1} and its counter at bits "
+                       f"{counter[0]}..{sum(counter) - 1} (unsigned, little endian signals): the DBC has no such signals")
+    if message.length < sum(counter) // 8 + 1:
+        raise DbcError(f"{where}: {message.length} bytes cannot carry {text}'s header and data")
+    return profile, mode, data_id, id_list
+
+
+def e2e_header(db, name: str) -> str:
+    """The E2E configuration table's declarations and each message's pointer into it."""
+    up = name.upper()
+    protected = [m for m in db.messages if e2e_config(m) is not None]
+    body = [f"extern const vh_e2e_cfg_t {name}_e2e_cfgs[{max(len(protected), 1)}];",
+            "/* the configuration of a frame ID of this bus, NULL if it is not E2E-protected */",
+            f"const vh_e2e_cfg_t *{name}_e2e_cfg(uint32_t frame_id);", ""]
+    body += [f"#define {up}_{camel_to_snake_case(m.name).upper()}_E2E (&{name}_e2e_cfgs[{i}])"
+             for i, m in enumerate(protected)]
+    return _header(name, "e2e", "Each message's AUTOSAR E2E configuration (vh_e2e.h), from the DBC's attributes.",
+                   ["#include <stdint.h>", "", '#include "vh_e2e.h"'], body + [""])
+
+
+def e2e_source(db, name: str) -> str:
+    """The table behind e2e_header, appended to the codec's source."""
+    protected = [(m, e2e_config(m)) for m in db.messages]
+    protected = [(m, c) for m, c in protected if c is not None]
+    lines = ["", f"/* Appended by c_core/dbcgen.py: each message's E2E configuration ({name}_e2e.h). */",
+             f'#include "{name}_e2e.h"', "", f"const vh_e2e_cfg_t {name}_e2e_cfgs[{max(len(protected), 1)}] = {{"]
+    for m, (profile, mode, data_id, id_list) in protected:
+        ids = ", ".join(f"{b}u" for b in id_list)
+        lines.append(f"    {{{profile}u, {mode}u, {data_id}u, {{{ids}}}}}, /* {m.name} */")
+    if not protected:
+        lines.append("    {0u, 0u, 0u, {0u}}")
+    lines += ["};", "", f"const vh_e2e_cfg_t *{name}_e2e_cfg(uint32_t frame_id)", "{", "    switch (frame_id) {"]
+    for i, (m, _) in enumerate(protected):
+        lines += [f"    case 0x{m.frame_id:X}u:", f"        return &{name}_e2e_cfgs[{i}];"]
+    lines += ["    default:", "        return NULL;", "    }", "}", ""]
+    return "\n".join(lines)
 
 
 def meta_header(db, name: str) -> str:
@@ -65,6 +158,7 @@ def meta_header(db, name: str) -> str:
         f"#define {up}_META_H",
         "",
         '#include "vh_types.h" /* VH_TICK_US */',
+        f'#include "{name}_e2e.h" /* {up}_<MSG>_E2E */',
         "",
     ]
     for m in db.messages:
@@ -241,7 +335,8 @@ def generate_all(out_dir: Path, dbc_dir: Path = DBC_DIR) -> list[str]:
         db = cantools.database.load_file(str(dbc_path), strict=True)
         header, source, _, _ = generate(db, name, f"{name}.h", f"{name}.c", f"{name}_fuzzer.c")
         _write(out_dir / f"{name}.h", header)
-        _write(out_dir / f"{name}.c", source)
+        _write(out_dir / f"{name}_e2e.h", e2e_header(db, name))
+        _write(out_dir / f"{name}.c", source + e2e_source(db, name))
         _write(out_dir / f"{name}_meta.h", meta_header(db, name))
         _write(out_dir / f"{name}_enc.h", encoders_header(db, name))
         _write(out_dir / f"{name}_q.h", fixed_header(db, name))

@@ -132,7 +132,8 @@ def header_cdef(text: str) -> str:
 def public_headers(gen_dir: Path = GEN_DIR) -> list[Path]:
     """Every public header of the extension, each after the headers it includes."""
     by_name = {p.name: p for d in (*FIRMWARE_DIRS, SIM_INCLUDE_DIR) for p in sorted(d.glob("*.h"))}
-    by_name.update({p.name: p for p in sorted(gen_dir.glob("vh_*_enc.h")) + sorted(gen_dir.glob("vh_*_q.h"))})
+    by_name.update({p.name: p for p in sorted(gen_dir.glob("vh_*_enc.h")) + sorted(gen_dir.glob("vh_*_q.h"))
+                    + sorted(gen_dir.glob("vh_*_e2e.h"))})
     order: list[Path] = []
 
     def visit(name: str) -> None:

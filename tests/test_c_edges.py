@@ -112,6 +112,7 @@ def test_a_cycle_time_that_is_not_whole_ticks_does_not_build(tmp_path):
     line = "#define VH_PT_VEHEST_STATUS_CYCLE_TIME_US (10000u)"
     assert line in meta
     (tmp_path / "ok_meta.h").write_text(meta)
+    (tmp_path / "vh_pt_e2e.h").write_text(dbcgen.e2e_header(db, "vh_pt"))  # the meta header includes it
     (tmp_path / "seven_meta.h").write_text(meta.replace(line, line.replace("10000u", "7000u")))  # 14 ticks
     (tmp_path / "bad_meta.h").write_text(meta.replace(line, line.replace("10000u", "750u")))  # 1.5 ticks
 

@@ -45,7 +45,7 @@ void vh_cmb_app_rx(vh_ecu_cis_t *c, vh_ecu_counters_t *cnt, const vh_frame_t *f)
     if ((f->flags & VH_FRAME_EXT) != 0u) { /* an extended-ID twin is not ours: ignored, not counted */
         return;
     }
-    if (!vh_rx_accept(cnt, &c->rx, f, VH_PT_CIS_ACCEL_LENGTH, VH_PT_CIS_ACCEL_E2E_DATA_ID)) {
+    if (!vh_rx_accept(cnt, &c->rx, f, VH_PT_CIS_ACCEL_LENGTH, VH_PT_CIS_ACCEL_E2E)) {
         return;
     }
     (void)vh_pt_cis_accel_unpack(&m, f->data, f->len);
@@ -103,6 +103,6 @@ int vh_cmb_app_fill(vh_ecu_cis_t *c, uint8_t *data)
     CAMBER_FIELDS(2, rl);
     CAMBER_FIELDS(3, rr);
     (void)vh_pt_vehest_camber_pack(data, &m, VH_PT_VEHEST_CAMBER_LENGTH);
-    vh_e2e_p01_protect(data, VH_PT_VEHEST_CAMBER_LENGTH, VH_PT_VEHEST_CAMBER_E2E_DATA_ID, &c->tx_counter);
+    vh_e2e_protect(VH_PT_VEHEST_CAMBER_E2E, data, VH_PT_VEHEST_CAMBER_LENGTH, &c->tx_counter);
     return 1;
 }

@@ -1,8 +1,8 @@
 /* vh_e2e.c - see vh_e2e.h. */
 #include "vh_e2e.h"
 
-/* CRC-8 SAE J1850 (poly 0x1D) of every byte value: one lookup per byte instead of 8 shifts.
- * A test recomputes it bit by bit. */
+/* The CRCs of every byte value: one lookup per byte instead of 8 shifts. A test recomputes each
+ * table bit by bit. */
 static const uint8_t CRC8_TABLE[256] = {
     0x00u, 0x1Du, 0x3Au, 0x27u, 0x74u, 0x69u, 0x4Eu, 0x53u, 0xE8u, 0xF5u, 0xD2u, 0xCFu,
     0x9Cu, 0x81u, 0xA6u, 0xBBu, 0xCDu, 0xD0u, 0xF7u, 0xEAu, 0xB9u, 0xA4u, 0x83u, 0x9Eu,
@@ -28,6 +28,66 @@ static const uint8_t CRC8_TABLE[256] = {
     0xE3u, 0xFEu, 0xD9u, 0xC4u
 };
 
+static const uint8_t CRC8H2F_TABLE[256] = {
+    0x00u, 0x2Fu, 0x5Eu, 0x71u, 0xBCu, 0x93u, 0xE2u, 0xCDu, 0x57u, 0x78u, 0x09u, 0x26u,
+    0xEBu, 0xC4u, 0xB5u, 0x9Au, 0xAEu, 0x81u, 0xF0u, 0xDFu, 0x12u, 0x3Du, 0x4Cu, 0x63u,
+    0xF9u, 0xD6u, 0xA7u, 0x88u, 0x45u, 0x6Au, 0x1Bu, 0x34u, 0x73u, 0x5Cu, 0x2Du, 0x02u,
+    0xCFu, 0xE0u, 0x91u, 0xBEu, 0x24u, 0x0Bu, 0x7Au, 0x55u, 0x98u, 0xB7u, 0xC6u, 0xE9u,
+    0xDDu, 0xF2u, 0x83u, 0xACu, 0x61u, 0x4Eu, 0x3Fu, 0x10u, 0x8Au, 0xA5u, 0xD4u, 0xFBu,
+    0x36u, 0x19u, 0x68u, 0x47u, 0xE6u, 0xC9u, 0xB8u, 0x97u, 0x5Au, 0x75u, 0x04u, 0x2Bu,
+    0xB1u, 0x9Eu, 0xEFu, 0xC0u, 0x0Du, 0x22u, 0x53u, 0x7Cu, 0x48u, 0x67u, 0x16u, 0x39u,
+    0xF4u, 0xDBu, 0xAAu, 0x85u, 0x1Fu, 0x30u, 0x41u, 0x6Eu, 0xA3u, 0x8Cu, 0xFDu, 0xD2u,
+    0x95u, 0xBAu, 0xCBu, 0xE4u, 0x29u, 0x06u, 0x77u, 0x58u, 0xC2u, 0xEDu, 0x9Cu, 0xB3u,
+    0x7Eu, 0x51u, 0x20u, 0x0Fu, 0x3Bu, 0x14u, 0x65u, 0x4Au, 0x87u, 0xA8u, 0xD9u, 0xF6u,
+    0x6Cu, 0x43u, 0x32u, 0x1Du, 0xD0u, 0xFFu, 0x8Eu, 0xA1u, 0xE3u, 0xCCu, 0xBDu, 0x92u,
+    0x5Fu, 0x70u, 0x01u, 0x2Eu, 0xB4u, 0x9Bu, 0xEAu, 0xC5u, 0x08u, 0x27u, 0x56u, 0x79u,
+    0x4Du, 0x62u, 0x13u, 0x3Cu, 0xF1u, 0xDEu, 0xAFu, 0x80u, 0x1Au, 0x35u, 0x44u, 0x6Bu,
+    0xA6u, 0x89u, 0xF8u, 0xD7u, 0x90u, 0xBFu, 0xCEu, 0xE1u, 0x2Cu, 0x03u, 0x72u, 0x5Du,
+    0xC7u, 0xE8u, 0x99u, 0xB6u, 0x7Bu, 0x54u, 0x25u, 0x0Au, 0x3Eu, 0x11u, 0x60u, 0x4Fu,
+    0x82u, 0xADu, 0xDCu, 0xF3u, 0x69u, 0x46u, 0x37u, 0x18u, 0xD5u, 0xFAu, 0x8Bu, 0xA4u,
+    0x05u, 0x2Au, 0x5Bu, 0x74u, 0xB9u, 0x96u, 0xE7u, 0xC8u, 0x52u, 0x7Du, 0x0Cu, 0x23u,
+    0xEEu, 0xC1u, 0xB0u, 0x9Fu, 0xABu, 0x84u, 0xF5u, 0xDAu, 0x17u, 0x38u, 0x49u, 0x66u,
+    0xFCu, 0xD3u, 0xA2u, 0x8Du, 0x40u, 0x6Fu, 0x1Eu, 0x31u, 0x76u, 0x59u, 0x28u, 0x07u,
+    0xCAu, 0xE5u, 0x94u, 0xBBu, 0x21u, 0x0Eu, 0x7Fu, 0x50u, 0x9Du, 0xB2u, 0xC3u, 0xECu,
+    0xD8u, 0xF7u, 0x86u, 0xA9u, 0x64u, 0x4Bu, 0x3Au, 0x15u, 0x8Fu, 0xA0u, 0xD1u, 0xFEu,
+    0x33u, 0x1Cu, 0x6Du, 0x42u
+};
+
+static const uint16_t CRC16_TABLE[256] = {
+    0x0000u, 0x1021u, 0x2042u, 0x3063u, 0x4084u, 0x50A5u, 0x60C6u, 0x70E7u,
+    0x8108u, 0x9129u, 0xA14Au, 0xB16Bu, 0xC18Cu, 0xD1ADu, 0xE1CEu, 0xF1EFu,
+    0x1231u, 0x0210u, 0x3273u, 0x2252u, 0x52B5u, 0x4294u, 0x72F7u, 0x62D6u,
+    0x9339u, 0x8318u, 0xB37Bu, 0xA35Au, 0xD3BDu, 0xC39Cu, 0xF3FFu, 0xE3DEu,
+    0x2462u, 0x3443u, 0x0420u, 0x1401u, 0x64E6u, 0x74C7u, 0x44A4u, 0x5485u,
+    0xA56Au, 0xB54Bu, 0x8528u, 0x9509u, 0xE5EEu, 0xF5CFu, 0xC5ACu, 0xD58Du,
+    0x3653u, 0x2672u, 0x1611u, 0x0630u, 0x76D7u, 0x66F6u, 0x5695u, 0x46B4u,
+    0xB75Bu, 0xA77Au, 0x9719u, 0x8738u, 0xF7DFu, 0xE7FEu, 0xD79Du, 0xC7BCu,
+    0x48C4u, 0x58E5u, 0x6886u, 0x78A7u, 0x0840u, 0x1861u, 0x2802u, 0x3823u,
+    0xC9CCu, 0xD9EDu, 0xE98Eu, 0xF9AFu, 0x8948u, 0x9969u, 0xA90Au, 0xB92Bu,
+    0x5AF5u, 0x4AD4u, 0x7AB7u, 0x6A96u, 0x1A71u, 0x0A50u, 0x3A33u, 0x2A12u,
+    0xDBFDu, 0xCBDCu, 0xFBBFu, 0xEB9Eu, 0x9B79u, 0x8B58u, 0xBB3Bu, 0xAB1Au,
+    0x6CA6u, 0x7C87u, 0x4CE4u, 0x5CC5u, 0x2C22u, 0x3C03u, 0x0C60u, 0x1C41u,
+    0xEDAEu, 0xFD8Fu, 0xCDECu, 0xDDCDu, 0xAD2Au, 0xBD0Bu, 0x8D68u, 0x9D49u,
+    0x7E97u, 0x6EB6u, 0x5ED5u, 0x4EF4u, 0x3E13u, 0x2E32u, 0x1E51u, 0x0E70u,
+    0xFF9Fu, 0xEFBEu, 0xDFDDu, 0xCFFCu, 0xBF1Bu, 0xAF3Au, 0x9F59u, 0x8F78u,
+    0x9188u, 0x81A9u, 0xB1CAu, 0xA1EBu, 0xD10Cu, 0xC12Du, 0xF14Eu, 0xE16Fu,
+    0x1080u, 0x00A1u, 0x30C2u, 0x20E3u, 0x5004u, 0x4025u, 0x7046u, 0x6067u,
+    0x83B9u, 0x9398u, 0xA3FBu, 0xB3DAu, 0xC33Du, 0xD31Cu, 0xE37Fu, 0xF35Eu,
+    0x02B1u, 0x1290u, 0x22F3u, 0x32D2u, 0x4235u, 0x5214u, 0x6277u, 0x7256u,
+    0xB5EAu, 0xA5CBu, 0x95A8u, 0x8589u, 0xF56Eu, 0xE54Fu, 0xD52Cu, 0xC50Du,
+    0x34E2u, 0x24C3u, 0x14A0u, 0x0481u, 0x7466u, 0x6447u, 0x5424u, 0x4405u,
+    0xA7DBu, 0xB7FAu, 0x8799u, 0x97B8u, 0xE75Fu, 0xF77Eu, 0xC71Du, 0xD73Cu,
+    0x26D3u, 0x36F2u, 0x0691u, 0x16B0u, 0x6657u, 0x7676u, 0x4615u, 0x5634u,
+    0xD94Cu, 0xC96Du, 0xF90Eu, 0xE92Fu, 0x99C8u, 0x89E9u, 0xB98Au, 0xA9ABu,
+    0x5844u, 0x4865u, 0x7806u, 0x6827u, 0x18C0u, 0x08E1u, 0x3882u, 0x28A3u,
+    0xCB7Du, 0xDB5Cu, 0xEB3Fu, 0xFB1Eu, 0x8BF9u, 0x9BD8u, 0xABBBu, 0xBB9Au,
+    0x4A75u, 0x5A54u, 0x6A37u, 0x7A16u, 0x0AF1u, 0x1AD0u, 0x2AB3u, 0x3A92u,
+    0xFD2Eu, 0xED0Fu, 0xDD6Cu, 0xCD4Du, 0xBDAAu, 0xAD8Bu, 0x9DE8u, 0x8DC9u,
+    0x7C26u, 0x6C07u, 0x5C64u, 0x4C45u, 0x3CA2u, 0x2C83u, 0x1CE0u, 0x0CC1u,
+    0xEF1Fu, 0xFF3Eu, 0xCF5Du, 0xDF7Cu, 0xAF9Bu, 0xBFBAu, 0x8FD9u, 0x9FF8u,
+    0x6E17u, 0x7E36u, 0x4E55u, 0x5E74u, 0x2E93u, 0x3EB2u, 0x0ED1u, 0x1EF0u
+};
+
 uint8_t vh_crc8_j1850_update(uint8_t crc, const uint8_t *data, size_t len)
 {
     size_t i;
@@ -37,29 +97,126 @@ uint8_t vh_crc8_j1850_update(uint8_t crc, const uint8_t *data, size_t len)
     return crc;
 }
 
-uint8_t vh_crc8_j1850(const uint8_t *data, size_t len)
+uint8_t vh_crc8h2f_update(uint8_t crc, const uint8_t *data, size_t len)
 {
-    return (uint8_t)(vh_crc8_j1850_update(0xFFu, data, len) ^ 0xFFu);
-}
-
-uint8_t vh_e2e_p01_crc(const uint8_t *payload, size_t len, uint16_t data_id)
-{
-    const uint8_t id[2] = {(uint8_t)(data_id & 0xFFu), (uint8_t)(data_id >> 8)};
-    uint8_t crc = vh_crc8_j1850_update(0xFFu, id, 2u);
-    if (len > 1u) {
-        crc = vh_crc8_j1850_update(crc, payload + 1, len - 1u);
+    size_t i;
+    for (i = 0; i < len; ++i) {
+        crc = CRC8H2F_TABLE[crc ^ data[i]];
     }
-    return (uint8_t)(crc ^ 0xFFu);
+    return crc;
 }
 
-void vh_e2e_p01_protect(uint8_t *payload, size_t len, uint16_t data_id, uint8_t *counter)
+uint16_t vh_crc16_ccitt_update(uint16_t crc, const uint8_t *data, size_t len)
 {
-    if (len < 2u) {
+    size_t i;
+    for (i = 0; i < len; ++i) {
+        crc = (uint16_t)((uint16_t)(crc << 8) ^ CRC16_TABLE[((crc >> 8) ^ data[i]) & 0xFFu]);
+    }
+    return crc;
+}
+
+/* The smallest frame each profile protects: its header and one byte of data. */
+static size_t min_len(const vh_e2e_cfg_t *cfg)
+{
+    return cfg->profile == VH_E2E_P05 ? 4u : 3u;
+}
+
+unsigned vh_e2e_counter_range(const vh_e2e_cfg_t *cfg)
+{
+    switch (cfg->profile) {
+    case VH_E2E_P01:
+        return 15u; /* 15 is never sent */
+    case VH_E2E_P02:
+        return 16u;
+    case VH_E2E_P05:
+        return 256u;
+    default:
+        return 0u;
+    }
+}
+
+uint8_t vh_e2e_counter(const vh_e2e_cfg_t *cfg, const uint8_t *payload)
+{
+    return cfg->profile == VH_E2E_P05 ? payload[2] : (uint8_t)(payload[1] & 0x0Fu);
+}
+
+/* P01: the data ID as the mode says, then bytes 1..n-1; start 0x00, no final XOR. */
+static uint8_t p01_crc(const vh_e2e_cfg_t *cfg, const uint8_t *payload, size_t len)
+{
+    uint8_t id[2];
+    size_t n = 2u;
+    id[0] = (uint8_t)(cfg->data_id & 0xFFu);
+    id[1] = (uint8_t)(cfg->data_id >> 8);
+    switch (cfg->id_mode) {
+    case VH_E2E_ID_ALT:
+        n = 1u;
+        if ((payload[1] & 0x01u) != 0u) {
+            id[0] = id[1];
+        }
+        break;
+    case VH_E2E_ID_LOW:
+        n = 1u;
+        break;
+    case VH_E2E_ID_NIBBLE:
+        id[1] = 0u;
+        break;
+    default:
+        break;
+    }
+    return vh_crc8_j1850_update(vh_crc8_j1850_update(0x00u, id, n), payload + 1, len - 1u);
+}
+
+/* P02: bytes 1..n-1, then the counter's data ID; start 0xFF, final XOR 0xFF. */
+static uint8_t p02_crc(const vh_e2e_cfg_t *cfg, const uint8_t *payload, size_t len)
+{
+    const uint8_t crc = vh_crc8h2f_update(0xFFu, payload + 1, len - 1u);
+    return (uint8_t)(vh_crc8h2f_update(crc, &cfg->id_list[payload[1] & 0x0Fu], 1u) ^ 0xFFu);
+}
+
+/* P05: bytes 2..n-1, then the data ID low and high byte; start 0xFFFF, no final XOR. */
+static uint16_t p05_crc(const vh_e2e_cfg_t *cfg, const uint8_t *payload, size_t len)
+{
+    const uint8_t id[2] = {(uint8_t)(cfg->data_id & 0xFFu), (uint8_t)(cfg->data_id >> 8)};
+    return vh_crc16_ccitt_update(vh_crc16_ccitt_update(0xFFFFu, payload + 2, len - 2u), id, 2u);
+}
+
+/* 1 if the frame carries the CRC the profile gives its bytes. */
+static int crc_matches(const vh_e2e_cfg_t *cfg, const uint8_t *payload, size_t len)
+{
+    uint16_t crc;
+    switch (cfg->profile) {
+    case VH_E2E_P01:
+        return payload[0] == p01_crc(cfg, payload, len);
+    case VH_E2E_P02:
+        return payload[0] == p02_crc(cfg, payload, len);
+    case VH_E2E_P05:
+        crc = p05_crc(cfg, payload, len);
+        return payload[0] == (uint8_t)(crc & 0xFFu) && payload[1] == (uint8_t)(crc >> 8);
+    default:
+        return 1;
+    }
+}
+
+void vh_e2e_protect(const vh_e2e_cfg_t *cfg, uint8_t *payload, size_t len, uint8_t *counter)
+{
+    const unsigned range = vh_e2e_counter_range(cfg);
+    uint16_t crc;
+    if (range == 0u || len < min_len(cfg)) {
         return;
     }
-    payload[1] = (uint8_t)((payload[1] & 0xF0u) | (*counter & 0x0Fu));
-    payload[0] = vh_e2e_p01_crc(payload, len, data_id);
-    *counter = (uint8_t)((*counter >= 14u) ? 0u : (*counter + 1u));
+    if (cfg->profile == VH_E2E_P05) {
+        payload[2] = *counter;
+        crc = p05_crc(cfg, payload, len);
+        payload[0] = (uint8_t)(crc & 0xFFu);
+        payload[1] = (uint8_t)(crc >> 8);
+    } else {
+        payload[1] = (uint8_t)((payload[1] & 0xF0u) | (*counter & 0x0Fu));
+        if (cfg->profile == VH_E2E_P01 && cfg->id_mode == VH_E2E_ID_NIBBLE) {
+            payload[1] = (uint8_t)((payload[1] & 0x0Fu) | (((cfg->data_id >> 8) & 0x0Fu) << 4));
+        }
+        payload[0] = cfg->profile == VH_E2E_P01 ? p01_crc(cfg, payload, len) : p02_crc(cfg, payload, len);
+    }
+    *counter = (uint8_t)((*counter + 1u) % range);
 }
 
 void vh_e2e_rx_init(vh_e2e_rx_t *rx)
@@ -68,24 +225,31 @@ void vh_e2e_rx_init(vh_e2e_rx_t *rx)
     rx->have_last = 0u;
 }
 
-vh_e2e_status_t vh_e2e_p01_check(vh_e2e_rx_t *rx, const uint8_t *payload, size_t len,
-                                 uint16_t data_id)
+vh_e2e_status_t vh_e2e_check(const vh_e2e_cfg_t *cfg, vh_e2e_rx_t *rx, const uint8_t *payload, size_t len)
 {
+    const unsigned range = vh_e2e_counter_range(cfg);
     uint8_t counter;
     unsigned delta;
-    if (len < 2u) {
+    if (range == 0u) {
+        return VH_E2E_OK;
+    }
+    if (len < min_len(cfg)) {
         return VH_E2E_BAD_LEN;
     }
-    counter = (uint8_t)(payload[1] & 0x0Fu);
-    if (counter > 14u || payload[0] != vh_e2e_p01_crc(payload, len, data_id)) {
+    counter = vh_e2e_counter(cfg, payload);
+    if (counter >= range || !crc_matches(cfg, payload, len)) {
         return VH_E2E_WRONG_CRC;
+    }
+    if (cfg->profile == VH_E2E_P01 && cfg->id_mode == VH_E2E_ID_NIBBLE &&
+        (payload[1] >> 4) != ((cfg->data_id >> 8) & 0x0Fu)) {
+        return VH_E2E_WRONG_CRC; /* the CRC covers the nibble as sent, so check it against ours */
     }
     if (!rx->have_last) {
         rx->have_last = 1u;
         rx->last_counter = counter;
         return VH_E2E_INITIAL;
     }
-    delta = (counter + 15u - rx->last_counter) % 15u; /* counter runs 0..14 */
+    delta = (counter + range - rx->last_counter) % range;
     if (delta == 0u) {
         return VH_E2E_REPEATED;
     }

@@ -18,13 +18,13 @@ void vh_rx_init(vh_ecu_rxmsg_t *m)
     m->timed_out = 1u; /* nothing received yet: not a fault, so not counted */
 }
 
-int vh_rx_accept(vh_ecu_counters_t *cnt, vh_ecu_rxmsg_t *m, const vh_frame_t *f, size_t len, uint16_t data_id)
+int vh_rx_accept(vh_ecu_counters_t *cnt, vh_ecu_rxmsg_t *m, const vh_frame_t *f, size_t len, const vh_e2e_cfg_t *e2e)
 {
     if (f->len != len) {
         vh_rx_count(&cnt->dlc_error);
         return 0;
     }
-    switch (vh_e2e_p01_check(&m->e2e, f->data, f->len, data_id)) {
+    switch (vh_e2e_check(e2e, &m->e2e, f->data, f->len)) {
     case VH_E2E_OK:
     case VH_E2E_INITIAL:
         break;

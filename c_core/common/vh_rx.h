@@ -1,5 +1,5 @@
 /* vh_rx.h - what every ECU application shares on the bus: the RX checks of one cyclic message
- * (length, E2E P01, burst, timeout), the wrapping fault counters and a TX slot.
+ * (length, AUTOSAR E2E, burst, timeout), the wrapping fault counters and a TX slot.
  *
  * Each application owns its messages' vh_ecu_rxmsg_t and counts into the counters of its bus;
  * the checks and their order are the same for every message.
@@ -50,13 +50,14 @@ void vh_rx_count(uint16_t *c);
 /* Nothing received yet: timed out (not counted as a fault). */
 void vh_rx_init(vh_ecu_rxmsg_t *m);
 /* Length and E2E checks of one received frame, counted; 1 if its data may be used. */
-int vh_rx_accept(vh_ecu_counters_t *cnt, vh_ecu_rxmsg_t *m, const vh_frame_t *f, size_t len, uint16_t data_id);
+int vh_rx_accept(vh_ecu_counters_t *cnt, vh_ecu_rxmsg_t *m, const vh_frame_t *f, size_t len,
+                 const vh_e2e_cfg_t *e2e);
 /* Once per tick: age, timeout (counted on entry), cleared by a fresh frame; more than burst_limit
  * frames in a tick (0 = no limit) make the message untrusted until it has been regular for its
  * timeout. Returns 1 when the frames of this tick may be used. Does not clear `fresh`. */
 int vh_rx_tick(vh_ecu_counters_t *cnt, vh_ecu_rxmsg_t *m, unsigned timeout_ticks, unsigned burst_limit);
 /* The next TX slot with its header set and its payload zeroed, or NULL when tx[0..cap) is full;
- * *n counts the slot. The caller packs the payload and protects it (vh_e2e_p01_protect). */
+ * *n counts the slot. The caller packs the payload and protects it (vh_e2e_protect). */
 vh_frame_t *vh_tx_slot(vh_frame_t *tx, size_t *n, size_t cap, uint32_t id, size_t len, unsigned is_fd);
 
 #endif /* VH_RX_H */

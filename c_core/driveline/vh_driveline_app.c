@@ -74,7 +74,7 @@ void vh_drv_app_rx(vh_drv_app_t *a, const double gear_ratio[VH_ECU_N_GEARS], vh_
         vh_rx_count(&cnt->dlc_error);
         return;
     }
-    if (!vh_rx_accept(cnt, &d->rx, f, VH_PT_DLS_SENSORS_LENGTH, VH_PT_DLS_SENSORS_E2E_DATA_ID)) {
+    if (!vh_rx_accept(cnt, &d->rx, f, VH_PT_DLS_SENSORS_LENGTH, VH_PT_DLS_SENSORS_E2E)) {
         return;
     }
     (void)vh_pt_dls_sensors_unpack(&m, f->data, f->len);
@@ -191,7 +191,7 @@ int vh_drv_app_fill_est(vh_drv_app_t *a, const vh_dkf_t dkf[VH_ECU_N_DKF], uint8
     est.dkf_s_valid = dkf[VH_ECU_DKF_S].health == VH_HEALTH_OK;
     est.turbine_torque_valid = a->ti_valid;
     (void)vh_pt_vehest_driveline_est_pack(data, &est, VH_PT_VEHEST_DRIVELINE_EST_LENGTH);
-    vh_e2e_p01_protect(data, VH_PT_VEHEST_DRIVELINE_EST_LENGTH, VH_PT_VEHEST_DRIVELINE_EST_E2E_DATA_ID,
+    vh_e2e_protect(VH_PT_VEHEST_DRIVELINE_EST_E2E, data, VH_PT_VEHEST_DRIVELINE_EST_LENGTH,
                        &a->tx_counter[0]);
     return 1;
 }
@@ -218,6 +218,6 @@ int vh_drv_app_fill_status(vh_drv_app_t *a, const vh_dkf_t dkf[VH_ECU_N_DKF], co
                                    (a->ti_valid ? 0u : 4u) | (cnt->secoc_reject != a->secoc_seen ? 8u : 0u));
     a->secoc_seen = cnt->secoc_reject;
     (void)vh_pt_vehest_status_pack(data, &st, VH_PT_VEHEST_STATUS_LENGTH);
-    vh_e2e_p01_protect(data, VH_PT_VEHEST_STATUS_LENGTH, VH_PT_VEHEST_STATUS_E2E_DATA_ID, &a->tx_counter[1]);
+    vh_e2e_protect(VH_PT_VEHEST_STATUS_E2E, data, VH_PT_VEHEST_STATUS_LENGTH, &a->tx_counter[1]);
     return 1;
 }

@@ -161,14 +161,14 @@ static void rx_mode(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, const vh_
 }
 
 /* The application's RX messages in the order of a->rx (VH_ROLL_RX_*): frame ID, what vh_rx_accept
- * checks (length, E2E data ID), the timeout in ticks, and what an accepted frame goes to. */
+ * checks (length, E2E configuration), the timeout in ticks, and what an accepted frame goes to. */
 typedef void (*rx_handler_t)(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, const vh_frame_t *f);
 #define RX_MSG(MSG, handler) \
-    {VH_CH_##MSG##_FRAME_ID, VH_CH_##MSG##_LENGTH, VH_CH_##MSG##_E2E_DATA_ID, TIMEOUT(MSG), handler}
+    {VH_CH_##MSG##_FRAME_ID, VH_CH_##MSG##_LENGTH, VH_CH_##MSG##_E2E, TIMEOUT(MSG), handler}
 static const struct {
     uint32_t id;
     uint8_t len;
-    uint16_t data_id;
+    const vh_e2e_cfg_t *e2e;
     uint16_t timeout;
     rx_handler_t handler;
 } RX_MSGS[VH_ROLL_N_RX] = {RX_MSG(ROLL_SENSORS, rx_sensors), RX_MSG(ROLL_YAW_RATE, rx_yaw),
@@ -184,7 +184,7 @@ void vh_roll_app_rx(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, const vh_
     }
     for (i = 0; i < VH_ROLL_N_RX; ++i) {
         if (f->id == RX_MSGS[i].id) {
-            if (vh_rx_accept(&a->cnt, &a->rx[i], f, RX_MSGS[i].len, RX_MSGS[i].data_id)) {
+            if (vh_rx_accept(&a->cnt, &a->rx[i], f, RX_MSGS[i].len, RX_MSGS[i].e2e)) {
                 RX_MSGS[i].handler(a, cfg, f);
             }
             return;
@@ -277,7 +277,7 @@ int vh_roll_app_fill_cmd(vh_roll_app_t *a, uint8_t *data)
     m.moment_cmd_f = vh_ch_vehest_roll_cmd_moment_cmd_f_encode_round((double)a->smc.m_f);
     m.moment_cmd_r = vh_ch_vehest_roll_cmd_moment_cmd_r_encode_round((double)a->smc.m_r);
     (void)vh_ch_vehest_roll_cmd_pack(data, &m, VH_CH_VEHEST_ROLL_CMD_LENGTH);
-    vh_e2e_p01_protect(data, VH_CH_VEHEST_ROLL_CMD_LENGTH, VH_CH_VEHEST_ROLL_CMD_E2E_DATA_ID, &a->tx_counter[0]);
+    vh_e2e_protect(VH_CH_VEHEST_ROLL_CMD_E2E, data, VH_CH_VEHEST_ROLL_CMD_LENGTH, &a->tx_counter[0]);
     return 1;
 }
 
@@ -306,6 +306,6 @@ int vh_roll_app_fill_est(vh_roll_app_t *a, uint8_t *data)
     m.roll_rx_fault = (uint8_t)a->rx_fault;
     a->flags_acc = 0u;
     (void)vh_ch_vehest_roll_est_pack(data, &m, VH_CH_VEHEST_ROLL_EST_LENGTH);
-    vh_e2e_p01_protect(data, VH_CH_VEHEST_ROLL_EST_LENGTH, VH_CH_VEHEST_ROLL_EST_E2E_DATA_ID, &a->tx_counter[1]);
+    vh_e2e_protect(VH_CH_VEHEST_ROLL_EST_E2E, data, VH_CH_VEHEST_ROLL_EST_LENGTH, &a->tx_counter[1]);
     return 1;
 }

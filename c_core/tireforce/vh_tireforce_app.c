@@ -58,7 +58,7 @@ void vh_tf_app_rx(vh_ecu_chs_t *c, const vh_frame_t *f)
         vh_rx_count(&c->cnt.dlc_error);
         return;
     }
-    if (!vh_rx_accept(&c->cnt, &c->rx, f, VH_CH_CHS_SENSORS_LENGTH, VH_CH_CHS_SENSORS_E2E_DATA_ID)) {
+    if (!vh_rx_accept(&c->cnt, &c->rx, f, VH_CH_CHS_SENSORS_LENGTH, VH_CH_CHS_SENSORS_E2E)) {
         return;
     }
     (void)vh_ch_chs_sensors_unpack(&m, f->data, f->len);
@@ -96,7 +96,7 @@ void vh_tf_app_rx_ride(vh_ecu_chs_t *c, const vh_frame_t *f)
         vh_rx_count(&c->cnt.dlc_error);
         return;
     }
-    if (!vh_rx_accept(&c->cnt, &c->ride_rx, f, VH_CH_CHS_RIDE_HEIGHT_LENGTH, VH_CH_CHS_RIDE_HEIGHT_E2E_DATA_ID)) {
+    if (!vh_rx_accept(&c->cnt, &c->ride_rx, f, VH_CH_CHS_RIDE_HEIGHT_LENGTH, VH_CH_CHS_RIDE_HEIGHT_E2E)) {
         return;
     }
     (void)vh_ch_chs_ride_height_unpack(&m, f->data, f->len);
@@ -184,7 +184,7 @@ static int report(const vh_ecu_chs_t *c, uint8_t health, uint8_t *health_sig, ui
 /* Pack m as message msg and protect it (E2E profile 1, the message's own counter i). */
 #define SEND(msg, MSG, i)                                                                        \
     (void)vh_ch_##msg##_pack(data, &m, VH_CH_##MSG##_LENGTH);                                    \
-    vh_e2e_p01_protect(data, VH_CH_##MSG##_LENGTH, VH_CH_##MSG##_E2E_DATA_ID, &c->tx_counter[i])
+    vh_e2e_protect(VH_CH_##MSG##_E2E, data, VH_CH_##MSG##_LENGTH, &c->tx_counter[i])
 
 /* An estimate while the filter is usable, else the signal's SNA. */
 #define EST(sig, SIG, i)                                                                                  \

@@ -83,7 +83,7 @@ static void ride_frame(vh_chs_t *n, const vh_v14_truth_t *truth, vh_frame_t *f)
     VH_NODE_CORNERS(RIDE, spring_defl, SPRING_DEFL, 0);
     vh_node_frame_init(f, VH_CH_CHS_RIDE_HEIGHT_FRAME_ID, VH_CH_CHS_RIDE_HEIGHT_LENGTH);
     (void)vh_ch_chs_ride_height_pack(f->data, &m, VH_CH_CHS_RIDE_HEIGHT_LENGTH);
-    vh_e2e_p01_protect(f->data, VH_CH_CHS_RIDE_HEIGHT_LENGTH, VH_CH_CHS_RIDE_HEIGHT_E2E_DATA_ID, &n->counter_ride);
+    vh_e2e_protect(VH_CH_CHS_RIDE_HEIGHT_E2E, f->data, VH_CH_CHS_RIDE_HEIGHT_LENGTH, &n->counter_ride);
     vh_node_count(&n->frames);
 }
 
@@ -126,7 +126,7 @@ size_t vh_chs_step(vh_chs_t *n, const vh_v14_truth_t *truth, vh_frame_t *out, si
 
     vh_node_frame_init(out, VH_CH_CHS_SENSORS_FRAME_ID, VH_CH_CHS_SENSORS_LENGTH);
     (void)vh_ch_chs_sensors_pack(out->data, &m, VH_CH_CHS_SENSORS_LENGTH);
-    vh_e2e_p01_protect(out->data, VH_CH_CHS_SENSORS_LENGTH, VH_CH_CHS_SENSORS_E2E_DATA_ID, &n->counter);
+    vh_e2e_protect(VH_CH_CHS_SENSORS_E2E, out->data, VH_CH_CHS_SENSORS_LENGTH, &n->counter);
     vh_node_count(&n->frames);
     k = 1u;
     if (n->cfg.ride_period > 0u && n->tick % n->cfg.ride_period == 0u && cap >= 2u) {

@@ -80,7 +80,7 @@ static size_t cis_frame(vh_dlsim_t *sim, vh_frame_t *f)
     m.cis_present = 0xFu;
     vh_node_frame_init(f, VH_PT_CIS_ACCEL_FRAME_ID, VH_PT_CIS_ACCEL_LENGTH);
     (void)vh_pt_cis_accel_pack(f->data, &m, f->len);
-    vh_e2e_p01_protect(f->data, f->len, VH_PT_CIS_ACCEL_E2E_DATA_ID, &sim->cis_counter);
+    vh_e2e_protect(VH_PT_CIS_ACCEL_E2E, f->data, f->len, &sim->cis_counter);
     return 1u;
 }
 

@@ -65,7 +65,7 @@ size_t vh_dls_step(vh_dls_t *n, const vh_dlp_truth_t *truth, vh_frame_t *out, si
 
     vh_node_frame_init(out, VH_PT_DLS_SENSORS_FRAME_ID, VH_PT_DLS_SENSORS_LENGTH);
     (void)vh_pt_dls_sensors_pack(out->data, &m, VH_PT_DLS_SENSORS_LENGTH);
-    vh_e2e_p01_protect(out->data, VH_PT_DLS_SENSORS_LENGTH, VH_PT_DLS_SENSORS_E2E_DATA_ID, &n->counter);
+    vh_e2e_protect(VH_PT_DLS_SENSORS_E2E, out->data, VH_PT_DLS_SENSORS_LENGTH, &n->counter);
     vh_node_count(&n->frames);
     return 1u;
 }

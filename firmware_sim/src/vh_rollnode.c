@@ -108,7 +108,7 @@ void vh_rln_rx(vh_rln_t *n, const vh_frame_t *f)
         return;
     }
     st = f->len == VH_CH_VEHEST_ROLL_CMD_LENGTH
-             ? vh_e2e_p01_check(&n->cmd_e2e, f->data, f->len, VH_CH_VEHEST_ROLL_CMD_E2E_DATA_ID)
+             ? vh_e2e_check(VH_CH_VEHEST_ROLL_CMD_E2E, &n->cmd_e2e, f->data, f->len)
              : VH_E2E_BAD_LEN;
     if (st != VH_E2E_OK && st != VH_E2E_INITIAL && st != VH_E2E_SKIPPED) {
         ++n->cnt_rejected;
@@ -201,7 +201,7 @@ size_t vh_rln_step(vh_rln_t *n, const vh_v14_t *p, vh_frame_t *out, size_t cap)
         VH_NODE_CORNERS(SENS, susp_defl, SUSP_DEFL, VH_RLN_CH_DS);
         if ((f = vh_node_slot(out, &k, cap, VH_CH_ROLL_SENSORS_FRAME_ID, VH_CH_ROLL_SENSORS_LENGTH)) != NULL) {
             (void)vh_ch_roll_sensors_pack(f->data, &m, VH_CH_ROLL_SENSORS_LENGTH);
-            vh_e2e_p01_protect(f->data, VH_CH_ROLL_SENSORS_LENGTH, VH_CH_ROLL_SENSORS_E2E_DATA_ID, &n->counter[0]);
+            vh_e2e_protect(VH_CH_ROLL_SENSORS_E2E, f->data, VH_CH_ROLL_SENSORS_LENGTH, &n->counter[0]);
         }
 
         (void)vh_ch_roll_yaw_rate_init(&y);
@@ -209,7 +209,7 @@ size_t vh_rln_step(vh_rln_t *n, const vh_v14_t *p, vh_frame_t *out, size_t cap)
                         n->sent[VH_RLN_CH_R]);
         if ((f = vh_node_slot(out, &k, cap, VH_CH_ROLL_YAW_RATE_FRAME_ID, VH_CH_ROLL_YAW_RATE_LENGTH)) != NULL) {
             (void)vh_ch_roll_yaw_rate_pack(f->data, &y, VH_CH_ROLL_YAW_RATE_LENGTH);
-            vh_e2e_p01_protect(f->data, VH_CH_ROLL_YAW_RATE_LENGTH, VH_CH_ROLL_YAW_RATE_E2E_DATA_ID, &n->counter[1]);
+            vh_e2e_protect(VH_CH_ROLL_YAW_RATE_E2E, f->data, VH_CH_ROLL_YAW_RATE_LENGTH, &n->counter[1]);
         }
 
         (void)vh_ch_roll_actuator_status_init(&s);
@@ -221,7 +221,7 @@ size_t vh_rln_step(vh_rln_t *n, const vh_v14_t *p, vh_frame_t *out, size_t cap)
         f = vh_node_slot(out, &k, cap, VH_CH_ROLL_ACTUATOR_STATUS_FRAME_ID, VH_CH_ROLL_ACTUATOR_STATUS_LENGTH);
         if (f != NULL) {
             (void)vh_ch_roll_actuator_status_pack(f->data, &s, VH_CH_ROLL_ACTUATOR_STATUS_LENGTH);
-            vh_e2e_p01_protect(f->data, VH_CH_ROLL_ACTUATOR_STATUS_LENGTH, VH_CH_ROLL_ACTUATOR_STATUS_E2E_DATA_ID,
+            vh_e2e_protect(VH_CH_ROLL_ACTUATOR_STATUS_E2E, f->data, VH_CH_ROLL_ACTUATOR_STATUS_LENGTH,
                                &n->counter[2]);
         }
     }
@@ -231,7 +231,7 @@ size_t vh_rln_step(vh_rln_t *n, const vh_v14_t *p, vh_frame_t *out, size_t cap)
         mc.roll_mode_req = n->cfg.mode_active ? 1u : 0u;
         if ((f = vh_node_slot(out, &k, cap, VH_CH_ROLL_MODE_CMD_FRAME_ID, VH_CH_ROLL_MODE_CMD_LENGTH)) != NULL) {
             (void)vh_ch_roll_mode_cmd_pack(f->data, &mc, VH_CH_ROLL_MODE_CMD_LENGTH);
-            vh_e2e_p01_protect(f->data, VH_CH_ROLL_MODE_CMD_LENGTH, VH_CH_ROLL_MODE_CMD_E2E_DATA_ID, &n->counter[3]);
+            vh_e2e_protect(VH_CH_ROLL_MODE_CMD_E2E, f->data, VH_CH_ROLL_MODE_CMD_LENGTH, &n->counter[3]);
         }
     }
     ++n->tick;

@@ -43,7 +43,7 @@ static void good_dls(vh_frame_t *f, uint8_t *counter, double torque)
     f->len = VH_PT_DLS_SENSORS_LENGTH;
     f->flags = VH_FRAME_FD | VH_FRAME_BRS;
     (void)vh_pt_dls_sensors_pack(f->data, &m, f->len);
-    vh_e2e_p01_protect(f->data, f->len, VH_PT_DLS_SENSORS_E2E_DATA_ID, counter);
+    vh_e2e_protect(VH_PT_DLS_SENSORS_E2E, f->data, f->len, counter);
 }
 
 #ifdef VH_WITH_SIM

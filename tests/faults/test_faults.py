@@ -6,6 +6,7 @@ import random
 import time
 
 import can
+import e2e.p01
 import numpy as np
 import pytest
 
@@ -41,19 +42,9 @@ def drive(seconds=3.5):
 
 # ---- an independent reading of what the ECU received ------------------------------------------------
 
-def crc8_j1850(data: bytes) -> int:
-    """CRC-8 SAE J1850 bit by bit (poly 0x1D, init and final XOR 0xFF)."""
-    crc = 0xFF
-    for byte in data:
-        crc ^= byte
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0x1D) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
-    return crc ^ 0xFF
-
-
 def p01_ok(data: bytes, data_id: int) -> bool:
-    return len(data) >= 2 and (data[1] & 0x0F) <= 14 and \
-        data[0] == crc8_j1850(bytes([data_id & 0xFF, data_id >> 8]) + bytes(data[1:]))
+    """AUTOSAR E2E P01 (data ID mode BOTH) as the independent autosar-e2e library checks it."""
+    return len(data) >= 2 and (data[1] & 0x0F) <= 14 and e2e.p01.e2e_p01_check(bytearray(data), data_id)
 
 
 DLS_DATA_ID = int(DLS.dbc.attributes["E2EDataID"].value)

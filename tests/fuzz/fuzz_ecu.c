@@ -42,18 +42,18 @@
 typedef struct {
     uint32_t id;
     uint8_t len;
-    uint16_t data_id;
+    const vh_e2e_cfg_t *e2e;
 } rx_msg_t;
 
 static const rx_msg_t RX[] = {
-    {VH_PT_DLS_SENSORS_FRAME_ID, VH_PT_DLS_SENSORS_LENGTH, VH_PT_DLS_SENSORS_E2E_DATA_ID},
-    {VH_PT_CIS_ACCEL_FRAME_ID, VH_PT_CIS_ACCEL_LENGTH, VH_PT_CIS_ACCEL_E2E_DATA_ID},
-    {VH_CH_CHS_SENSORS_FRAME_ID, VH_CH_CHS_SENSORS_LENGTH, VH_CH_CHS_SENSORS_E2E_DATA_ID},
-    {VH_CH_ROLL_SENSORS_FRAME_ID, VH_CH_ROLL_SENSORS_LENGTH, VH_CH_ROLL_SENSORS_E2E_DATA_ID},
-    {VH_CH_ROLL_YAW_RATE_FRAME_ID, VH_CH_ROLL_YAW_RATE_LENGTH, VH_CH_ROLL_YAW_RATE_E2E_DATA_ID},
-    {VH_CH_ROLL_ACTUATOR_STATUS_FRAME_ID, VH_CH_ROLL_ACTUATOR_STATUS_LENGTH, VH_CH_ROLL_ACTUATOR_STATUS_E2E_DATA_ID},
-    {VH_CH_ROLL_MODE_CMD_FRAME_ID, VH_CH_ROLL_MODE_CMD_LENGTH, VH_CH_ROLL_MODE_CMD_E2E_DATA_ID},
-    {VH_CH_CHS_RIDE_HEIGHT_FRAME_ID, VH_CH_CHS_RIDE_HEIGHT_LENGTH, VH_CH_CHS_RIDE_HEIGHT_E2E_DATA_ID},
+    {VH_PT_DLS_SENSORS_FRAME_ID, VH_PT_DLS_SENSORS_LENGTH, VH_PT_DLS_SENSORS_E2E},
+    {VH_PT_CIS_ACCEL_FRAME_ID, VH_PT_CIS_ACCEL_LENGTH, VH_PT_CIS_ACCEL_E2E},
+    {VH_CH_CHS_SENSORS_FRAME_ID, VH_CH_CHS_SENSORS_LENGTH, VH_CH_CHS_SENSORS_E2E},
+    {VH_CH_ROLL_SENSORS_FRAME_ID, VH_CH_ROLL_SENSORS_LENGTH, VH_CH_ROLL_SENSORS_E2E},
+    {VH_CH_ROLL_YAW_RATE_FRAME_ID, VH_CH_ROLL_YAW_RATE_LENGTH, VH_CH_ROLL_YAW_RATE_E2E},
+    {VH_CH_ROLL_ACTUATOR_STATUS_FRAME_ID, VH_CH_ROLL_ACTUATOR_STATUS_LENGTH, VH_CH_ROLL_ACTUATOR_STATUS_E2E},
+    {VH_CH_ROLL_MODE_CMD_FRAME_ID, VH_CH_ROLL_MODE_CMD_LENGTH, VH_CH_ROLL_MODE_CMD_E2E},
+    {VH_CH_CHS_RIDE_HEIGHT_FRAME_ID, VH_CH_CHS_RIDE_HEIGHT_LENGTH, VH_CH_CHS_RIDE_HEIGHT_E2E},
 };
 #define N_RX (sizeof RX / sizeof RX[0]) /* all of them secured in the DBCs (op 6 secures them) */
 
@@ -468,7 +468,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
                 memset(&f.data[f.len - VH_SECOC_TAIL_BYTES], 0, VH_SECOC_TAIL_BYTES);
             }
             counter[a % N_RX] = (uint8_t)(counter[a % N_RX] + (b & 3u) - 1u); /* protect adds 1 */
-            vh_e2e_p01_protect(f.data, f.len, RX[a % N_RX].data_id, &counter[a % N_RX]);
+            vh_e2e_protect(RX[a % N_RX].e2e, f.data, f.len, &counter[a % N_RX]);
             if ((op & 7u) == 1u || node < 0) {
                 rx(&f);
                 break;

@@ -31,10 +31,11 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import can
+import e2e.p01
 import numpy as np
 import pytest
 
-from vehest_can.bus.frames import TICK_S, database, e2e_data_id, to_message
+from vehest_can.bus.frames import TICK_S, database, to_message
 from vehest_can.bus.log import read_log
 from vehest_can.native import lib
 from vehest_can.service.daemon import EcuDaemon
@@ -60,21 +61,10 @@ ECU_IDS = {EST.frame_id, STATUS.frame_id}
 # --------------------------------------------------------------------------- helpers
 
 
-def crc8_j1850(data: bytes) -> int:
-    """CRC-8 SAE J1850 (poly 0x1D, init 0xFF, xor-out 0xFF), bit by bit: independent of the C."""
-    crc = 0xFF
-    for byte in data:
-        crc ^= byte
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0x1D) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
-    return crc ^ 0xFF
-
-
 def e2e_ok(message, data: bytes) -> bool:
-    """AUTOSAR E2E P01 as the DBC describes it: CRC over data ID (low, high) and bytes 1..n-1."""
-    data_id = e2e_data_id(message)
-    return len(data) == message.length and data[0] == crc8_j1850(
-        bytes([data_id & 0xFF, data_id >> 8]) + bytes(data[1:]))
+    """AUTOSAR E2E P01 (data ID mode BOTH, the DBC's) as the independent autosar-e2e library checks it."""
+    data_id = int(message.dbc.attributes["E2EDataID"].value)
+    return len(data) == message.length and e2e.p01.e2e_p01_check(bytearray(data), data_id)
 
 
 def wire(frames: np.ndarray) -> list[tuple]:

@@ -127,13 +127,27 @@ def authentic_data(frame_id: int, data: bytes) -> bytes:
     return data if n is None or len(data) <= n else data[:n] + bytes(len(data) - n)
 
 
-def e2e_data_id(message) -> int:
-    attrs = message.dbc.attributes if message.dbc else {}
-    return int(attrs["E2EDataID"].value) if "E2EDataID" in attrs else 0
+def e2e_config(message):
+    """The message's AUTOSAR E2E configuration (``vh_e2e_cfg_t *``, the firmware's own table generated
+    from the DBC's E2E attributes by c_core/dbcgen.py), or None when it is not E2E-protected."""
+    for bus in BUSES:
+        cfg = getattr(lib, f"vh_{bus}_e2e_cfg")(message.frame_id)
+        if cfg != ffi.NULL:
+            return cfg
+    return None
+
+
+def e2e_check(cfg, rx, data: bytes) -> int:
+    """One received frame through the firmware's E2E check (``vh_e2e_check``): a VH_E2E_* status."""
+    return lib.vh_e2e_check(cfg, rx, data, len(data))
+
+
+#: E2E statuses whose data may be used (a frame lost before this one does not spoil it)
+E2E_USABLE = (lib.VH_E2E_OK, lib.VH_E2E_INITIAL, lib.VH_E2E_SKIPPED)
 
 
 class E2ESender:
-    """Encode a DBC message from physical values and protect it (E2E P01, the firmware's own C)."""
+    """Encode a DBC message from physical values and protect it (its DBC's E2E profile, the firmware's own C)."""
 
     def __init__(self, bus: str = "pt"):
         self.db = database(bus)
@@ -144,11 +158,11 @@ class E2ESender:
         signals = {s.name: 0 for s in m.signals}
         signals.update(values)
         payload = bytearray(m.encode(signals, scaling=True, strict=False, padding=False))
-        data_id = e2e_data_id(m)
-        if protect and data_id:
+        cfg = e2e_config(m)
+        if protect and cfg is not None:
             counter = self._counters.setdefault(name, ffi.new("uint8_t *", 0))
             buf = ffi.new("uint8_t[]", bytes(payload))
-            lib.vh_e2e_p01_protect(buf, len(payload), data_id, counter)
+            lib.vh_e2e_protect(cfg, buf, len(payload), counter)
             payload = bytearray(ffi.buffer(buf, len(payload)))
         return can.Message(arbitration_id=m.frame_id, is_extended_id=False, is_fd=m.is_fd,
                            bitrate_switch=m.is_fd, data=bytes(payload))

@@ -10,7 +10,7 @@ import can
 import numpy as np
 
 from ..bus.busload import FD_LENGTHS
-from ..bus.frames import database, e2e_data_id, message, message_by_id
+from ..bus.frames import database, e2e_config, message, message_by_id
 from ..native import ffi, lib
 from .spec import _SYNC, FaultConfig, FaultSpec, _target_ids
 
@@ -48,7 +48,7 @@ class FaultInjector:
         self._targets = [None if f.target in (None, "*") else _target_ids(f.target, bus)
                          for f in self.config.faults]
         self._sync_ids = frozenset(message(n).frame_id for n in _SYNC)
-        self._data_ids: dict[int, int] = {}
+        self._e2e: dict[int, object] = {}
         self.reset()
 
     def reset(self) -> None:
@@ -79,27 +79,26 @@ class FaultInjector:
         self.applied[i] += 1
         return True
 
-    def _data_id(self, msg: can.Message) -> int:
+    def _e2e_config(self, msg: can.Message):
+        """The frame's E2E configuration (``vh_e2e_cfg_t *``), None if it is not E2E-protected."""
         if msg.is_extended_id:
-            return 0
-        data_id = self._data_ids.get(msg.arbitration_id)
-        if data_id is None:
+            return None
+        if msg.arbitration_id not in self._e2e:
             try:
-                data_id = e2e_data_id(message_by_id(msg.arbitration_id))
+                self._e2e[msg.arbitration_id] = e2e_config(message_by_id(msg.arbitration_id))
             except KeyError:
-                data_id = 0
-            self._data_ids[msg.arbitration_id] = data_id
-        return data_id
+                self._e2e[msg.arbitration_id] = None
+        return self._e2e[msg.arbitration_id]
 
-    def _reprotect(self, data: bytearray, data_id: int, counter: int) -> bytearray:
-        """E2E P01 protect with the given counter (the firmware's own C)."""
+    def _reprotect(self, data: bytearray, cfg, offset: int = 0) -> bytearray:
+        """Protect again with the frame's own counter moved on by `offset` (the firmware's own C)."""
         n = len(data)
         ffi.memmove(self._buf, bytes(data), n)
-        self._counter[0] = counter
-        lib.vh_e2e_p01_protect(self._buf, n, data_id, self._counter)
+        self._counter[0] = (lib.vh_e2e_counter(cfg, self._buf) + offset) % lib.vh_e2e_counter_range(cfg)
+        lib.vh_e2e_protect(cfg, self._buf, n, self._counter)
         return bytearray(ffi.buffer(self._buf, n))
 
-    def _signal_fault(self, i: int, spec: FaultSpec, data: bytearray, data_id: int) -> bytearray:
+    def _signal_fault(self, i: int, spec: FaultSpec, data: bytearray, cfg) -> bytearray:
         """A sensor's fault inside its node: the signal's raw value replaced (SNA and its qualifier
         INVALID, or the value held since the fault began), the frame re-protected with its own counter."""
         msg = message(str(spec.target))
@@ -113,7 +112,7 @@ class FaultInjector:
             raw[spec.signal] = self._held.setdefault(i, int(raw[spec.signal]))
         out = bytearray(msg.encode(raw, scaling=False, strict=False, padding=False))
         out += bytearray(max(0, len(data) - len(out)))
-        return self._reprotect(out, data_id, data[1] & 0x0F) if data_id and len(out) >= 2 else out
+        return self._reprotect(out, cfg) if cfg is not None else out
 
     def apply(self, frames: list[can.Message], t_s: float) -> list[Injected]:
         """The frames as they leave the node at time t_s (s since the run started), each with its delay."""
@@ -132,17 +131,17 @@ class FaultInjector:
                 out.append(Injected(original, release - t_s))
                 continue
             data = bytearray(original.data)
-            data_id = self._data_id(original)
+            cfg = self._e2e_config(original)
             # the sender: its counter and its payload
-            if data_id and len(data) >= 2:
+            if cfg is not None:
                 for i, spec in enumerate(faults):
                     if spec.kind == "skip_counter" and self._hits(i, spec, original, t_s):
                         state.counter_offset += spec.by - 1
                 if state.counter_offset:
-                    data = self._reprotect(data, data_id, ((data[1] & 0x0F) + state.counter_offset) % 15)
+                    data = self._reprotect(data, cfg, state.counter_offset)
             for i, spec in enumerate(faults):
                 if spec.kind in ("sna", "stuck") and self._hits(i, spec, original, t_s):
-                    data = self._signal_fault(i, spec, data, data_id)
+                    data = self._signal_fault(i, spec, data, cfg)
             for i, spec in enumerate(faults):
                 if spec.kind == "freeze_counter" and state.last_payload is not None and \
                         self._hits(i, spec, original, t_s):

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import cast
 
 from ..bus.busload import FD_LENGTHS
-from ..bus.frames import BUSES, database, e2e_data_id, message, message_by_id
+from ..bus.frames import BUSES, database, e2e_config, message, message_by_id
 from ..errors import ConfigError
 from ..schema import Checker, read_toml
 
@@ -185,7 +185,7 @@ def _validate(spec: FaultSpec, where: str, bus: str = "pt") -> None:
         fail("signal", f"only sna and stuck faults take a signal, not {spec.kind}")
     if spec.kind == "skip_counter" and spec.target != "*":
         ids = _target_ids(cast(str, spec.target), bus)   # _validate: every kind but flood has one
-        if not any(e2e_data_id(message_by_id(i)) for i in ids):
+        if not any(e2e_config(message_by_id(i)) is not None for i in ids):
             fail("target", f"{spec.target} sends no E2E-protected frame: there is no counter to skip")
 
 

@@ -16,7 +16,7 @@ from typing import Any
 import can
 import numpy as np
 
-from ...bus.frames import authentic_data, database, e2e_data_id
+from ...bus.frames import E2E_USABLE, authentic_data, database, e2e_check, e2e_config
 from ...errors import ConfigError
 from ...native import ffi, lib
 from ...plotting import Figures, pyplot
@@ -41,8 +41,7 @@ class Capture:
         if msg.arbitration_id != CIS.frame_id or msg.is_extended_id:
             return
         data = bytes(msg.data)
-        if len(data) != CIS.length or lib.vh_e2e_p01_check(e2e, data, len(data), e2e_data_id(CIS)) not in (
-                lib.VH_E2E_OK, lib.VH_E2E_INITIAL, lib.VH_E2E_SKIPPED):
+        if len(data) != CIS.length or e2e_check(e2e_config(CIS), e2e, data) not in E2E_USABLE:
             self.refused += 1
             return
         d: Any = CIS.decode(data, decode_choices=False)
@@ -108,8 +107,7 @@ def ecu_results(messages) -> dict[str, dict] | None:
         if m.arbitration_id != CAMBER.frame_id or m.is_extended_id or len(m.data) != CAMBER.length:
             continue
         data = authentic_data(CAMBER.frame_id, bytes(m.data))  # its SecOC tail, if on, is not the CRC's
-        if lib.vh_e2e_p01_check(e2e, data, CAMBER.length, e2e_data_id(CAMBER)) in (
-                lib.VH_E2E_OK, lib.VH_E2E_INITIAL, lib.VH_E2E_SKIPPED):
+        if e2e_check(e2e_config(CAMBER), e2e, data) in E2E_USABLE:
             last = CAMBER.decode(bytes(m.data), decode_choices=False)
     if last is None:
         return None

@@ -113,7 +113,7 @@ def _ride_heights(events: list[tuple[int, bytes]], n: int, e2e: bool) -> tuple[n
     order received, each at the row of the ``CHS_Sensors`` frame of its tick. Returns ((n, 4) the
     deflections usable at each row, NaN elsewhere; None without any frame) and the frames E2E refused.
     Usable: the last good frame had all four channels valid and is younger than its timeout."""
-    from ...bus.frames import e2e_data_id
+    from ...bus.frames import E2E_USABLE, e2e_check, e2e_config
     from ...native import ffi, lib
 
     if not events:
@@ -124,7 +124,7 @@ def _ride_heights(events: list[tuple[int, bytes]], n: int, e2e: bool) -> tuple[n
     sigs = [msg.get_signal_by_name(s) for s in RIDE_SIGNALS]
     rx = ffi.new("vh_e2e_rx_t *")
     lib.vh_e2e_rx_init(rx)
-    good = (lib.VH_E2E_OK, lib.VH_E2E_INITIAL, lib.VH_E2E_SKIPPED)
+    cfg = e2e_config(msg)
     out = np.full((n, 4), np.nan)
     rejected = 0
     last_row, value = None, None
@@ -134,7 +134,7 @@ def _ride_heights(events: list[tuple[int, bytes]], n: int, e2e: bool) -> tuple[n
         while k < len(events) and events[k][0] <= r:
             p = events[k][1]
             k += 1
-            if len(p) != msg.length or (e2e and lib.vh_e2e_p01_check(rx, p, len(p), e2e_data_id(msg)) not in good):
+            if len(p) != msg.length or (e2e and e2e_check(cfg, rx, p) not in E2E_USABLE):
                 rejected += 1
                 continue
             d = msg.decode(p, decode_choices=False, scaling=False)
@@ -181,10 +181,10 @@ def decode_inputs(frames, *, e2e: bool = True) -> DecodedInputs:
 
     One row per ``CHS_Sensors`` frame; ``CHS_RideHeight`` frames give ``ride`` (held between them, as
     the ECU holds them); other IDs and extended-ID frames are skipped (a bus log may hold anything).
-    With ``e2e`` every frame is checked by the firmware's own E2E P01 check in order; a wrong CRC, a
+    With ``e2e`` every frame is checked by the firmware's own E2E check in order; a wrong CRC, a
     repeated counter or a short frame makes the whole row invalid (a skipped counter is frames lost
     on the way: the data is used, as the ECU does)."""
-    from ...bus.frames import e2e_data_id
+    from ...bus.frames import E2E_USABLE, e2e_check, e2e_config
     from ...native import ffi, lib
 
     msg = _chs_message()
@@ -215,10 +215,9 @@ def decode_inputs(frames, *, e2e: bool = True) -> DecodedInputs:
     rejected = 0
     rx = ffi.new("vh_e2e_rx_t *")
     lib.vh_e2e_rx_init(rx)
-    data_id = e2e_data_id(msg)
-    good = (lib.VH_E2E_OK, lib.VH_E2E_INITIAL, lib.VH_E2E_SKIPPED)
+    cfg = e2e_config(msg)
     for k, p in enumerate(payloads):
-        if e2e and lib.vh_e2e_p01_check(rx, p, len(p), data_id) not in good:
+        if e2e and e2e_check(cfg, rx, p) not in E2E_USABLE:
             ok[k] = False
             rejected += 1
             continue
