@@ -514,7 +514,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             f.id = RX[a % N_RX].id;
             f.len = RX[a % N_RX].len;
             f.flags = VH_FRAME_FD | VH_FRAME_BRS;
-            take_n(&in, &f.data[2], f.len > 2u ? f.len - 2u : 0u); /* bytes 0-1: CRC, counter */
+            /* byte 0 is the CRC; protect writes the counter and what else its profile owns, the rest
+             * of byte 1 is payload (CHS_Sensors' first qualifiers) */
+            take_n(&in, &f.data[1], f.len > 1u ? f.len - 1u : 0u);
             if ((op & 7u) == 6u && node >= 0) { /* the SecOC tail: zero under E2E, then the node's FV and MAC */
                 memset(&f.data[f.len - VH_SECOC_TAIL_BYTES], 0, VH_SECOC_TAIL_BYTES);
             }

@@ -142,8 +142,8 @@ def _xcp_programs() -> dict[str, bytes]:
 
 
 def _secured(frame_id: int, data: bytes) -> bytes:
-    """op 6: the frame's payload (bytes 2.., E2E made by the harness), secured by its node's twin."""
-    return bytes([6, RX_INDEX[frame_id], 1]) + data[2:]
+    """op 6: the frame's payload (bytes 1.., E2E made by the harness), secured by its node's twin."""
+    return bytes([6, RX_INDEX[frame_id], 1]) + data[1:]
 
 
 def seed_corpus(out: Path, frames_per_seed: int = 64) -> int:

@@ -144,7 +144,7 @@ def test_chassis_rx_faults_are_counted_flagged_and_survived(warm_chassis):
     bad_crc = can.Message(arbitration_id=f.arbitration_id, is_extended_id=False, is_fd=True,
                           data=bytes([f.data[0] ^ 1]) + f.data[1:])
     short = can.Message(arbitration_id=f.arbitration_id, is_extended_id=False, is_fd=True, data=f.data[:24])
-    est, st = run(ecu, [[f], [f], [bad_crc], [short], [good(tx, YawRate=-3.2768)], [good(tx, Qf_LatAccel=0)]]
+    est, st = run(ecu, [[f], [f], [bad_crc], [short], [good(tx, YawRate=-1.6384)], [good(tx, Qf_LatAccel=0)]]
                   + [[good(tx)] for _ in range(40)])
     c = ecu.chassis_counters()
     assert (c["counter_repeat"], c["crc_error"], c["dlc_error"], c["signal_invalid"]) == (1, 1, 1, 2)
@@ -172,7 +172,7 @@ def test_stuck_wheel_speed_saturates_counts_and_survives(paper_session):
     est, st = [], []
     for k, values in enumerate(d[:8000]):
         if 4000 <= k < 6000:
-            values = {**values, "WheelSpeedFR": 655.34}
+            values = {**values, "WheelSpeedFR": 327.66}  # the signal's maximum
         e, s = run(ecu, [[tx.message("CHS_Sensors", {**values})]])
         est += e
         st += s

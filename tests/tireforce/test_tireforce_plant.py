@@ -715,14 +715,15 @@ def test_node_clamps_flags_failures_and_feels_gravity_when_asked(ch_db):
     t.omega = [-3.0, 1e5, 50.0, 50.0]
     _, data = node_frame(n, t)
     raw = msg.decode(data, decode_choices=False, scaling=False)
-    assert raw["LongAccel"] == 32767 and raw["Qf_LongAccel"] == 1           # clamped, -32768 is SNA
-    assert raw["LatAccel"] == -32768 and raw["Qf_LatAccel"] == 0             # NaN: SNA, INVALID
-    assert raw["YawRate"] == -32767
-    assert raw["WheelSpeedFL"] == 0 and raw["WheelSpeedFR"] == 65534         # 65535 is SNA
+    # (15-bit accelerations, yaw rate and wheel speeds: CHS_Sensors packed for its SecOC tail)
+    assert raw["LongAccel"] == 16383 and raw["Qf_LongAccel"] == 1           # clamped, -16384 is SNA
+    assert raw["LatAccel"] == -16384 and raw["Qf_LatAccel"] == 0             # NaN: SNA, INVALID
+    assert raw["YawRate"] == -16383
+    assert raw["WheelSpeedFL"] == 0 and raw["WheelSpeedFR"] == 32766         # 32767 is SNA
     n.cfg.fail_mask = 1 << (lib.VH_CHS_CH_W + 2)
     _, data = node_frame(n, t)
     raw = msg.decode(data, decode_choices=False, scaling=False)
-    assert raw["WheelSpeedRL"] == 65535 and raw["Qf_WheelSpeedRL"] == 0
+    assert raw["WheelSpeedRL"] == 32767 and raw["Qf_WheelSpeedRL"] == 0
     assert ch_db.decode_message(msg.frame_id, data)["Qf_WheelSpeedRL"] == "INVALID"
     # gravity through body roll and pitch: a_y + g sin(phi), a_x - g sin(theta)
     g = node(noise_std=[0.0] * 13, accel_gravity=1)
@@ -801,8 +802,9 @@ def test_ch_bus_load_within_budget(capsys):
     assert (load.bitrate, load.data_bitrate) == (500_000, 4_000_000)
     assert load.worst_pct <= 60.0
     # 45.87 % + roll at 5 ms + SKFMEC-A at 10 ms + the SecOC tails and sync frames, the tyre-force
-    # estimates secured at 2 ms (docs/secoc.md), the ride heights at 10 ms (+1.04 points)
-    assert load.worst_pct == pytest.approx(54.06, abs=0.01)
+    # estimates secured at 2 ms (docs/secoc.md), the ride heights at 10 ms (+1.04 points), the chassis
+    # sensor frames secured (CHS_Sensors packed to keep 32 bytes, CHS_RideHeight 16, a sync frame: +0.11)
+    assert load.worst_pct == pytest.approx(54.17, abs=0.01)
     assert cli_main(["busload", str(ROOT / "dbc" / "vehest_ch.dbc")]) == 0
     meta = (ROOT / "build" / "generated" / "vh_ch_meta.h").read_text()
     assert "VH_CH_CHS_SENSORS_CYCLE_TIME_US (500u)" in meta
@@ -884,7 +886,7 @@ def test_split_mu_sensors_tyre_and_vehicle_keys(tmp_path):
     chs = [pl for i, pl in frames if i == 0x110]
     ride = [pl for i, pl in frames if i == 0x111]
     assert len(chs) == len(tr) == 2000 and all(len(pl) == 32 for pl in chs)
-    assert len(ride) == 100 and all(len(pl) == 12 for pl in ride) and len(frames) == 2100
+    assert len(ride) == 100 and all(len(pl) == 16 for pl in ride) and len(frames) == 2100
 
 
 @pytest.mark.parametrize("text, key, fragment", [

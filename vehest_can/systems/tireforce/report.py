@@ -184,7 +184,7 @@ def decode_inputs(frames, *, e2e: bool = True) -> DecodedInputs:
     With ``e2e`` every frame is checked by the firmware's own E2E check in order; a wrong CRC, a
     repeated counter or a short frame makes the whole row invalid (a skipped counter is frames lost
     on the way: the data is used, as the ECU does)."""
-    from ...bus.frames import E2E_USABLE, e2e_check, e2e_config
+    from ...bus.frames import E2E_USABLE, authentic_data, e2e_check, e2e_config
     from ...native import ffi, lib
 
     msg = _chs_message()
@@ -203,6 +203,8 @@ def decode_inputs(frames, *, e2e: bool = True) -> DecodedInputs:
         else:
             raise ConfigError(f"decode_inputs: expected payload bytes, (ID, payload) or can.Message, "
                               f"not {type(f).__name__}")
+        if fid in (msg.frame_id, ride_id):
+            data = authentic_data(fid, data)  # a SecOC tail, if on, is not the E2E CRC's (zeros there)
         if fid == msg.frame_id:
             payloads.append(data)
         elif fid == ride_id:
