@@ -100,8 +100,12 @@ def test_bad_log_outputs_are_errors_before_the_run(verb, tmp_path, capsys):
 
 
 def test_camber_measure_reads_from_log_and_the_old_flag_warns(tmp_path, capsys):
-    log = tmp_path / "empty.log"
-    log.write_text("")
+    empty = tmp_path / "empty.log"
+    empty.write_text("")
+    rc, _, err = cli(["camber", "measure", "--from-log", str(empty)], capsys)
+    assert rc == 1 and "no CAN data frames in this log (the file is empty)" in err
+    log = tmp_path / "other.log"
+    log.write_text("(0.000000) vcan0 123#00\n")  # a frame, but none of the ECU's camber frames
     rc, _, err = cli(["camber", "measure", "--from-log", str(log)], capsys)
     assert rc == 1 and "no VEHEST_Camber frame" in err and "deprecated" not in err
     rc, _, err = cli(["camber", "measure", "--log", str(log)], capsys)
