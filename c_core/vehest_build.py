@@ -32,10 +32,6 @@ OPT_FLAGS = ["-O3"]
 SYSTEMS = ("driveline", "tireforce", "camber", "roll")
 #: every folder of the firmware: what it shares, the systems, the XCP slave, SecOC, the scheduler
 FIRMWARE_DIRS = [HERE / "common", *(HERE / s for s in SYSTEMS), HERE / "xcp", HERE / "secoc", HERE / "ecu"]
-#: firmware folders that are only a cffi module of their own: none now (SecOC is in the ECU's tick and
-#: also builds alone as vehest_can._secoc; so do the XCP slave, vehest_can._xcp, and the roll filter
-#: without its ECU application, vehest_can._roll: secoc_build.py, xcp_build.py, roll_build.py)
-STANDALONE_DIRS: list[Path] = []
 #: what a program built from the firmware's sources links: libm, and OpenSSL's libcrypto for SecOC's
 #: AES on the host (vh_aes128_host.c; a target links its HSM driver instead)
 LINK_FLAGS = ["-lm", libcrypto()]

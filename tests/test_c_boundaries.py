@@ -55,7 +55,7 @@ def preprocessed(tmp_path_factory):
         pytest.skip("no C compiler")
     gen = tmp_path_factory.mktemp("gen")
     dbcgen.generate_all(gen)
-    inc = [f"-I{d}" for d in [*vehest_build.sim_include_dirs(gen), *vehest_build.STANDALONE_DIRS]]
+    inc = [f"-I{d}" for d in vehest_build.sim_include_dirs(gen)]
     out = {}
     for src in c_sources():
         if src.suffix == ".c":

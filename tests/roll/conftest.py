@@ -1,7 +1,7 @@
 import pytest
 
+from vehest_can.systems.roll import api as rn
 from vehest_can.systems.roll import evaluate as ev
-from vehest_can.systems.roll import native as rn
 
 
 @pytest.fixture(scope="session")

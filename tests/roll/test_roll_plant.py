@@ -4,8 +4,8 @@ and 72 km/h, level road): roll angle RMS error <= 5 % of the peak roll, roll rat
 import numpy as np
 import pytest
 
+from vehest_can.systems.roll import api as rn
 from vehest_can.systems.roll import evaluate as ev
-from vehest_can.systems.roll import native as rn
 
 
 @pytest.mark.parametrize("seed", [1, 2])

@@ -4,8 +4,8 @@ passive mode, fade-out on bad estimator health. The closed loop here runs on the
 import numpy as np
 import pytest
 
+from vehest_can.systems.roll import api as rn
 from vehest_can.systems.roll import evaluate as ev
-from vehest_can.systems.roll import native as rn
 
 H = rn.lib
 DT = 0.001

@@ -6,8 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vehest_can.systems.roll import native as rn
-from vehest_can.systems.roll import ref
+from vehest_can.systems.roll import api as rn
+from vehest_can.systems.roll import reference as ref
 
 ROOT = Path(__file__).resolve().parents[2]
 H = rn.lib

@@ -50,8 +50,6 @@ _TIMING = ("f_clock", "brp", "tseg1", "tseg2", "sjw", "nof_samples")  # nof_samp
 _NOMINAL_RATE = (5_000, 1_000_000)   # bit/s: ISO 11898 nominal rates end at 1 Mbit/s
 _DATA_RATE = (5_000, 16_000_000)     # bit/s: CAN FD data phase; transceivers go to 5..12 Mbit/s
 _DURATION = Num(0.0, 86_400.0, lo_open=True)
-# python-can interfaces where several handles on one channel all see each other's frames.
-SHAREABLE_INTERFACES = ("virtual", "udp_multicast", "socketcan")
 
 
 # ---- the configuration ---------------------------------------------------------------------

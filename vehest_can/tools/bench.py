@@ -132,9 +132,9 @@ def roll(steps: int = 1200, ref_steps: int = 60, repeats: int = 7) -> dict:
     """Seed-003 roll UKF step (n = 16, 33 sigma points): the C float32 and double builds through the
     array API (one call per run) against filterpy's UnscentedKalmanFilter on the same model and
     sigma points (ref.filterpy_ukf), on the paper's 72 km/h case at the ECU's 5 ms step."""
+    from ..systems.roll import api as rn
     from ..systems.roll import evaluate as ev
-    from ..systems.roll import native as rn
-    from ..systems.roll import ref
+    from ..systems.roll import reference as ref
 
     prm = rn.default_params()
     prm.dt = 0.005

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import native as rn
+from . import api as rn
 
 PLANT_DT = 0.0005
 # Sensor noise (1 sigma) of the synthesised measurements, in the order of MEAS_NAMES' groups.
@@ -170,7 +170,7 @@ def closed_loop_model(speed_kmh: float = 72.0, active: bool = True, duration_s: 
     actuators lag the command with act_tau; the UKF takes the applied moments as known inputs
     (an actuator status frame would report them). health_override(k, health) may replace the
     estimator health the controller sees (fault injection)."""
-    from . import ref
+    from . import reference as ref
 
     noise = dict(NOISE, **(noise or {}))
     prm = rn.default_params()
@@ -326,7 +326,7 @@ def sine_case(amp_deg: float = 6.0, f_hz: float = 0.7, speed_kmh: float = 72.0, 
 def ukf_vs_ekf(doc: dict, seed: int = 1) -> dict:
     """RMS errors (fraction of the peak) of roll and roll rate: C double UKF vs the numpy EKF
     (same model, Q, R, P0) on one scenario's synthesised measurements."""
-    from . import ref
+    from . import reference as ref
 
     truth = run_plant(doc)
     prm = rn.default_params()

@@ -196,7 +196,7 @@ def rerun(session) -> dict[str, Any]:
     clean run (every measurement valid at every step), as the shipped cases are."""
     from ...native import ffi as nffi
     from ...native import lib as nlib
-    from . import native as rn
+    from . import api as rn
 
     cfg = nffi.new("vh_roll_app_config_t *")
     nlib.vh_roll_app_config_default(cfg)

@@ -234,16 +234,6 @@ class RollCar:
         out["mode_active"] = self.node.cfg.mode_active
         return out[()]  # type: ignore[return-value]
 
-    def set_sensor_fault(self, kind: str, channel: str) -> None:
-        """A dead (SNA, qualifier INVALID) or stuck (last value repeated) roll sensor from now on."""
-        bit = 1 << CHANNELS.index(channel)
-        if kind == "dead":
-            self.node.cfg.fail_mask |= bit
-        elif kind == "stuck":
-            self.node.cfg.stuck_mask |= bit
-        else:
-            raise ValueError(f"sensor fault must be dead or stuck, not {kind!r}")
-
 
 # ---- loading -------------------------------------------------------------------------------------
 

@@ -13,7 +13,7 @@ NX, NZ, NU = 16, 14, 4
 
 
 class RollModel:
-    """The model of docs/roll.md from a parameter mapping (``native.params_dict`` or a dict)."""
+    """The model of docs/roll.md from a parameter mapping (``api.params_dict`` or a dict)."""
 
     def __init__(self, p: dict):
         self.p = p
