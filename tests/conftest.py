@@ -1,10 +1,18 @@
-"""pytest glue for the user-mode-Linux harness (vehest_can.tools.uml): the ``uml`` fixture."""
+"""pytest glue: hypothesis settings for a slow machine; the user-mode-Linux harness
+(vehest_can.tools.uml) as the ``uml`` fixture."""
 
 import os
 
 import pytest
+from hypothesis import HealthCheck, settings
 
 from vehest_can.tools import uml as _uml
+
+# the property tests are about correctness, not speed: no deadline, no health check that trips when
+# the machine is loaded (each test's own @settings still sets its number of examples)
+settings.register_profile("vehest", deadline=None,
+                          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+settings.load_profile("vehest")
 
 
 @pytest.fixture(scope="session")

@@ -5,6 +5,7 @@ from dataclasses import replace
 import can
 import numpy as np
 import pytest
+from ecurun import run_ecu
 
 from vehest_can.bus.frames import E2ESender, database
 from vehest_can.errors import ConfigError
@@ -21,17 +22,8 @@ GOOD = dict(OutShaftSpeed=200.0, WheelSpeedL=51.0, WheelSpeedR=51.0, ShaftTorque
 
 
 def run(ecu, frames_per_tick):
-    """frames_per_tick: list (one entry per tick) of lists of messages; returns decoded outputs."""
-    est, status = [], []
-    for frames in frames_per_tick:
-        for f in frames:
-            ecu.rx(f)
-        for out in ecu.step():
-            if out.arbitration_id == EST.frame_id:
-                est.append(EST.decode(out.data, decode_choices=False))
-            elif out.arbitration_id == STATUS.frame_id:
-                status.append(STATUS.decode(out.data, decode_choices=False))
-    return est, status
+    """The estimates and the status the ECU sent, decoded (tests/ecurun.py)."""
+    return run_ecu(ecu, frames_per_tick, (EST.name, STATUS.name))
 
 
 def good_ticks(tx, n, **override):

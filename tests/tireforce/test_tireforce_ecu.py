@@ -12,6 +12,7 @@ import can
 import numpy as np
 import pytest
 from daemonproc import start_daemon, stop_daemon
+from ecurun import run_ecu
 
 from vehest_can.bus.bus import open_bus, private_multicast
 from vehest_can.bus.frames import E2ESender, database
@@ -112,16 +113,8 @@ def good(tx, k=0, **override):
 
 
 def run(ecu, frames_per_tick):
-    est, st = [], []
-    for frames in frames_per_tick:
-        for f in frames:
-            ecu.rx(f)
-        for m in ecu.step():
-            if m.arbitration_id == TFE.frame_id:
-                est.append(TFE.decode(m.data, decode_choices=False))
-            elif m.arbitration_id == CST.frame_id:
-                st.append(CST.decode(m.data, decode_choices=False))
-    return est, st
+    """The estimates and the status the ECU sent, decoded (tests/ecurun.py)."""
+    return run_ecu(ecu, frames_per_tick, (TFE.name, CST.name))
 
 
 @pytest.fixture

@@ -54,3 +54,24 @@ def test_chassis_plant_row_tiny():
         assert _positive(res[key])
     text = bench.table({"array_api_ns": 1.0, "single_cffi_ns": 1.0, "numpy_ref_ns": 1.0, "chassis_plant": res})
     assert "14-DOF chassis plant" in text and "target >= 200x" in text
+
+
+def _fnv1a(*arrays: np.ndarray) -> int:
+    """FNV-1a over the little-endian bytes of int32 arrays (vh_bench_skf.c's checksum)."""
+    h = 2166136261
+    for b in b"".join(np.ascontiguousarray(a, dtype="<i4").tobytes() for a in arrays):
+        h = ((h ^ b) * 16777619) & 0xFFFFFFFF
+    return h
+
+
+@needs_cc
+@pytest.mark.parametrize("n", [500, 3000])
+def test_the_python_drive_is_the_c_drive(n):
+    """The numpy reference row times skf_inputs(n), the C-loop rows vh_bench_skf.c's own drive: the
+    fixed-point SKFMEC run on the Python drive ends in the state the C bench checksums, bit for bit."""
+    from vehest_can.systems.tireforce.api import TireForceFixed
+
+    kf = TireForceFixed()
+    raw = kf.run_raw(kf.quantise(bench.skf_inputs(n)), covariances=True)
+    c = bench.bench_c_loop(samples=n)
+    assert _fnv1a(raw["x"][-1], raw["p"][-1], raw["fy"][-1], raw["fz"][-1]) == int(c["skfmec_fixed_checksum"][0])

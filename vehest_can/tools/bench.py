@@ -314,8 +314,10 @@ def table(res: dict, lockstep: dict[str, float] | None = None) -> str:
 def bench_c_loop(cc: str | None = None, samples: int = 40000) -> dict[str, tuple[float, float]] | None:
     """Build and run ``c_core/bench/vh_bench_skf.c`` with the extension's flags.
 
-    Returns {name: (median_ns, p99_ns)} for ``skfmec_double_step``, ``ekf_double_step`` and
-    ``skfmec_fixed_step`` (one step timed call by call in a C loop), or None without a compiler.
+    Returns {name: (median_ns, p99_ns)} for ``skfmec_double_step``, ``ekf_double_step``,
+    ``skfmec_fixed_step`` and ``skfmec_a_fixed_step`` (one step timed call by call in a C loop), and
+    {name: (value, 0)} for the fixed-point filters' saturation counts and final-state checksums
+    (``skfmec_fixed_checksum``, ...), or None without a compiler.
     """
     root = ROOT
     src = root / "c_core" / "bench" / "vh_bench_skf.c"
@@ -334,6 +336,7 @@ def bench_c_loop(cc: str | None = None, samples: int = 40000) -> dict[str, tuple
         out = subprocess.run([str(exe), str(samples)], check=True, capture_output=True, text=True).stdout
     rows = {}
     for line in out.splitlines():
-        name, _, med, p99 = line.split()
-        rows[name] = (float(med), float(p99))
+        name, count, med, p99 = line.split()
+        # the saturation counts and state checksums ("name value 0 0") keep their value
+        rows[name] = (float(count), 0.0) if name.endswith(("_saturations", "_checksum")) else (float(med), float(p99))
     return rows
