@@ -1,18 +1,23 @@
 # The two README commands: `make demo` (the main job) and `make test` (the whole suite).
 # Each creates a local .venv and installs the project (compiling the C core) on first use.
+# `make check` is the quick tier for iterating on a change: no user-mode Linux, no multicast daemons,
+# no firmware rebuilds (sanitizers, fuzzing, cross compiler, wheel), no scenario of several seconds.
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 SOURCES := $(shell find c_core firmware_sim dbc -type f \( -name '*.c' -o -name '*.h' -o -name '*.inc' -o -name '*.dbc' -o -name '*.py' \)) pyproject.toml setup.py
 
-.PHONY: demo test bench install clean firmware-size
+.PHONY: demo test check bench install clean firmware-size
 
 demo: $(STAMP)
 	$(BIN)/vehest-can demo $(ARGS)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest $(ARGS)
+
+check: $(STAMP)
+	$(BIN)/python -m pytest -q -n 2 -m "not slow and not multicast and not uml and not hostnet and not rebuild" $(ARGS)
 
 bench: $(STAMP)
 	$(BIN)/vehest-can bench $(ARGS)

@@ -87,6 +87,7 @@ def test_strict_flags_reject_a_warning(tmp_path):
     assert r.returncode != 0 and "unused" in r.stderr
 
 
+@pytest.mark.rebuild
 def test_firmware_compiles_with_the_strict_flags(tmp_path):
     objs = vehest_build.compile_firmware(tmp_path / "obj")
     assert len(objs) == len(vehest_build.firmware_sources())

@@ -147,6 +147,7 @@ def test_gear_model_at_init_equals_discretising_in_the_tick():
         assert lib.vh_dkf_gear_model(cfg, 0.0, ffi.new("vh_dkf_gear_model_t *")) == lib.VH_EINVAL
 
 
+@pytest.mark.rebuild
 @pytest.mark.skipif(firmware_size.missing_toolchain() is not None, reason=str(firmware_size.missing_toolchain()))
 def test_the_tick_computes_no_matrix_exponential():
     """In the call graph of the Cortex-M4 build, vh_ecu_step reaches no vh_mat_expm (a gear change

@@ -9,8 +9,8 @@ sys.path.insert(0, str(ROOT / "c_core"))
 import firmware_size  # noqa: E402
 import vehest_build  # noqa: E402
 
-pytestmark = pytest.mark.skipif(firmware_size.missing_toolchain() is not None,
-                                reason=str(firmware_size.missing_toolchain()))
+pytestmark = [pytest.mark.rebuild, pytest.mark.skipif(firmware_size.missing_toolchain() is not None,
+                                                      reason=str(firmware_size.missing_toolchain()))]
 
 
 @pytest.fixture(scope="module")

@@ -10,6 +10,8 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent / "fuzz"))
 import run_fuzz  # noqa: E402
 
+pytestmark = pytest.mark.rebuild
+
 CI = os.environ.get("CI", "").lower() in ("true", "1")
 
 

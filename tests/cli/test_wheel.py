@@ -11,7 +11,7 @@ import pytest
 ROOT = Path(__file__).parents[2]
 WHEELHOUSE = ROOT / "build" / "wheelhouse"
 
-pytestmark = [pytest.mark.slow, pytest.mark.multicast]
+pytestmark = [pytest.mark.slow, pytest.mark.multicast, pytest.mark.rebuild]
 
 
 def run(cmd, **kw):

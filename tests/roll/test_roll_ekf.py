@@ -5,6 +5,8 @@ import pytest
 
 from vehest_can.systems.roll import evaluate as ev
 
+pytestmark = pytest.mark.slow
+
 CASES = {
     "paper 36 km/h": ev.paper_case(36.0),
     "paper 72 km/h": ev.paper_case(72.0),

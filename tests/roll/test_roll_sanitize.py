@@ -6,6 +6,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.rebuild
+
 ROOT = Path(__file__).resolve().parents[2]
 ROLL = ROOT / "c_core" / "roll"
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-Wdouble-promotion"]

@@ -317,6 +317,7 @@ def test_secured_session_log_verified_independently(keys, tmp_path):
     assert independent_check(msgs, keys)[1] == 1
 
 
+@pytest.mark.slow
 def test_chassis_sensor_frames_secured_and_verified_independently(keys):
     """The tyre-force car (the chassis sensor node with ride heights, the inputs of the tyre-force,
     mass and friction estimation): CHS_Sensors and CHS_RideHeight secured, every MAC verified by the

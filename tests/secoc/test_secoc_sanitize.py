@@ -13,6 +13,8 @@ SECOC = ROOT / "c_core" / "secoc"
 sys.path.insert(0, str(SECOC))
 import secoc_build  # noqa: E402
 
+pytestmark = pytest.mark.rebuild
+
 SAN = ["-fsanitize=address,undefined,float-cast-overflow", "-fno-sanitize-recover=all",
        "-fno-omit-frame-pointer", "-g", "-O1"]
 

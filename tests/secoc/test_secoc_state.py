@@ -222,6 +222,7 @@ def _fv_of_sync(msg) -> int:
     return int.from_bytes(bytes(msg.data)[:8], "big")
 
 
+@pytest.mark.multicast
 @pytest.mark.parametrize("stop", [signal.SIGTERM, signal.SIGKILL], ids=["clean-stop", "kill-9"])
 def test_daemon_restarted_with_default_flags_rejects_every_replayed_frame(keyfile, tmp_path, stop):
     path, keys = keyfile

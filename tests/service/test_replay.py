@@ -362,6 +362,7 @@ def test_a_table_without_its_library_says_which(lockstep_log, tmp_path, capsys, 
 
 # -- the log played onto a bus (--play) -----------------------------------------------------------
 
+@pytest.mark.multicast
 def test_played_onto_a_bus_a_daemon_estimates_as_the_log_did(lockstep_log, tmp_path, capsys):
     """`replay --play` on a host-only udp_multicast bus (a port of its own): a lockstep daemon in
     its own process steps on the played SIM_Sync frames and sends, frame for frame, the ECU

@@ -8,6 +8,7 @@ import threading
 import tracemalloc
 
 import numpy as np
+import pytest
 
 from vehest_can.bus.bus import open_bus, private_multicast
 from vehest_can.bus.log import SessionLog
@@ -47,6 +48,7 @@ def retained_bytes_per_frame(tmp_path, keep: bool, seconds: float = 3.0) -> tupl
     return float(np.polyfit(frames, mem, 1)[0]), master, session
 
 
+@pytest.mark.slow
 def test_a_realtime_run_that_keeps_nothing_stays_flat(tmp_path, monkeypatch):
     slope, master, session = retained_bytes_per_frame(tmp_path, keep=False)
     st = session.stats

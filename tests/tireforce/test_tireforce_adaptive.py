@@ -384,6 +384,7 @@ def _plant_tyre():
     return tyre
 
 
+@pytest.mark.slow
 def test_ablation_cli_prints_the_docs_table_and_refuses_a_bad_scenario(capsys, tmp_path):
     """`python -m vehest_can.systems.tireforce.ablation --markdown NAME`: the header and one row per
     scenario with every variant's cells; a missing or malformed scenario is a one-line error, rc 1."""

@@ -432,6 +432,7 @@ def arm_soft_float_symbols(src: Path, tmp: Path, inc: list[Path] = (INCLUDE,)) -
     return [sym for sym in undefined(arm_object(src, tmp, inc), "arm-none-eabi-nm") if SOFT_FLOAT.match(sym)]
 
 
+@pytest.mark.rebuild
 @pytest.mark.skipif(shutil.which("gcc") is None or os.uname().machine != "x86_64", reason="needs x86-64 gcc")
 def test_fixed_point_units_compile_without_fp_registers(tmp_path):
     """GCC refuses any floating-point use under -mgeneral-regs-only: every unit of the tyre-force
@@ -451,6 +452,7 @@ def test_fixed_point_units_compile_without_fp_registers(tmp_path):
 @pytest.mark.skipif(shutil.which("arm-none-eabi-gcc") is None and os.environ.get("CI", "").lower() not in ("true", "1"),
                     reason="needs gcc-arm-none-eabi (Debian package gcc-arm-none-eabi; CI installs it and "
                            "fails here without it)")
+@pytest.mark.rebuild
 def test_fixed_point_units_need_no_soft_float_on_cortex_m(tmp_path):
     """Built for a Cortex-M3 (no FPU, soft-float ABI), the tyre-force path's units (as above)
     reference no __aeabi_f*/__aeabi_d* or libgcc/libm float routine; the one-double file does.
@@ -501,6 +503,7 @@ def run_bench(exe: Path) -> dict:
     return {line.split()[0]: line.split()[1:] for line in run.stdout.splitlines()}
 
 
+@pytest.mark.rebuild
 @pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
 def test_estimators_under_sanitizers_and_bit_exact_across_builds(tmp_path):
     """libfixmath practice: the fixed-point code (shifts of negative values, int64 products) and

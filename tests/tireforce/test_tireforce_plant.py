@@ -942,6 +942,7 @@ def test_command_line_summary_and_bench(capsys):
 
 # ---- sanitizers --------------------------------------------------------------------------------
 
+@pytest.mark.rebuild
 @pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
 def test_plant_tyre_and_node_under_asan_ubsan(tmp_path):
     sys.path.insert(0, str(ROOT / "c_core"))

@@ -23,6 +23,7 @@ def test_skf_inputs_are_the_c_bench_drive():
     assert inp.delta[0] == 0.0 and np.all(np.abs(inp.delta) <= 0.035)
 
 
+@pytest.mark.rebuild
 @needs_cc
 def test_tireforce_rows_tiny():
     res = bench.tireforce(c_samples=200, ref_steps=5, repeats=1)
@@ -35,6 +36,7 @@ def test_tireforce_rows_tiny():
     assert "SKFMEC fixed-point step, C loop" in text and "faster than the numpy reference step" in text
 
 
+@pytest.mark.rebuild
 @needs_cc
 def test_ecu_tick_with_chassis_runs_the_estimator():
     c = bench.c_loop()
@@ -64,6 +66,7 @@ def _fnv1a(*arrays: np.ndarray) -> int:
     return h
 
 
+@pytest.mark.rebuild
 @needs_cc
 @pytest.mark.parametrize("n", [500, 3000])
 def test_the_python_drive_is_the_c_drive(n):

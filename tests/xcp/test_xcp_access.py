@@ -42,6 +42,7 @@ def _slave_upload(ecu: Ecu, address: int, n: int) -> bytes | None:
     return data[1:1 + n] if data[0] == 0xFF else None
 
 
+@pytest.mark.slow
 def test_upload_reads_the_described_measurements_and_calibration_only_over_the_whole_address_space():
     """Every region boundary +-1, every byte of the ECU instance's address window and a sweep of the
     32-bit space every 4 KiB (and the last bytes): what UPLOAD returns is exactly the described

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 
 import cantools
+import pytest
 
 from vehest_can.bus.busload import bus_load, frame_bits, wire_time_us
 from vehest_can.cli import main
@@ -41,6 +42,7 @@ def test_busload_counts_the_xcp_bus_and_every_bus_is_within_60_percent(capsys):
     assert 55.0 < buses["vehest_xcp"]["worst_pct"] <= 60.0  # 58.1 %: the budget is spent on purpose
 
 
+@pytest.mark.rebuild
 def test_the_ecu_tick_bench_runs_the_daq_within_its_budget():
     """`vehest-can bench`'s XCP rows: the figures are measured, not asserted; the DAQ must run."""
     import shutil

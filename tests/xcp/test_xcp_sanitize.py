@@ -13,6 +13,8 @@ SECOC = ROOT / "c_core" / "secoc"
 sys.path.insert(0, str(XCP))
 import xcp_build  # noqa: E402
 
+pytestmark = pytest.mark.rebuild
+
 #: the slave with the CMAC it keys seed & key with (c_core/secoc), AES from libcrypto
 SLAVE = [f"-I{XCP}", f"-I{SECOC}", str(XCP / "vh_xcp.c"), str(SECOC / "vh_cmac.c"), str(SECOC / "vh_aes128_host.c")]
 
