@@ -247,7 +247,8 @@ def test_daemon_restarted_with_default_flags_rejects_every_replayed_frame(keyfil
     assert bytes(first2.data) != bytes(syncs1[0].data)
     last = max(i for i, m in enumerate(vehest1) if m.arbitration_id == SYNC_CH)
     last_fv = _fv_of_sync(vehest1[last]) + len(vehest1) - last - 1  # one FV per VEHEST frame after it
-    assert last_fv >= 1000 and _fv_of_sync(first2) > last_fv
+    # (how far run 1 got depends on the machine's speed: it must only have moved on from its first sync)
+    assert last_fv > _fv_of_sync(syncs1[0]) and _fv_of_sync(first2) > last_fv
     if stop == signal.SIGKILL:  # after a crash: at the persisted reservation bound, a block ahead
         assert _fv_of_sync(first2) >= 1 + RESERVE_BLOCK
 
