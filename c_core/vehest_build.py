@@ -7,9 +7,8 @@ with the firmware folders only, so a firmware source that includes a simulator h
 build; the simulator compiles with both. Sharing one extension lets the C lockstep harness pass
 instances between plant and ECU without copies.
 
-The cdef is generated from the public headers themselves (``header_cdef``): comments, include
-guards and includes dropped, ``static inline`` bodies turned into prototypes, integer macros kept,
-floating ones declared ``static const double``. Nothing is written twice.
+The cdef is generated from the public headers themselves (``cbuild.cdef_of``). Nothing is written
+twice.
 """
 from __future__ import annotations
 
@@ -23,11 +22,11 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
 import dbcgen  # noqa: E402  (sits beside this file)
-from cbuild import STRICT_FLAGS, libcrypto  # noqa: E402  (the strict flags; SecOC's AES on the host: OpenSSL)
+from cbuild import OPT_FLAGS, STRICT_FLAGS, cdef_of, compile_strict, header_cdef, libcrypto  # noqa: E402,F401  (c_core/cbuild.py)
+
+_INCLUDE = re.compile(r'^#include\s+"([^"]+)"', re.M)
 
 GEN_DIR = ROOT / "build" / "generated"
-# -O3: lets the compiler vectorise the 4x4 products of the filter step (~25% faster than -O2).
-OPT_FLAGS = ["-O3"]
 #: the systems of the firmware, one folder each (sources, headers, the system's ECU application)
 SYSTEMS = ("driveline", "tireforce", "camber", "roll")
 #: every folder of the firmware: what it shares, the systems, the XCP slave, SecOC, the scheduler
@@ -76,55 +75,6 @@ def firmware_sources(gen_dir: Path = GEN_DIR) -> list[Path]:
     return ecu_sources(gen_dir) + sorted(SIM_SRC_DIR.glob("*.c")) + [gen_dir / f"{n}.c" for n in names]
 
 
-# ---- cdef from the headers ----------------------------------------------------------------
-
-_COMMENT = re.compile(r"/\*.*?\*/|//[^\n]*", re.S)
-_INT_LITERAL = re.compile(r"^-?(0x[0-9a-fA-F]+|\d+)[uUlL]*$")
-_FLOAT_LITERAL = re.compile(r"^-?(\d+\.\d*|\.\d+|\d+)([eE][-+]?\d+)?$")
-_INCLUDE = re.compile(r'^#include\s+"([^"]+)"', re.M)
-
-
-def _inline_prototypes(text: str) -> str:
-    """``static inline T f(args) { ... }`` -> ``T f(args);`` (cffi wraps the inline function)."""
-    out, i = [], 0
-    for m in re.finditer(r"static inline ([^;{]*?\))\s*\{", text):
-        if m.start() < i:
-            continue
-        depth, j = 1, m.end()
-        while depth:
-            depth += {"{": 1, "}": -1}.get(text[j], 0)
-            j += 1
-        out.append(text[i:m.start()] + m.group(1) + ";")
-        i = j
-    return "".join(out) + text[i:]
-
-
-def header_cdef(text: str) -> str:
-    """The cffi declarations of one public header, from the header itself."""
-    # a macro continued over several lines is one line to the reader below (a function-like one is skipped)
-    text = _inline_prototypes(_COMMENT.sub("", text).replace("\\\n", " "))
-    lines = []
-    for line in text.splitlines():
-        s = line.strip()
-        if s.startswith("#"):
-            m = re.match(r"#define\s+(\w+)\s+(.+)$", s)
-            if not m or m.group(1).endswith("_H"):
-                continue  # include guards, includes, function-like macros
-            name, value = m.group(1), m.group(2).strip()
-            if _INT_LITERAL.match(value):
-                lines.append(f"#define {name} {value}")
-            elif _FLOAT_LITERAL.match(value):
-                lines.append(f"static const double {name};")
-            elif re.fullmatch(r"\(\s*-?\d+[uUlL]*\s*\)", value):
-                lines.append(f"#define {name} ...")
-            continue
-        if re.match(r"typedef char \w+\[", s):
-            continue  # compile-time checks
-        if s:
-            lines.append(line.rstrip())
-    return "\n".join(lines) + "\n"
-
-
 def public_headers(gen_dir: Path = GEN_DIR) -> list[Path]:
     """Every public header of the extension, each after the headers it includes."""
     by_name = {p.name: p for d in (*FIRMWARE_DIRS, SIM_INCLUDE_DIR) for p in sorted(d.glob("*.h"))}
@@ -146,32 +96,10 @@ def public_headers(gen_dir: Path = GEN_DIR) -> list[Path]:
     return order
 
 
-def _expanded_cdef(path: Path) -> str:
-    """A header that includes a template (``*.inc``, e.g. vh_roll.h: one declaration per precision):
-    its integer macros, then the header through the C preprocessor with ``<NAME>_CDEF`` set (the
-    header leaves out its system includes then)."""
-    import os
-    import shlex
-    import subprocess
-
-    from setuptools._distutils.sysconfig import get_config_var
-
-    cc = shlex.split(os.environ.get("CC") or get_config_var("CC") or "cc")
-    out = subprocess.run(cc + ["-E", "-P", f"-D{path.stem.upper()}_CDEF", "-I", str(path.parent), "-x", "c", str(path)],
-                         check=True, capture_output=True, text=True).stdout
-    defines = [ln for ln in header_cdef(path.read_text()).splitlines() if ln.startswith(("#define", "static const"))]
-    return "\n".join(defines) + "\n" + out
-
-
-def _cdef_of(path: Path) -> str:
-    text = path.read_text()
-    return _expanded_cdef(path) if re.search(r'#include\s+"[^"]+\.inc"', text) else header_cdef(text)
-
-
 def cdef_text(gen_dir: Path = GEN_DIR) -> str:
     dbcgen.generate_all(gen_dir)
     parts = [p.read_text() for p in sorted(gen_dir.glob("*.cdef"))]  # the generated codec
-    parts += [f"/* {p.name} */\n" + _cdef_of(p) for p in public_headers(gen_dir)]
+    parts += [f"/* {p.name} */\n" + cdef_of(p) for p in public_headers(gen_dir)]
     return "\n".join(parts)
 
 
@@ -195,33 +123,28 @@ def xcp_generate(gen_dir: Path = GEN_DIR):
     return ecu_desc.generate(ffi)
 
 
-def compile_firmware(out_dir: Path = ROOT / "build" / "obj", extra_flags: list[str] | None = None,
-                     gen_dir: Path = GEN_DIR) -> list[str]:
-    """Compile every source with the strict flags; returns the object files.
+def compile_objects(out_dir: Path = ROOT / "build" / "obj", extra_flags: list[str] | None = None,
+                    gen_dir: Path = GEN_DIR, *, dry: bool = False) -> list[str]:
+    """Compile every source with the strict flags; returns the object files (``dry``: their names,
+    nothing compiled or generated).
 
     The firmware and the codec see only the firmware's include path; the simulator sees both.
     The firmware is compiled here, apart from cffi's own glue: the glue casts object pointers
     to function pointers, which ``-pedantic`` rejects, and it is not our code to hold to C99.
     """
-    from setuptools._distutils.ccompiler import new_compiler
-    from setuptools._distutils.sysconfig import customize_compiler
-
-    cc = new_compiler()
-    customize_compiler(cc)
-    flags = STRICT_FLAGS + OPT_FLAGS + ["-fPIC"] + (extra_flags or [])
+    if not dry:
+        xcp_generate(gen_dir)  # vh_ecu_xcp.c includes the limit table
     srcs = firmware_sources(gen_dir)
     sim = [s for s in srcs if s.parent == SIM_SRC_DIR]
     fw = [s for s in srcs if s.parent != SIM_SRC_DIR]
-    objs = cc.compile([str(s) for s in fw], output_dir=str(out_dir / "firmware"),
-                      include_dirs=[str(d) for d in firmware_include_dirs(gen_dir)], extra_postargs=flags)
-    objs += cc.compile([str(s) for s in sim], output_dir=str(out_dir / "sim"),
-                       include_dirs=[str(d) for d in sim_include_dirs(gen_dir)], extra_postargs=flags)
-    return objs
+    return (compile_strict(fw, firmware_include_dirs(gen_dir), out_dir / "firmware", extra_flags=extra_flags, dry=dry)
+            + compile_strict(sim, sim_include_dirs(gen_dir), out_dir / "sim", extra_flags=extra_flags, dry=dry))
 
 
 def make_ffi() -> FFI:
-    xcp_generate()  # before compiling: vh_ecu_xcp.c includes the limit table
-    objects = compile_firmware()
+    """The builder of ``vehest_can._native``; its objects are compile_objects' (setup.py's build_ext
+    compiles them first; this compiles nothing)."""
+    objects = compile_objects(dry=True)
     ffi = FFI()
     ffi.cdef(cdef_text())
     ffi.set_source(
@@ -235,7 +158,6 @@ def make_ffi() -> FFI:
     return ffi
 
 
-ffibuilder = make_ffi()
-
 if __name__ == "__main__":
-    ffibuilder.compile(tmpdir=str(ROOT / "build" / "cffi"), verbose=True)
+    compile_objects()
+    make_ffi().compile(tmpdir=str(ROOT / "build" / "cffi"), verbose=True)

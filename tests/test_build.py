@@ -5,6 +5,7 @@ import sys
 from pathlib import Path
 
 import cffi
+import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "c_core"))
@@ -89,7 +90,7 @@ def test_strict_flags_reject_a_warning(tmp_path):
 
 @pytest.mark.rebuild
 def test_firmware_compiles_with_the_strict_flags(tmp_path):
-    objs = vehest_build.compile_firmware(tmp_path / "obj")
+    objs = vehest_build.compile_objects(tmp_path / "obj")
     assert len(objs) == len(vehest_build.firmware_sources())
     assert all(Path(o).exists() for o in objs)
 

@@ -10,9 +10,6 @@ and -Wdouble-promotion so the float32 build stays single precision), apart from 
 """
 from __future__ import annotations
 
-import os
-import shlex
-import subprocess
 import sys
 from pathlib import Path
 
@@ -28,27 +25,20 @@ OPT_FLAGS = cbuild.OPT_FLAGS
 SOURCES = ["vh_roll_f32.c", "vh_roll_f64_host.c", "vh_roll_params.c"]
 
 
-def _cc() -> list[str]:
-    from setuptools._distutils.sysconfig import get_config_var
-
-    return shlex.split(os.environ.get("CC") or get_config_var("CC") or "cc")
-
-
 def cdef_text() -> str:
     """The declarations of vh_roll.h, preprocessed (both precisions expanded)."""
-    out = subprocess.run(
-        _cc() + ["-E", "-P", "-DVH_ROLL_CDEF", "-I", str(HERE), "-x", "c", str(HERE / "vh_roll.h")],
-        check=True, capture_output=True, text=True,
-    ).stdout
-    return out
+    return cbuild.cdef_of(HERE / "vh_roll.h")
 
 
-def compile_roll(out_dir: Path = ROOT / "build" / "obj_roll", extra_flags: list[str] | None = None) -> list[str]:
-    return cbuild.compile_strict([HERE / s for s in SOURCES], [HERE], out_dir, STRICT_FLAGS + OPT_FLAGS, extra_flags)
+def compile_objects(out_dir: Path = ROOT / "build" / "obj_roll", extra_flags: list[str] | None = None, *,
+                    dry: bool = False) -> list[str]:
+    return cbuild.compile_strict([HERE / s for s in SOURCES], [HERE], out_dir, STRICT_FLAGS + OPT_FLAGS, extra_flags,
+                                 dry=dry)
 
 
 def make_ffi() -> FFI:
-    objects = compile_roll()
+    """The builder of ``vehest_can._roll`` (its objects compiled by compile_objects, not here)."""
+    objects = compile_objects(dry=True)
     ffi = FFI()
     ffi.cdef(cdef_text())
     ffi.set_source("vehest_can._roll", '#include "vh_roll.h"', include_dirs=[str(HERE)],
@@ -56,7 +46,6 @@ def make_ffi() -> FFI:
     return ffi
 
 
-ffibuilder = make_ffi()
-
 if __name__ == "__main__":
-    ffibuilder.compile(tmpdir=str(ROOT / "build" / "cffi_roll"), verbose=True)
+    compile_objects()
+    make_ffi().compile(tmpdir=str(ROOT / "build" / "cffi_roll"), verbose=True)

@@ -53,7 +53,7 @@ def test_slave_includes_only_the_c_library_headers():
 
 
 def test_slave_compiles_with_the_strict_flags(tmp_path):
-    objs = xcp_build.compile_slave(tmp_path)
+    objs = xcp_build.compile_objects(tmp_path)
     assert all(Path(o).exists() for o in objs)
 
 
