@@ -66,11 +66,11 @@ def test_a_bus_never_heard_is_not_a_fault():
     ecu = Ecu()
     session = run_inprocess(system.car(sc, 2.0), ecu)
     assert session.stats["counters"]["input_invalid"] == 0
-    assert ecu.not_heard() == ["dkf_t", "dkf_s"]
+    assert ecu.not_heard() == ["dkf_t", "dkf_s", "roll_ukf"]  # every system's estimators, roll's and SKFMEC-A's too
     stats = DaemonStats("lockstep", counters=ecu.counters(), health=ecu.health(), not_heard=ecu.not_heard())
     health = stats.lines()[-1]
-    assert health.startswith("health: skfmec_q=OK; not heard (not configured or absent, not a fault): dkf_t, "
-                             "dkf_s (no DLS_Sensors since start)"), health
+    assert health.startswith("health: skfmec_q=OK, skfmec_a=OK; not heard (not configured or absent, not a fault): "
+                             "dkf_t, dkf_s, roll_ukf (no DLS_Sensors or ROLL_Sensors since start)"), health
     assert "INIT" not in health
 
 

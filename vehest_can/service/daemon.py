@@ -35,7 +35,7 @@ from ..bus import lockstep
 from ..bus.bus import is_undecodable
 from ..bus.frames import TICK_S, frame_id, is_own, sent_by
 from ..bus.rt import Durations, Ticker, percentiles_us
-from ..systems.ecu import INPUT_OF, Ecu
+from ..systems.ecu import Ecu
 from . import sdnotify
 
 log = logging.getLogger(__name__)
@@ -93,7 +93,8 @@ class DaemonStats:
             out.append("buses: " + "; ".join(f"{k} {v['rx']} in, {v['tx']} out" for k, v in self.buses.items()))
         health = ", ".join(f"{k}={v}" for k, v in self.health.items() if k not in self.not_heard) or "-"
         if self.not_heard:
-            inputs = dict.fromkeys(INPUT_OF[k] for k in self.not_heard)
+            input_of = {e.name: e.input for e in Ecu.estimators()}
+            inputs = dict.fromkeys(input_of[k] for k in self.not_heard)
             health += (f"; not heard (not configured or absent, not a fault): {', '.join(self.not_heard)} "
                        f"(no {' or '.join(inputs)} since start)")
         out.append("health: " + health)

@@ -40,6 +40,18 @@ class FaultCase(NamedTuple):
     wire: dict = {}
 
 
+class EcuEstimator(NamedTuple):
+    """One estimator of a system as the ECU reports it: its name, the sensor frame it lives on, and
+    how to read, from the ECU instance (``vh_ecu_t *``), its health (0 INIT, 1 OK, 2 DEGRADED, 3
+    FAULT) and whether that frame has been heard since reset (never heard: not configured or
+    absent, not failed)."""
+
+    name: str
+    input: str
+    health: Callable[[Any], int]
+    heard: Callable[[Any], bool]
+
+
 class FaultStudy(Protocol):
     """How ``vehest-can faults`` reads a system's response: which node the faults hit, which frame holds
     its estimates and how to decode health, validity and the estimate from that frame's payload."""
@@ -81,6 +93,8 @@ class System(Protocol):
     #: the DBC nodes its car plays on a bus (``vehest-can hil`` simulates them together, on one bus);
     #: a system without it cannot be simulated in a HIL rehearsal
     nodes: tuple[str, ...]
+    #: its estimators in the ECU (health, heard), for the daemon's summary and the session stats
+    estimators: tuple[EcuEstimator, ...]
 
     def scenario_dir(self) -> Path:
         """Where its shipped scenarios are (the demo runs every file there that it claims)."""
@@ -119,6 +133,7 @@ class Registration:
     claims the scenario files whose ``kind`` is one of its kinds and asks nothing of the ECU."""
 
     kinds: tuple[str, ...] = ()
+    estimators: tuple[EcuEstimator, ...] = ()
 
     def claims(self, doc: dict) -> bool:
         return doc.get("kind") in self.kinds

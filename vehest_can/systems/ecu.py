@@ -26,8 +26,6 @@ CHASSIS_COUNTERS = (
     "filter_reset", "rx_burst", "saturation",
 )
 HEALTH = {0: "INIT", 1: "OK", 2: "DEGRADED", 3: "FAULT"}
-#: the sensor frame each estimator lives on: never heard means not configured / absent, not failed
-INPUT_OF = {"dkf_t": "DLS_Sensors", "dkf_s": "DLS_Sensors", "skfmec_q": "CHS_Sensors"}
 #: a C counter read at least this often (steps, frames) cannot move 65536 between two reads
 _POLL_STEPS, _POLL_FRAMES = 64, 4096
 
@@ -173,21 +171,23 @@ class Ecu:
         """The 16-bit C counters as the bus carries them (VEHEST_Status): the totals modulo 65536."""
         return {name: int(getattr(self.c.cnt, name)) for name in COUNTERS}
 
+    @staticmethod
+    def estimators():
+        """Every registered system's estimators (:class:`~vehest_can.systems.EcuEstimator`)."""
+        from . import registered
+
+        return [e for s in registered() for e in s.estimators]
+
     def heard(self) -> dict[str, bool]:
-        """Whether each sensor frame has been received (a good CRC) since reset."""
-        return {"DLS_Sensors": bool(self.c.drv.dls.rx.e2e.have_last), "CHS_Sensors": bool(self.c.chs.heard)}
+        """Whether each estimator's sensor frame has been received (a good CRC) since reset."""
+        return {e.input: e.heard(self.c) for e in self.estimators()}
 
     def not_heard(self) -> list[str]:
         """The estimators whose sensor frame has never been heard: not configured or absent, not failed."""
-        heard = self.heard()
-        return [name for name, frame in INPUT_OF.items() if not heard[frame]]
+        return [e.name for e in self.estimators() if not e.heard(self.c)]
 
     def health(self) -> dict[str, str]:
-        return {
-            "dkf_t": HEALTH[self.c.dkf[lib.VH_ECU_DKF_T].health],
-            "dkf_s": HEALTH[self.c.dkf[lib.VH_ECU_DKF_S].health],
-            "skfmec_q": HEALTH[self.c.chs.skf.health],
-        }
+        return {e.name: HEALTH[int(e.health(self.c))] for e in self.estimators()}
 
     def chassis_counters(self) -> dict[str, int]:
         """The chassis side's fault counters since reset: true totals."""

@@ -3,12 +3,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ...native import lib
 from ...sim.scenario import load_scenario, scenario_dir
 from ...sim.session import drive_from_scenario
-from .. import Registration, Setup
+from .. import EcuEstimator, Registration, Setup
 from . import report
 from .campaign import CAMPAIGN
 from .faults import FAULTS
+
+
+def _dls_heard(c) -> bool:
+    return bool(c.drv.dls.rx.e2e.have_last)
 
 
 class Driveline(Registration):
@@ -21,6 +26,8 @@ class Driveline(Registration):
     scenario_dir = staticmethod(scenario_dir)
     load = staticmethod(load_scenario)
     car = staticmethod(drive_from_scenario)
+    estimators = (EcuEstimator("dkf_t", "DLS_Sensors", lambda c: c.dkf[lib.VH_ECU_DKF_T].health, _dls_heard),
+                  EcuEstimator("dkf_s", "DLS_Sensors", lambda c: c.dkf[lib.VH_ECU_DKF_S].health, _dls_heard))
 
     def claims(self, doc: dict) -> bool:
         return "kind" not in doc and "camber" not in doc

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .. import Registration, Setup
+from .. import EcuEstimator, Registration, Setup
 from . import report
 from .campaign import CAMPAIGN
 from .faults import FAULTS
@@ -21,6 +21,8 @@ class Roll(Registration):
     scenario_dir = staticmethod(roll_scenario_dir)
     load = staticmethod(load_roll_scenario)
     car = staticmethod(RollCar)
+    # the UKF's health is on the same scale (VH_ROLL_H_RESET is FAULT)
+    estimators = (EcuEstimator("roll_ukf", "ROLL_Sensors", lambda c: c.roll.ukf.health, lambda c: bool(c.roll.heard)),)
 
     def metrics(self, scenario, session, out_dir: Path, setup: Setup) -> dict:
         """Against the plant, from the bus: the ECU's float32 UKF estimates (VEHEST_RollEst), the
