@@ -203,3 +203,26 @@ def test_a_burst_limit_out_of_range_is_refused():
     for bad in (-1, 256):
         with pytest.raises(ConfigError, match="rx_burst_frames"):
             Ecu(replace(EcuConfig.default(), rx_burst_frames=bad))
+
+
+def test_a_system_registered_from_outside_is_reported_with_no_edit_to_the_ecu():
+    """The ECU's health and not-heard lists come from the registered systems' estimators: a toy
+    system (its estimator reads the ECU's tick: OK once the ECU has stepped, heard likewise) is
+    reported beside the shipped ones, and gone again when unregistered."""
+    from vehest_can.systems import EcuEstimator, Registration, register, unregister
+
+    class Toy(Registration):
+        name = "toy"
+        estimators = (EcuEstimator("toy_est", "TOY_Sensors", lambda c: 1 if c.tick else 0, lambda c: c.tick > 0),)
+
+    toy = Toy()
+    register(toy)
+    try:
+        ecu = Ecu()
+        assert ecu.health()["toy_est"] == "INIT" and "toy_est" in ecu.not_heard()
+        ecu.step()
+        assert ecu.health()["toy_est"] == "OK" and "toy_est" not in ecu.not_heard()
+        assert {"dkf_t", "skfmec_q", "skfmec_a", "roll_ukf"} <= set(ecu.health())
+    finally:
+        unregister(toy)
+    assert "toy_est" not in Ecu().health()
