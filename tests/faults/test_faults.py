@@ -9,10 +9,11 @@ import can
 import e2e.p01
 import numpy as np
 import pytest
+from frames_oracle import E2ESender
 
 from vehest_can.bus.bus import open_bus, private_multicast
 from vehest_can.bus.busload import bus_load
-from vehest_can.bus.frames import TICK_S, E2ESender, database
+from vehest_can.bus.frames import TICK_S, database
 from vehest_can.cli import main
 from vehest_can.errors import ConfigError
 from vehest_can.faults.campaign import bus_run, fault_table, run_with_faults

@@ -7,9 +7,10 @@ import resource
 import can
 import numpy as np
 import pytest
+from frames_oracle import same_frame
 
 from vehest_can.bus import lockstep
-from vehest_can.bus.frames import TICK_S, same_frame, to_message
+from vehest_can.bus.frames import TICK_S, to_message
 from vehest_can.bus.frames import frame_id as frame_id_of
 from vehest_can.bus.log import SessionLog, iter_log_arrays, read_log
 from vehest_can.errors import ConfigError

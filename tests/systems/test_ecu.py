@@ -6,8 +6,9 @@ import can
 import numpy as np
 import pytest
 from ecurun import run_ecu
+from frames_oracle import E2ESender
 
-from vehest_can.bus.frames import E2ESender, database
+from vehest_can.bus.frames import database
 from vehest_can.errors import ConfigError
 from vehest_can.systems.ecu import Ecu, EcuConfig
 

@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 from daemonproc import start_daemon, stop_daemon
 from ecurun import run_ecu
+from frames_oracle import E2ESender
 
 from vehest_can.bus.bus import open_bus, private_multicast
-from vehest_can.bus.frames import E2ESender, database
+from vehest_can.bus.frames import database
 from vehest_can.bus.log import read_log
 from vehest_can.native import lib
 from vehest_can.service.replay import replay

@@ -15,8 +15,8 @@ import json
 
 import numpy as np
 import pytest
+from frames_oracle import E2ESender
 
-from vehest_can.bus.frames import E2ESender
 from vehest_can.errors import ConfigError
 from vehest_can.native import lib
 from vehest_can.systems.tireforce import api as tf
