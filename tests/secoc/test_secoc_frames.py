@@ -9,8 +9,9 @@ import random
 import stat
 
 import pytest
+from secoc_peers import Receiver, Sender
 
-from vehest_can.bus.secoc import RESERVE_BLOCK, FreshnessStore, Key, Receiver, Sender, load_keys, write_dev_keys
+from vehest_can.bus.secoc import RESERVE_BLOCK, FreshnessStore, Key, load_keys, write_dev_keys
 from vehest_can.errors import ConfigError
 
 KEY = Key("CHS", bytes(range(16)))
