@@ -65,6 +65,7 @@ def frame(store):
                       parse_constant=str)
 
 
+@pytest.mark.slow
 def test_the_same_campaign_is_identical_on_one_and_two_workers_and_dask(tmp_path):
     pytest.importorskip("distributed")
     c = load_campaign(short(tmp_path))
@@ -183,6 +184,7 @@ def _sigint_default() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
+@pytest.mark.slow
 def test_sigint_half_way_then_resume_loses_and_repeats_nothing(tmp_path):
     p = short(tmp_path, runs=200, duration=1.0, name="long")
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
@@ -210,6 +212,7 @@ def test_sigint_half_way_then_resume_loses_and_repeats_nothing(tmp_path):
     assert resumed == uninterrupted
 
 
+@pytest.mark.slow
 def test_the_worst_run_re_runs_alone_to_the_same_metric(tmp_path, capsys):
     p = spec(tmp_path, """
 [campaign]
@@ -283,6 +286,7 @@ def test_a_missing_campaign_file_is_an_error(tmp_path, capsys):
     assert "cannot read" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_shipped_campaigns_load_and_the_small_ones_run(tmp_path, capsys):
     from vehest_can.paths import shipped_dir
     shipped = sorted(shipped_dir("campaigns", "firmware_sim/campaigns", "*.toml").glob("*.toml"))
@@ -374,6 +378,7 @@ def test_runs_without_a_value_are_counted_not_hidden(tmp_path):
     assert s["acceptance"][0]["passed"] == 2  # the two finite runs; NaN and the failed run never pass
 
 
+@pytest.mark.slow
 def test_two_local_dask_clusters_at_once_take_free_loopback_ports():
     pytest.importorskip("distributed")
     import warnings

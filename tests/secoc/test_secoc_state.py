@@ -116,6 +116,7 @@ def test_bad_state_files_are_clear_errors(keyfile, tmp_path):
         BusSecoc("VEHEST", keys, store=FreshnessStore(loose / "s.json"))
 
 
+@pytest.mark.multicast
 def test_daemon_state_file_errors_are_one_line(keyfile, tmp_path):
     path, _ = keyfile
     bad = tmp_path / "bad.json"
@@ -132,6 +133,7 @@ def test_daemon_state_file_errors_are_one_line(keyfile, tmp_path):
         assert r.stderr.strip().splitlines()[-1].startswith("error: ") and words in r.stderr, r.stderr
 
 
+@pytest.mark.multicast
 def test_no_state_is_explicit_and_warned(keyfile, tmp_path):
     path, _ = keyfile
     r = subprocess.run([sys.executable, "-m", "vehest_can.cli", "daemon", "--duration", "0.2",
