@@ -9,12 +9,12 @@ import sys
 
 import pytest
 
+pytestmark = pytest.mark.slow
+
 PROBE = r"""
 import json, resource, sys
 from vehest_can.campaign import runner
 from vehest_can.campaign.spec import CAMPAIGNS, load_campaign
-
-pytestmark = pytest.mark.slow
 if sys.argv[1] == "off":
     runner.keep_heap = lambda *a, **k: False  # the worker as it was
 c = load_campaign(CAMPAIGNS.path("tireforce_payload"))

@@ -111,6 +111,7 @@ def test_actuators_hold_then_fail_safe_when_commands_stop():
     assert abs(applied[-1][0]) < 1.0 and car.node.cnt_timeout == 1
 
 
+@pytest.mark.multicast
 def test_lockstep_over_multicast_equals_inprocess_and_replays(tmp_path):
     """The roll car and the ECU daemon as two processes on one udp_multicast bus: the loop closes over
     the bus (window 1: each tick's commands reach the car before its next tick), bit for bit the

@@ -355,6 +355,7 @@ def test_chassis_sensor_frames_secured_and_verified_independently(keys):
 
 # ---- lockstep over the bus -----------------------------------------------------------------------
 
+@pytest.mark.multicast
 def test_lockstep_over_multicast_equals_inprocess_with_secoc_on(keys, tmp_path):
     session, rc, err = daemon_lockstep(keys, secured_car(keys, 1.0), tmp_path)
     assert rc == 0, err
@@ -367,6 +368,7 @@ def test_lockstep_over_multicast_equals_inprocess_with_secoc_on(keys, tmp_path):
     assert len(cmds) == 200 and all(cmds["len"] == CMD.length)
 
 
+@pytest.mark.multicast
 def test_daemon_secoc_flags_give_clear_errors(tmp_path):
     import subprocess
     import sys
