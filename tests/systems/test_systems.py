@@ -60,6 +60,7 @@ class Toy:
     kinds = ("toy",)
     realtime = False
     faults = None
+    estimators = ()  # none of its own in the ECU
 
     def __init__(self, folder: Path):
         self.folder = folder
