@@ -28,8 +28,6 @@ def cc() -> list[str]:
     return shlex.split(os.environ.get("CC") or get_config_var("CC") or "cc")
 
 
-
-
 _COMMENT = re.compile(r"/\*.*?\*/|//[^\n]*", re.S)
 _INT_LITERAL = re.compile(r"^-?(0x[0-9a-fA-F]+|\d+)[uUlL]*$")
 _FLOAT_LITERAL = re.compile(r"^-?(\d+\.\d*|\.\d+|\d+)([eE][-+]?\d+)?$")
@@ -107,12 +105,12 @@ def compile_strict(sources: list[Path], include_dirs: list[Path], out_dir: Path,
     from setuptools._distutils.ccompiler import new_compiler
     from setuptools._distutils.sysconfig import customize_compiler
 
-    cc = new_compiler()
-    customize_compiler(cc)
+    compiler = new_compiler()
+    customize_compiler(compiler)
     if dry:
-        return cc.object_filenames([str(s) for s in sources], output_dir=str(out_dir))
-    return cc.compile([str(s) for s in sources], output_dir=str(out_dir), include_dirs=[str(d) for d in include_dirs],
-                      extra_postargs=(flags or STRICT_FLAGS + OPT_FLAGS) + ["-fPIC"] + (extra_flags or []))
+        return compiler.object_filenames([str(s) for s in sources], output_dir=str(out_dir))
+    return compiler.compile([str(s) for s in sources], output_dir=str(out_dir), include_dirs=[str(d) for d in include_dirs],
+                            extra_postargs=(flags or STRICT_FLAGS + OPT_FLAGS) + ["-fPIC"] + (extra_flags or []))
 
 
 def extension(module: str, header: Path, cdef: str, objects: list[str], **link: Any) -> Any:
