@@ -24,15 +24,18 @@ _KINDS = {"double": "f8", "float": "f4", "int": "i4", "int8_t": "i1", "uint8_t":
 
 
 def struct_dtype(ctype: str):
-    """numpy dtype laid out exactly like a C struct of scalars and scalar arrays (offsets from
-    the compiler, through cffi), so C arrays of it can be viewed without copying."""
+    """numpy dtype laid out exactly like a C struct of scalars, scalar arrays and such structs (offsets
+    from the compiler, through cffi), so C arrays of it can be viewed without copying."""
     import numpy as np
 
     fields = ffi.typeof(ctype).fields
     formats = []
     for _, f in fields:
         t = f.type
-        formats.append((_KINDS[t.item.cname], t.length) if t.kind == "array" else _KINDS[t.cname])
+        if t.kind == "struct":
+            formats.append(struct_dtype(t.cname))
+        else:
+            formats.append((_KINDS[t.item.cname], t.length) if t.kind == "array" else _KINDS[t.cname])
     return np.dtype({"names": [name for name, _ in fields], "formats": formats,
                      "offsets": [f.offset for _, f in fields], "itemsize": ffi.sizeof(ctype)})
 

@@ -1,17 +1,16 @@
-/* vh_dlsim.h - the simulated car of seed 001 (plant + sensor node) and the in-process lockstep.
+/* vh_dlsim.h - the simulated car of seed 001 (driveline plant + sensor node, and the camber
+ * inspection devices of seed 002 when clamped on), behind the car interface (vh_car.h).
  *
  * One tick = plant step of 0.5 ms, then the sensor node samples the new state and sends its
- * frames. The same vh_dlsim_tick drives every mode: in-process lockstep (vh_lockstep_run, frames
- * passed to the ECU in memory), lockstep over a bus and real time (the Python simulator sends the
- * frames it returns), so all modes see bit-identical frames.
+ * frames. The same vh_dlsim_tick drives every mode (vh_car.h), so all modes see bit-identical frames.
  */
 #ifndef VH_DLSIM_H
 #define VH_DLSIM_H
 
 #include "vh_cambernode.h"
 #include "vh_dlplant.h"
+#include "vh_car.h"
 #include "vh_dlsnode.h"
-#include "vh_ecu.h"
 #include "vh_secoc_bus.h"
 #include "vh_types.h"
 
@@ -29,6 +28,9 @@ typedef struct {
     uint32_t ticks;      /* since reset */
     vh_secoc_bus_t *dls_secoc; /* SecOC of the DLS node and of the CIS devices (caller-owned, kept */
     vh_secoc_bus_t *cis_secoc; /* across resets), NULL: off */
+    const double *throttle;    /* the drive (vh_dlsim_car): throttle and gear per tick, caller-owned */
+    const uint8_t *gear;
+    size_t n;
 } vh_dlsim_t;
 
 int vh_dlsim_init(vh_dlsim_t *sim, const vh_dlp_params_t *prm, uint64_t plant_seed, const vh_dls_config_t *node);
@@ -43,11 +45,8 @@ void vh_dlsim_set_secoc(vh_dlsim_t *sim, vh_secoc_bus_t *dls, vh_secoc_bus_t *ci
 /* One tick of the car with the driver's throttle and gear; returns the frames written to out. */
 size_t vh_dlsim_tick(vh_dlsim_t *sim, double throttle, int gear, vh_frame_t *out, size_t cap);
 
-/* n ticks of car and ECU in lockstep. Per tick: car frames -> vh_ecu_rx -> vh_ecu_step.
- * truth[n] receives the plant truth of each tick (NULL: not kept). Every frame on the bus, car's
- * then ECU's, goes to frames[] with its tick in frame_tick[] until cap is reached; returns the
- * number of frames (more than cap means some were not stored). */
-size_t vh_lockstep_run(vh_dlsim_t *sim, vh_ecu_t *ecu, size_t n, const double *throttle, const uint8_t *gear,
-                       vh_dlp_truth_t *truth, vh_frame_t *frames, uint32_t *frame_tick, size_t cap);
+/* The car interface (vh_car.h) of sim, driven by throttle[k] and gear[k] for k < n (n >= 1; the last of
+ * them after); the arrays are the caller's and must outlive the runs. Truth: vh_dlp_truth_t. */
+void vh_dlsim_car(vh_dlsim_t *sim, const double *throttle, const uint8_t *gear, size_t n, vh_car_t *car);
 
 #endif /* VH_DLSIM_H */

@@ -101,27 +101,27 @@ size_t vh_dlsim_tick(vh_dlsim_t *sim, double throttle, int gear, vh_frame_t *out
     return n;
 }
 
-size_t vh_lockstep_run(vh_dlsim_t *sim, vh_ecu_t *ecu, size_t n, const double *throttle, const uint8_t *gear,
-                       vh_dlp_truth_t *truth, vh_frame_t *frames, uint32_t *frame_tick, size_t cap)
+static size_t car_tick(void *self, size_t k, vh_frame_t *out, size_t cap)
 {
-    vh_frame_t buf[VH_DLSIM_MAX_TX + VH_ECU_MAX_TX];
-    size_t t, i, total = 0u;
-    for (t = 0; t < n; ++t) {
-        const size_t ncar = vh_dlsim_tick(sim, throttle[t], gear ? gear[t] : 2, buf, VH_DLSIM_MAX_TX);
-        size_t nall;
-        for (i = 0; i < ncar; ++i) {
-            vh_ecu_rx(ecu, &buf[i]);
-        }
-        nall = ncar + vh_ecu_step(ecu, buf + ncar, VH_ECU_MAX_TX);
-        for (i = 0; i < nall; ++i, ++total) {
-            if (total < cap) {
-                frames[total] = buf[i];
-                frame_tick[total] = (uint32_t)t;
-            }
-        }
-        if (truth) {
-            truth[t] = sim->plant.truth;
-        }
-    }
-    return total;
+    vh_dlsim_t *sim = self;
+    const size_t i = k < sim->n ? k : sim->n - 1u;
+    return vh_dlsim_tick(sim, sim->throttle[i], sim->gear[i], out, cap);
+}
+
+static const void *car_truth(void *self)
+{
+    return &((const vh_dlsim_t *)self)->plant.truth;
+}
+
+void vh_dlsim_car(vh_dlsim_t *sim, const double *throttle, const uint8_t *gear, size_t n, vh_car_t *car)
+{
+    sim->throttle = throttle;
+    sim->gear = gear;
+    sim->n = n;
+    memset(car, 0, sizeof *car);
+    car->self = sim;
+    car->tick = car_tick;
+    car->truth = car_truth;
+    car->truth_size = sizeof sim->plant.truth;
+    car->max_tx = VH_DLSIM_MAX_TX;
 }

@@ -6,8 +6,9 @@ import can
 import pytest
 
 from vehest_can.cli import main
+from vehest_can.sim.powertrain import powertrain_car
 from vehest_can.sim.scenario import load_scenario, scenario_dir
-from vehest_can.sim.session import drive_from_scenario, run_inprocess
+from vehest_can.sim.session import run_inprocess
 from vehest_can.systems.camber import inspection
 from vehest_can.systems.camber.api import WHEELS, load_calibrations
 from vehest_can.systems.ecu import Ecu
@@ -28,7 +29,7 @@ def cal_file(tmp_path_factory):
     d = tmp_path_factory.mktemp("cal")
     logs = {}
     for pose in ("x_down", "z_down"):
-        s = run_inprocess(drive_from_scenario(replace(SC, camber=replace(SC.camber, pose=pose)), duration_s=4.0), Ecu())
+        s = run_inprocess(powertrain_car(replace(SC, camber=replace(SC.camber, pose=pose)), duration_s=4.0), Ecu())
         logs[pose] = write_log(s, d / f"{pose}.log")
     out = d / "cal.json"
     assert main(["camber", "calibrate", "--x-down", str(logs["x_down"]), "--z-down", str(logs["z_down"]),
@@ -43,7 +44,7 @@ def ecu_with(cal_file):
 
 
 def test_calibrated_camber_is_within_the_eq22_bound_on_every_wheel(cal_file):
-    s = run_inprocess(drive_from_scenario(SC), ecu_with(cal_file))
+    s = run_inprocess(powertrain_car(SC), ecu_with(cal_file))
     res = inspection.ecu_results(s.messages())
     for w in WHEELS:
         assert res[w]["reason"] == "OK"
@@ -56,25 +57,25 @@ def test_uncalibrated_chip_misalignment_shows_outside_the_bound(cal_file):
 
     ecu = Ecu()
     ecu.set_camber_calibrations({w: Calibration.identity() for w in WHEELS})
-    res = inspection.ecu_results(run_inprocess(drive_from_scenario(SC), ecu).messages())
+    res = inspection.ecu_results(run_inprocess(powertrain_car(SC), ecu).messages())
     assert max(abs(res[w]["camber_deg"] - TRUTH[w]) for w in WHEELS) > 1.0
     assert any(abs(res[w]["camber_deg"] - TRUTH[w]) > res[w]["bound_deg"] for w in WHEELS)
 
 
 def test_no_calibration_says_so():
-    res = inspection.ecu_results(run_inprocess(drive_from_scenario(SC), Ecu()).messages())
+    res = inspection.ecu_results(run_inprocess(powertrain_car(SC), Ecu()).messages())
     assert {r["reason"] for r in res.values()} == {"NOT_CALIBRATED"}
 
 
 def test_refused_while_the_car_moves(cal_file):
     moving = replace(SC, gear=2, throttle=((0.0, 0.3),))  # in gear with throttle: rolling
-    res = inspection.ecu_results(run_inprocess(drive_from_scenario(moving), ecu_with(cal_file)).messages())
+    res = inspection.ecu_results(run_inprocess(powertrain_car(moving), ecu_with(cal_file)).messages())
     assert {r["reason"] for r in res.values()} <= {"NOT_STATIONARY", "MOVING", "MAGNITUDE"}
     assert all(r["reason"] != "OK" for r in res.values())
 
 
 def test_measure_verb_prints_the_ecus_results(cal_file, tmp_path, capsys):
-    log = write_log(run_inprocess(drive_from_scenario(SC), ecu_with(cal_file)), tmp_path / "s.log")
+    log = write_log(run_inprocess(powertrain_car(SC), ecu_with(cal_file)), tmp_path / "s.log")
     assert main(["camber", "measure", "--log", str(log), "--json"]) == 0
     res = json.loads(capsys.readouterr().out)
     assert set(res) == set(WHEELS) and all(r["reason"] == "OK" for r in res.values())
@@ -83,13 +84,13 @@ def test_measure_verb_prints_the_ecus_results(cal_file, tmp_path, capsys):
 
 
 def test_bad_captures_are_rejected_with_the_reason(tmp_path, capsys):
-    x = write_log(run_inprocess(drive_from_scenario(replace(SC, camber=replace(SC.camber, pose="x_down")),
+    x = write_log(run_inprocess(powertrain_car(replace(SC, camber=replace(SC.camber, pose="x_down")),
                                                     duration_s=2.0), Ecu()), tmp_path / "x.log")
     # the same pose twice: the two axes are parallel, not orthogonal
     assert main(["camber", "calibrate", "--x-down", str(x), "--z-down", str(x), "-o", str(tmp_path / "c.json")]) == 1
     assert "orthogonal" in capsys.readouterr().err
     # too short a capture
-    short = write_log(run_inprocess(drive_from_scenario(replace(SC, camber=replace(SC.camber, pose="z_down")),
+    short = write_log(run_inprocess(powertrain_car(replace(SC, camber=replace(SC.camber, pose="z_down")),
                                                         duration_s=0.3), Ecu()), tmp_path / "short.log")
     assert main(["camber", "calibrate", "--x-down", str(x), "--z-down", str(short), "-o", str(tmp_path / "c.json")]) == 1
     assert "samples" in capsys.readouterr().err

@@ -10,9 +10,9 @@ import pytest
 from vehest_can.bus.frames import frame_id
 from vehest_can.bus.log import read_log
 from vehest_can.cli import build_parser
+from vehest_can.sim.powertrain import powertrain_car
 from vehest_can.sim.report import LEGEND, verdict_word
 from vehest_can.sim.scenario import load_scenario
-from vehest_can.sim.session import drive_from_scenario
 from vehest_can.systems import Setup
 
 
@@ -35,7 +35,7 @@ class Gate:
         return type("Sc", (), {"name": path.stem})()
 
     def car(self, scenario, duration_s=None):
-        return drive_from_scenario(load_scenario("launch_2nd"), duration_s or 0.25)
+        return powertrain_car(load_scenario("launch_2nd"), duration_s or 0.25)
 
     def setup(self, scenarios, out):
         return Setup()

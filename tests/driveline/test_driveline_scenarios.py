@@ -3,9 +3,10 @@ import numpy as np
 import pytest
 
 from vehest_can.native import ffi, lib
+from vehest_can.sim.powertrain import powertrain_car
 from vehest_can.sim.report import decode
 from vehest_can.sim.scenario import load_scenario, scenario_dir
-from vehest_can.sim.session import drive_from_scenario, run_inprocess
+from vehest_can.sim.session import run_inprocess
 from vehest_can.systems.driveline import reference as dkf_ref
 from vehest_can.systems.driveline import report
 from vehest_can.systems.driveline.api import DkfConfig, DrivelineKF
@@ -21,7 +22,7 @@ def scenario(request):
 
 @pytest.fixture(scope="module")
 def session(scenario):
-    return run_inprocess(drive_from_scenario(scenario), Ecu())
+    return run_inprocess(powertrain_car(scenario), Ecu())
 
 
 def residual_fits_the_noise(rms_meas_minus_est: float, rms_est_minus_truth: float, sigma: float) -> bool:

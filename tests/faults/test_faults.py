@@ -21,8 +21,9 @@ from vehest_can.faults.injector import FaultInjector
 from vehest_can.faults.spec import KINDS, FaultSpec, faults_from_cli, load_faults, parse_fault
 from vehest_can.faults.wire import FaultBus, WireModel
 from vehest_can.paths import dbc_path
+from vehest_can.sim.powertrain import powertrain_car
 from vehest_can.sim.scenario import load_scenario, scenario_dir
-from vehest_can.sim.session import drive_from_scenario, run_inprocess
+from vehest_can.sim.session import run_inprocess
 from vehest_can.systems.driveline.faults import FAULTS
 from vehest_can.systems.ecu import Ecu
 
@@ -38,7 +39,7 @@ DLS_WIRE_S = 66e-6 + 48.5e-6
 
 
 def drive(seconds=3.5):
-    return drive_from_scenario(LAUNCH, seconds)
+    return powertrain_car(LAUNCH, seconds)
 
 
 # ---- an independent reading of what the ECU received ------------------------------------------------

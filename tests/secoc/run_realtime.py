@@ -73,7 +73,7 @@ def main(argv=None) -> int:
         # ECU's next one (1 Hz); until then it could verify nothing (each would count as unsynced).
         sync_id = frame_id("VEHEST_SecOCSyncCh", "ch")
         t_wait = time.monotonic()
-        while not car.secoc.c.rx[lib.vh_secoc_bus_node(b"VEHEST")].synced:
+        while not car.secoc["ROLL"].c.rx[lib.vh_secoc_bus_node(b"VEHEST")].synced:
             msg = inbox.get(timeout=5.0)
             if msg.arbitration_id == sync_id:
                 car.rx(msg)
@@ -95,7 +95,7 @@ def main(argv=None) -> int:
                 k += 1
                 if time.monotonic() >= next_report:
                     next_report += 60.0
-                    c = car.secoc.counters()
+                    c = car.secoc["ROLL"].counters()
                     print(f"{time.monotonic() - t0:.0f} s: {k} ticks, roll node accepted {c['accepted']} "
                           f"rejected {c['rejected']}", flush=True)
         finally:
@@ -106,7 +106,7 @@ def main(argv=None) -> int:
             proc.send_signal(signal.SIGTERM)
             _, err = proc.communicate(timeout=60)
         ecu = json.loads(stats.read_text()).get("secoc", {})
-    node = car.secoc.counters()
+    node = car.secoc["ROLL"].counters()
     print(f"real time {wall:.0f} s ({n_ticks} ticks, {ticker.misses} car deadline misses): car sent {sent} frames, "
           f"heard {heard} of the ECU's")
     print("ECU (VEHEST) SecOC: " + ", ".join(f"{k} {v}" for k, v in ecu.items()))

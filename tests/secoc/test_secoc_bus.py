@@ -112,8 +112,8 @@ def test_genuine_traffic_zero_rejections_and_same_estimates_as_off(keys):
     # every frame of 1 s of the roll node (610) and of the chassis sensor node (2000 CHS_Sensors), each
     # node's sync frame
     assert c["rejected"] == 0 and c["accepted"] == 3 * 200 + 10 + 2000 and c["syncs"] == 2
-    assert car.secoc.counters()["rejected"] == 0 and car.node.cnt_rejected == 0
-    assert car.secoc.counters()["accepted"] == 200          # every VEHEST_RollCmd of 1 s, verified
+    assert car.secoc["ROLL"].counters()["rejected"] == 0 and car.node.cnt_rejected == 0
+    assert car.secoc["ROLL"].counters()["accepted"] == 200          # every VEHEST_RollCmd of 1 s, verified
     assert ecu.counters()["secoc_reject"] == 0
     assert authentic(on) == authentic(off)                  # SecOC changes no estimate, no command
     assert np.array_equal(truth_on, truth_off)              # ... and nothing the actuators did
@@ -188,7 +188,7 @@ def test_spoofed_replayed_and_flipped_frames_are_all_rejected_and_change_nothing
     # no actuator affected: the roll node rejected every hostile command, the plant moved alike
     n_cmd_attacks = 3 * sum(1 for tick in on[200:] for m in tick if m.arbitration_id == CMD.frame_id)
     assert car.node.cnt_rejected == n_cmd_attacks > 400
-    assert car.secoc.counters()["rejected"] == n_cmd_attacks
+    assert car.secoc["ROLL"].counters()["rejected"] == n_cmd_attacks
     assert np.array_equal(truth["m_applied"], truth_ref["m_applied"])
     assert np.array_equal(truth["phi"], truth_ref["phi"]) if "phi" in truth.dtype.names else True
 
@@ -233,7 +233,7 @@ def test_resync_after_a_restart_of_either_side(keys, tmp_path):
     ecu2 = secured_ecu(keys, FreshnessStore(tmp_path / "ecu.json"))  # the ECU process restarted
     assert int(ecu2.secoc.c.tx.fv) >= fv_before                      # above every FV it ever sent
     k = run(400, ecu2, car, k)
-    assert car.node.cnt_rejected == rej0 and car.secoc.counters()["syncs"] >= 2
+    assert car.node.cnt_rejected == rej0 and car.secoc["ROLL"].counters()["syncs"] >= 2
     assert ecu2.secoc.counters()["rejected"] == 0                    # it remembered the roll node
     for s in car.secoc_hooks():
         s.close()
@@ -248,7 +248,7 @@ def test_resync_after_a_restart_of_either_side(keys, tmp_path):
     after = ecu2.secoc.counters()
     assert after["rejected"] == before["rejected"] and after["syncs"] == before["syncs"] + 2
     assert after["accepted"] - before["accepted"] == 3 * 40 + 2 + 400  # every frame of car2's 200 ms
-    assert car2.secoc.counters()["rejected"] == 0 and car2.node.cnt_rejected == 0  # restored: in sync
+    assert car2.secoc["ROLL"].counters()["rejected"] == 0 and car2.node.cnt_rejected == 0  # restored: in sync
     # a receiver without state (a new ECU, no state file): unsynced until the roll node's next sync
     ecu3 = Ecu()
     ecu3.enable_secoc(keys)

@@ -18,8 +18,9 @@ from vehest_can.bus.busload import bus_load
 from vehest_can.bus.frames import authentic_data, database, to_message
 from vehest_can.bus.secoc import secured_messages
 from vehest_can.paths import dbc_path
+from vehest_can.sim.powertrain import powertrain_car
 from vehest_can.sim.scenario import load_scenario, scenario_dir
-from vehest_can.sim.session import Car, drive_from_scenario, run_inprocess
+from vehest_can.sim.session import run_inprocess
 from vehest_can.systems.ecu import Ecu
 
 PT = database("pt")
@@ -37,7 +38,7 @@ def keys(tmp_path_factory):
 
 
 def drive(keys=None, duration_s=DURATION):
-    d = drive_from_scenario(SC, duration_s)
+    d = powertrain_car(SC, duration_s)
     return d.enable_secoc(keys) if keys else d
 
 
@@ -61,7 +62,7 @@ def run_car(keys, attack=None, duration_s=DURATION):
     """The camber-inspection car and the ECU tick by tick (as the bus lockstep), SecOC on with keys
     (None: off). attack(k, frames) -> hostile frames for the ECU before the car's. Returns (ECU frames
     by tick, car frames by tick, car, ecu)."""
-    car, ecu = Car(drive(keys, duration_s)), ecu_for(keys)
+    car, ecu = drive(keys, duration_s), ecu_for(keys)
     out, sent = [], []
     for k in range(car.n):
         frames = [to_message(f) for f in car.tick(k)]
@@ -137,7 +138,7 @@ def test_spoofed_replayed_and_flipped_frames_are_all_rejected_and_change_nothing
 
 def test_a_car_without_keys_is_refused_by_a_secured_ecu(keys):
     """Fail closed: the sensor frames of a car without SecOC (zero tails) never reach the estimator."""
-    car, ecu = Car(drive(None, 0.05)), ecu_for(keys)
+    car, ecu = drive(None, 0.05), ecu_for(keys)
     for k in range(car.n):
         for f in car.tick(k):
             ecu.rx(to_message(f))

@@ -19,8 +19,9 @@ from vehest_can.bus.frames import database, message, sent_by, unused_frame_id
 from vehest_can.bus.log import read_log
 from vehest_can.service.daemon import EcuDaemon
 from vehest_can.service.replay import replay
+from vehest_can.sim.powertrain import powertrain_car
 from vehest_can.sim.scenario import load_scenario, scenario_dir
-from vehest_can.sim.session import SimMaster, drive_from_scenario, run_inprocess
+from vehest_can.sim.session import SimMaster, run_inprocess
 from vehest_can.systems.ecu import Ecu
 
 LAUNCH = load_scenario(scenario_dir() / "launch_2nd.toml")
@@ -28,7 +29,7 @@ ECU_IDS = {m.frame_id for m in database("pt").messages if "VEHEST" in m.senders 
 
 
 def short_drive(seconds=1.5):
-    return drive_from_scenario(LAUNCH, duration_s=seconds)
+    return powertrain_car(LAUNCH, duration_s=seconds)
 
 
 def group() -> dict:

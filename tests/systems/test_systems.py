@@ -8,8 +8,8 @@ import pytest
 
 from vehest_can import systems
 from vehest_can.cli import build_parser
+from vehest_can.sim.powertrain import powertrain_car
 from vehest_can.sim.scenario import load_scenario
-from vehest_can.sim.session import drive_from_scenario
 from vehest_can.systems import Setup, register, registered, unregister
 
 PKG = Path(systems.__file__).parent.parent
@@ -76,7 +76,7 @@ class Toy:
         return ToyScenario(path.stem, 0.25)
 
     def car(self, scenario, duration_s=None):
-        return drive_from_scenario(load_scenario("launch_2nd"), duration_s or scenario.seconds)
+        return powertrain_car(load_scenario("launch_2nd"), duration_s or scenario.seconds)
 
     def setup(self, scenarios: list, out: Path) -> Setup:
         return Setup()

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import json
 
+from ..sim.powertrain import powertrain_car
 from ..sim.scenario import load_scenario, scenario_dir
-from ..sim.session import drive_from_scenario
 from ..tools import bench, replay_bench
 from ._common import check_range
 
@@ -35,7 +35,7 @@ def run(args) -> int:
     factors = {}
     for path in sorted(scenario_dir().glob("*.toml")):
         sc = load_scenario(path)
-        factors[sc.name] = bench.lockstep_factor(lambda sc=sc: drive_from_scenario(sc), repeats=1 if args.quick else 3)
+        factors[sc.name] = bench.lockstep_factor(lambda sc=sc: powertrain_car(sc), repeats=1 if args.quick else 3)
     print(bench.table(res, factors))
     if rep:
         print(replay_bench.table(rep))

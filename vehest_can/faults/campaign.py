@@ -19,7 +19,7 @@ from ..bus.frames import TICK_S, database, message, to_message
 from ..errors import ConfigError
 from ..paths import dbc_path
 from ..service.daemon import EcuDaemon
-from ..sim.session import Car, Drive, SimMaster
+from ..sim.session import SimMaster
 from ..systems import FaultCase, FaultStudy, fault_study
 from ..systems.ecu import COUNTERS, Ecu
 from .injector import FaultInjector
@@ -66,7 +66,7 @@ class FaultRun:
         return self.counters[:, COUNTERS.index(name)]
 
 
-def run_with_faults(drive, config: FaultConfig | None = None, *, bitrate: int = 500_000,
+def run_with_faults(car, config: FaultConfig | None = None, *, bitrate: int = 500_000,
                     data_bitrate: int | None = 4_000_000, stuffing: str = "worst", tx_queue: int = 10,
                     tx_policy: str = "fifo", study: FaultStudy | None = None) -> FaultRun:
     """The drive in simulated time with the car's and the ECU's frames through injectors and one wire.
@@ -83,14 +83,14 @@ def run_with_faults(drive, config: FaultConfig | None = None, *, bitrate: int = 
     wire = WireModel(bitrate, data_bitrate, stuffing=stuffing, tx_queue=tx_queue, tx_policy=tx_policy)
     for spec in config.floods:
         wire.add_flood(spec, "FLOOD")
-    car, ecu = (Car(drive) if isinstance(drive, Drive) else drive), Ecu()
+    ecu = Ecu()
     car.reset()
-    closed = hasattr(car, "rx")   # the car takes the ECU's frames (actuators): from the wire, as they arrive
+    closed = car.closed   # the car takes the ECU's frames (actuators): from the wire, as they arrive
     sensors, vehest = FaultInjector(config, stream=0), FaultInjector(config, stream=1)
     est_id, sensor_id = message(study.estimate_message).frame_id, message(study.sensor_message).frame_id
     # the counters of the study's application (default: the powertrain side's)
     cnt = study.counters_of(ecu) if hasattr(study, "counters_of") else ecu.c.cnt
-    n = drive.n
+    n = car.n
     est = np.zeros((n, message(study.estimate_message).length), dtype=np.uint8)
     counters = np.zeros((n, len(COUNTERS)), dtype=np.int64)
     sample_age = np.full(n, np.nan)
@@ -109,7 +109,7 @@ def run_with_faults(drive, config: FaultConfig | None = None, *, bitrate: int = 
         if closed:   # the ECU's frames of step k - 1, on the wire in tick k: applied from tick k + 1
             for tr in delivered:
                 if tr.node == "VEHEST":
-                    car.rx(tr.msg)  # type: ignore[union-attr]
+                    car.rx(tr.msg)
         for msg in got:
             refused = cnt.crc_error + cnt.counter_repeat + cnt.dlc_error
             ecu.rx(msg)
@@ -220,7 +220,7 @@ def analyse(run: FaultRun, label: str, fault: str, expect: tuple[str, ...],
                     applied, run)
 
 
-def fault_table(drive, catalogue: tuple[FaultCase, ...] | None = None, *, seed: int = 1, keep_runs: bool = False,
+def fault_table(car, catalogue: tuple[FaultCase, ...] | None = None, *, seed: int = 1, keep_runs: bool = False,
                 progress=None, study: FaultStudy | None = None, **wire) -> list[FaultRow]:
     """Run every case (default: the study's catalogue) on the drive and analyse it (``wire``: bit rates,
     stuffing, queue for every case)."""
@@ -230,7 +230,7 @@ def fault_table(drive, catalogue: tuple[FaultCase, ...] | None = None, *, seed: 
     for i, case in enumerate(catalogue):
         config = faults_from_cli([case.fault] if case.fault else [], seed=seed)
         window = (config.faults[0].start_s, config.faults[0].end_s) if config.faults else (2.0, 2.5)
-        run = run_with_faults(drive, config, study=study, **{**wire, **case.wire})
+        run = run_with_faults(car, config, study=study, **{**wire, **case.wire})
         text = " ".join([case.fault, *(f"{k}={v}" for k, v in case.wire.items())])
         row = analyse(run, case.label, text, case.expect, window)
         if not keep_runs:
@@ -323,7 +323,7 @@ class BusRun:
         return self.sim.get("deadline_misses", 0) <= limit and self.daemon.deadline_misses <= limit
 
 
-def bus_run(drive, config=None, *, bus_config: dict | None = None, bitrate: int = 500_000,
+def bus_run(car, config=None, *, bus_config: dict | None = None, bitrate: int = 500_000,
             data_bitrate: int | None = 4_000_000, stuffing: str = "worst", tx_queue: int = 10,
             tx_policy: str = "fifo", settle_s: float = 0.5, switch_interval: float | None = 2e-4) -> BusRun:
     """The drive in real time: the ECU daemon (a thread) and the simulator, each on its own python-can bus
@@ -341,7 +341,7 @@ def bus_run(drive, config=None, *, bus_config: dict | None = None, bitrate: int 
     config = config or FaultConfig()
     bus_config = dict(bus_config or {"interface": "virtual", "channel": f"faultbus-{uuid.uuid4().hex[:8]}"})
     no_flood = FaultConfig(tuple(f for f in config.faults if f.kind != "flood"), config.seed)
-    duration = drive.n * TICK_S
+    duration = car.n * TICK_S
     if duration <= 2 * settle_s + 0.2:
         raise ConfigError(f"a bus run needs a drive longer than {2 * settle_s + 0.2:g} s, not {duration:g} s")
     old_interval = sys.getswitchinterval()
@@ -371,7 +371,7 @@ def bus_run(drive, config=None, *, bus_config: dict | None = None, bitrate: int 
             snaps.append(wire.snapshot())
 
         meter = threading.Thread(target=measure, name="vehest-meter", daemon=True)
-        sim = SimMaster(sim_bus, drive)
+        sim = SimMaster(sim_bus, car)
         meter.start()
         session = sim.run_realtime(settle_s=0.1)
         meter.join()
@@ -403,6 +403,6 @@ def bus_run(drive, config=None, *, bus_config: dict | None = None, bitrate: int 
     worst["total"], nominal["total"] = sum(worst[n] for n in seen), sum(nominal[n] for n in seen)
     return BusRun(b.t - a.t, load, worst, nominal, rate, per_frame, stuffing, session.stats,
                   result.get("stats"), 1e3 * wire.late_s, sum(wire.model.overflow.values()), wire.send_errors,
-                  drive.n, session, frozenset(names.values()))
+                  car.n, session, frozenset(names.values()))
 
 

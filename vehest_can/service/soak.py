@@ -31,7 +31,7 @@ from ..bus import bus as busmod
 from ..bus.frames import TICK_S, frame_id, message, to_message, unused_frame_id
 from ..bus.rt import Ticker
 from ..errors import VehestError
-from ..sim.session import Car, drive_from_scenario
+from ..sim.powertrain import powertrain_car
 from ..systems import load_any_scenario
 from .daemon import stop_process
 
@@ -145,7 +145,7 @@ class Soak:
         res = self.result
         res.bus = f"udp_multicast {bus_cfg['channel']} port {bus_cfg['port']} (this host only)"
         _, scenario = load_any_scenario(cfg.scenario)
-        car = Car(drive_from_scenario(scenario))
+        car = powertrain_car(scenario)
         with tempfile.TemporaryDirectory(prefix="vh-soak-", dir="/tmp") as tmp:
             report, stats = Path(tmp) / "report.jsonl", Path(tmp) / "stats.json"
             proc, notify = self._start_daemon(bus_cfg, report, stats, Path(tmp) / "notify")
@@ -196,7 +196,7 @@ class Soak:
         notify.close()
         raise VehestError(f"the ECU daemon did not get ready: {proc.communicate()[1][-2000:]}")
 
-    def _car(self, bus_cfg: dict, car: Car) -> None:
+    def _car(self, bus_cfg: dict, car) -> None:
         """The plant and its sensor node at 2 kHz, looping the scenario's drive; nothing kept."""
         bus = busmod.open_bus(bus_cfg)
         ticker = Ticker(TICK_S)

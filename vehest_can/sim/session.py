@@ -1,7 +1,7 @@
-"""The simulated car (plant + sensor node, in C) and the three ways to drive it against the ECU.
+"""The three ways to drive a simulated car (:class:`vehest_can.sim.car.Car`) against the ECU.
 
-1. ``run_inprocess``: plant, sensor node and ECU stepped together in one C loop, frames passed in
-   memory. Fastest; for tests, batch runs and benchmarks.
+1. ``run_inprocess``: car and ECU stepped together in one C loop, frames passed in memory. Fastest;
+   for tests, batch runs and benchmarks.
 2. ``SimMaster.run_lockstep``: the car here, the ECU daemon elsewhere on a bus; the tick's frames,
    then SIM_Sync, then wait for the ECU's frames and VEHEST_SyncAck. Identical results on any bus.
 3. ``SimMaster.run_realtime``: the car on its own 2 kHz wall clock; the ECU daemon runs its own.
@@ -25,55 +25,26 @@ import numpy as np
 
 from ..bus import lockstep
 from ..bus.bus import is_undecodable
-from ..bus.frames import FRAME_DTYPE, TICK_S, is_own, sent_by, to_frame, to_message
+from ..bus.frames import BUSES, FRAME_DTYPE, TICK_S, database, is_own, sent_by, to_frame, to_message
 from ..bus.rt import Ticker, percentiles_us
 from ..errors import BusError, VehestError
-from ..native import check, ffi, lib, struct_dtype
+from ..native import ffi, lib
+from .car import Car
 
 log = logging.getLogger(__name__)
 
 
-TRUTH_DTYPE = struct_dtype("vh_dlp_truth_t")
-INPROCESS_CHUNK = 8192  # ticks per C call of run_inprocess
+#: ticks per C call of run_inprocess: one second, so SecOC's upkeep runs at the rate a car on a bus keeps
+INPROCESS_CHUNK = 2000
 #: DBC nodes the simulated car plays (everything but the ECU)
-CAR_NODES = frozenset({"DLS", "CIS", "SIM", "CHS", "ROLL"})
-
-
-@dataclass
-class Drive:
-    """What the car is asked to do: one throttle and gear per tick, plant and node set-up."""
-
-    name: str
-    throttle: np.ndarray          # (n,) in [0, 1]
-    gear: np.ndarray              # (n,) uint8
-    plant_params: object          # vh_dlp_params_t *
-    plant_seed: int
-    node_config: object           # vh_dls_config_t *
-    initial_speed: float = 0.0    # m/s; > 0 starts rolling in gear[0]
-    camber: tuple | None = None   # (vh_cambernode_config_t[4], pose): inspection devices on
-    secoc_keys: dict | None = None  # SecOC on for the DLS node and the CIS devices (enable_secoc)
-    secoc_store: Any = None         # and their FreshnessStore (None: ephemeral, FVs from 1 in each car)
-
-    SECOC_NODES = ("CIS", "DLS")
-
-    @property
-    def n(self) -> int:
-        return len(self.throttle)
-
-    def enable_secoc(self, keys: dict, store=None) -> Drive:
-        """SecOC on for the car's nodes DLS and CIS: every Car made from this drive secures their
-        frames (vehest_can.bus.secoc.BusSecoc, one per node). Without a store (a FreshnessStore) FVs
-        start from 1 in each car: a new car is a new session on both sides, so in-process and bus
-        runs stay bit-identical; with one, each car resumes where the last left off."""
-        self.secoc_keys, self.secoc_store = keys, store
-        return self
+CAR_NODES = frozenset(n.name for b in BUSES for n in database(b).nodes) - {"VEHEST"}
 
 
 @dataclass
 class Session:
     name: str
     mode: str
-    truth: np.ndarray             # (n,) TRUTH_DTYPE
+    truth: np.ndarray             # (n,) the car's truth_dtype
     frames: np.ndarray            # (m,) FRAME_DTYPE, in bus order
     frame_tick: np.ndarray        # (m,) tick of each frame
     stats: dict = field(default_factory=dict)
@@ -85,127 +56,32 @@ class Session:
             yield to_message(f, timestamp=float(k) * TICK_S)
 
 
-def drive_from_scenario(scenario, duration_s: float | None = None) -> Drive:
-    """A scenario file's drive. A longer duration repeats the scenario's driver profile."""
-    duration = scenario.duration_s if duration_s is None else duration_s
-    n = int(round(duration / TICK_S))
-    t = ((np.arange(n) + 1) * TICK_S) % scenario.duration_s  # the scenario's times(), repeated
-    return Drive(
-        name=scenario.name,
-        throttle=np.asarray(scenario.throttle_at(t), dtype=np.float64),
-        gear=np.full(n, scenario.gear, dtype=np.uint8),
-        plant_params=scenario.plant_params(ffi, lib),
-        plant_seed=scenario.seed,
-        node_config=scenario.node_config(ffi, lib),
-        initial_speed=scenario.initial_speed_kmh / 3.6,
-        camber=scenario.camber_configs(ffi, lib),
-    )
-
-
-class Car:
-    """``vh_dlsim_t``: one tick of plant and sensor node per call. The simulator needs only
-    ``name``, ``n``, ``truth_dtype``, ``reset``, ``tick`` and ``truth``: the chassis car
-    (:class:`vehest_can.systems.tireforce.scenario.ChassisCar`) has the same interface."""
-
-    truth_dtype = TRUTH_DTYPE
-
-    def __init__(self, drive: Drive):
-        self.drive = drive
-        self.name, self.n = drive.name, drive.n
-        self.c = ffi.new("vh_dlsim_t *")
-        check(lib.vh_dlsim_init(self.c, drive.plant_params, drive.plant_seed, drive.node_config), "car set-up")
-        if drive.camber is not None:
-            check(lib.vh_dlsim_set_camber(self.c, *drive.camber), "camber inspection devices")
-        self._out = ffi.new("vh_frame_t[]", lib.VH_DLSIM_MAX_TX)
-        self.secoc: dict = {}  # node -> its BusSecoc, while the drive has SecOC on
-        if drive.secoc_keys is not None:
-            from ..bus.secoc import BusSecoc
-
-            self.secoc = {node: BusSecoc(node, drive.secoc_keys, store=drive.secoc_store) for node in ("DLS", "CIS")}
-            lib.vh_dlsim_set_secoc(self.c, self.secoc["DLS"].c, self.secoc["CIS"].c)
-        self.reset()
-
-    def reset(self) -> None:
-        lib.vh_dlsim_reset(self.c)
-        for s in self.secoc.values():
-            s.restart()  # a new session: a lockstep session's ECU starts afresh too
-        if self.drive.initial_speed > 0:
-            check(lib.vh_dlp_set_rolling(ffi.addressof(self.c.plant), self.drive.initial_speed,
-                                         int(self.drive.gear[0])), "initial speed")
-
-    def tick(self, k: int) -> list:
-        n = lib.vh_dlsim_tick(self.c, float(self.drive.throttle[k]), int(self.drive.gear[k]),
-                              self._out, lib.VH_DLSIM_MAX_TX)
-        if k and k % lib.VH_SECOC_SYNC_PERIOD_TICKS == 0:
-            for s in self.secoc.values():
-                s.maintain()  # once a second: the FV reservation ahead, the receivers' state stored
-        return [self._out[i] for i in range(n)]
-
-    def secoc_hooks(self) -> list:
-        return list(self.secoc.values())
-
-    def truth(self) -> np.void:
-        return np.frombuffer(ffi.buffer(ffi.addressof(self.c.plant.truth)), dtype=TRUTH_DTYPE)[0].copy()
-
-
-def run_inprocess(drive, ecu) -> Session:
-    """Mode 1: the car's frames of each tick into the ECU, then its step. A driveline Drive runs
-    as one C call (plant + node + ECU per tick); any other car (e.g. the chassis car) tick by tick
-    through the same C calls from Python. `ecu` is a :class:`vehest_can.systems.ecu.Ecu` (the
-    firmware with every system's app; it sits above the car and the sessions)."""
-    if not isinstance(drive, Drive):
-        return _run_car_inprocess(drive, ecu)
-    car = Car(drive)
-    n = drive.n
-    throttle = np.ascontiguousarray(drive.throttle, dtype=np.float64)
-    gear = np.ascontiguousarray(drive.gear, dtype=np.uint8)
-    truth = np.zeros(n, dtype=TRUTH_DTYPE)
-    cap = n * (lib.VH_DLSIM_MAX_TX + lib.VH_ECU_MAX_TX)
-    frames = np.zeros(cap, dtype=FRAME_DTYPE)
-    ticks = np.zeros(cap, dtype=np.uint32)
-    t0 = time.perf_counter()
-    total = 0
-    # In pieces of INPROCESS_CHUNK ticks, the ECU's 16-bit (wrapping) counters folded into its wide
-    # totals between them: a tick counts a few at most, so no counter can wrap unseen.
-    for k0 in range(0, n, INPROCESS_CHUNK):
-        m = min(INPROCESS_CHUNK, n - k0)
-        got = lib.vh_lockstep_run(
-            car.c, ecu.c, m, ffi.cast("double *", ffi.from_buffer(throttle[k0:])),
-            ffi.cast("uint8_t *", ffi.from_buffer(gear[k0:])), ffi.cast("vh_dlp_truth_t *", ffi.from_buffer(truth[k0:])),
-            ffi.cast("vh_frame_t *", ffi.from_buffer(frames[total:])), ffi.cast("uint32_t *", ffi.from_buffer(ticks[total:])),
-            cap - total,
-        )
-        ticks[total:total + got] += k0
-        total += got
-        ecu.poll_counters()
-    wall = time.perf_counter() - t0
-    return Session(drive.name, "inprocess", truth, frames[:total], ticks[:total],
-                   stats={"wall_s": wall, "realtime_factor": n * TICK_S / wall if wall else float("inf"),
-                          "counters": ecu.counters(), "health": ecu.health()})
-
-
-def _run_car_inprocess(car, ecu) -> Session:
+def run_inprocess(car: Car, ecu) -> Session:
+    """Mode 1: car and ECU in one C loop (vh_lockstep_run), a second of the drive per call; between
+    calls the ECU's 16-bit (wrapping) counters are folded into its wide totals (a tick counts a few
+    at most, so none can wrap unseen) and the car's SecOC upkeep runs. `ecu` is a
+    :class:`vehest_can.systems.ecu.Ecu` (the firmware with every system's app)."""
     car.reset()
-    closed = hasattr(car, "rx")  # a car that takes the ECU's frames (the roll actuators): the loop closes
-    truth = np.zeros(car.n, dtype=car.truth_dtype)
+    n = car.n
+    raw = np.zeros(n, dtype=car.c_truth_dtype)
+    per_tick = car.c.max_tx + lib.VH_ECU_MAX_TX
+    buf = np.zeros(INPROCESS_CHUNK * per_tick, dtype=FRAME_DTYPE)
+    buf_ticks = np.zeros(len(buf), dtype=np.uint32)
+    c_buf = ffi.cast("vh_frame_t *", ffi.from_buffer(buf))
+    c_ticks = ffi.cast("uint32_t *", ffi.from_buffer(buf_ticks))
     frames, ticks = [], []
     t0 = time.perf_counter()
-    for k in range(car.n):
-        for f in car.tick(k):
-            p = ffi.addressof(f)
-            frames.append(bytes(ffi.buffer(p)))
-            ticks.append(k)
-            ecu.rx_frame(p)
-        for f in ecu.step_frames():
-            frames.append(bytes(ffi.buffer(ffi.addressof(f))))
-            ticks.append(k)
-            if closed:  # the ECU's commands reach the car before its next tick
-                car.rx(ffi.addressof(f))
-        truth[k] = car.truth()
+    for k0 in range(0, n, INPROCESS_CHUNK):
+        m = min(INPROCESS_CHUNK, n - k0)
+        got = lib.vh_lockstep_run(car.c, ecu.c, k0, m, ffi.from_buffer(raw[k0:]), c_buf, c_ticks, len(buf))
+        frames.append(buf[:got].copy())
+        ticks.append(buf_ticks[:got].copy())
+        ecu.poll_counters()
+        if k0 + m < n:
+            car.maintain()
     wall = time.perf_counter() - t0
-    out = np.frombuffer(b"".join(frames), dtype=FRAME_DTYPE).copy() if frames else np.zeros(0, FRAME_DTYPE)
-    return Session(car.name, "inprocess", truth, out, np.asarray(ticks, dtype=np.uint32),
-                   stats={"wall_s": wall, "realtime_factor": car.n * TICK_S / wall if wall else float("inf"),
+    return Session(car.name, "inprocess", car.truths(raw), np.concatenate(frames), np.concatenate(ticks),
+                   stats={"wall_s": wall, "realtime_factor": n * TICK_S / wall if wall else float("inf"),
                           "counters": ecu.counters(), "chassis_counters": ecu.chassis_counters(),
                           "health": ecu.health()})
 
@@ -247,15 +123,15 @@ class SimMaster:
     """The car on a bus: lockstep master or real-time node. Records every frame it sees or sends
     (with ``keep=False`` it counts them: a long run's memory stays flat, its frames go to the log)."""
 
-    def __init__(self, bus: can.BusABC, drive, *, log_writer: can.Listener | None = None,
+    def __init__(self, bus: can.BusABC, car: Car, *, log_writer: can.Listener | None = None,
                  ack_timeout: float = 2.0, progress=None, keep: bool = True):
-        """`drive`: a driveline Drive, or any car with Car's interface (e.g. a ChassisCar).
+        """`car`: a :class:`vehest_can.sim.car.Car`.
         `log_writer` gets every frame with its session time (tick * TICK_S) in ``timestamp``: a
         :class:`vehest_can.bus.log.SessionLog` turns that into absolute time, direction and bus.
         `keep`: the session holds the plant's truth and every frame; without, it holds neither
         (empty arrays; ``stats`` has the counts ``ticks`` and ``frames``)."""
         self.bus = bus
-        self.car = Car(drive) if isinstance(drive, Drive) else drive
+        self.car = car
         self.log_writer = log_writer
         self.ack_timeout = ack_timeout
         self.progress = progress
@@ -337,7 +213,7 @@ class SimMaster:
         self.car.reset()
         self.connect()
         n = self.car.n
-        closed = hasattr(self.car, "rx")
+        closed = self.car.closed
         if closed:  # the car acts on the ECU's frames of each tick before its next: one tick in flight
             window = 1
         truth = self._truth(n)
@@ -362,7 +238,7 @@ class SimMaster:
             for msg in answer:
                 self._record(msg, k_done)
                 if closed:
-                    self.car.rx(msg)  # type: ignore[union-attr]
+                    self.car.rx(msg)
             k_done += 1
             if self.progress and k_done % 200 == 0:
                 self.progress(k_done, n)
@@ -396,7 +272,7 @@ class SimMaster:
                     errors["recv_errors"] += 1
                     stop_event.wait(0.005)
 
-        closed = hasattr(self.car, "rx")
+        closed = self.car.closed
         notifier = can.Notifier(self.bus, [Inbox()], timeout=0.005)
         ticker = Ticker(TICK_S)
         sent = done = 0
@@ -422,7 +298,7 @@ class SimMaster:
                     msg = inbox.get_nowait()
                     self._record(msg, k)
                     if closed:  # applied from the car's next tick (zero-order hold)
-                        self.car.rx(msg)  # type: ignore[union-attr]
+                        self.car.rx(msg)
                 if self.progress and k % 200 == 0:
                     self.progress(k, n)
             time.sleep(settle_s)  # the ECU's answers to the last ticks
@@ -437,4 +313,4 @@ class SimMaster:
         })
 
 
-__all__ = ["Drive", "Session", "Car", "run_inprocess", "SimMaster", "TRUTH_DTYPE", "VehestError"]
+__all__ = ["Session", "run_inprocess", "SimMaster", "VehestError"]

@@ -8,8 +8,9 @@ from dataclasses import replace
 from pathlib import Path
 
 from ...errors import ScenarioError
+from ...sim.powertrain import powertrain_car
 from ...sim.scenario import scenario_from_dict
-from ...sim.session import drive_from_scenario, run_inprocess
+from ...sim.session import run_inprocess
 from .. import CampaignRunner
 from ..ecu import Ecu
 from . import inspection
@@ -28,11 +29,11 @@ def _from_dict(doc: dict, path: Path):
 def _run(scenario) -> dict:
     captures = []
     for pose in ("x_down", "z_down"):
-        drive = drive_from_scenario(replace(scenario, camber=replace(scenario.camber, pose=pose)), FIXTURE_S)
+        drive = powertrain_car(replace(scenario, camber=replace(scenario.camber, pose=pose)), FIXTURE_S)
         captures.append(inspection.capture_messages(run_inprocess(drive, Ecu()).messages()))
     ecu = Ecu()
     ecu.set_camber_calibrations(inspection.calibrate_wheels(*captures))
-    results = inspection.ecu_results(run_inprocess(drive_from_scenario(scenario), ecu).messages()) or {}
+    results = inspection.ecu_results(run_inprocess(powertrain_car(scenario), ecu).messages()) or {}
     nan = float("nan")
     out: dict = {}
     errors = []

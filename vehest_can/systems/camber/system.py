@@ -5,8 +5,9 @@ from dataclasses import replace
 from pathlib import Path
 
 from ...bus.log import SessionLog, read_log
+from ...sim.powertrain import powertrain_car
 from ...sim.scenario import load_scenario, scenario_dir
-from ...sim.session import drive_from_scenario, run_inprocess
+from ...sim.session import run_inprocess
 from .. import Registration, Setup
 from ..ecu import Ecu
 from . import inspection
@@ -23,7 +24,7 @@ class Camber(Registration):
     campaign = CAMPAIGN  # vehest-can campaign
     scenario_dir = staticmethod(scenario_dir)
     load = staticmethod(load_scenario)
-    car = staticmethod(drive_from_scenario)
+    car = staticmethod(powertrain_car)
 
     def claims(self, doc: dict) -> bool:
         return "kind" not in doc and "camber" in doc
@@ -45,7 +46,7 @@ class Camber(Registration):
         results = inspection.ecu_results(session.messages())
         uncal_ecu = Ecu()
         uncal_ecu.set_camber_calibrations({w: Calibration.identity(sc.camber.lsb_mg * 1e-3) for w in WHEELS})
-        uncal = inspection.ecu_results(run_inprocess(drive_from_scenario(sc), uncal_ecu).messages())
+        uncal = inspection.ecu_results(run_inprocess(powertrain_car(sc), uncal_ecu).messages())
         assert results is not None and uncal is not None, "the ECU published no camber"
         print(inspection.results_table(results, truth))
         for w in WHEELS:
@@ -74,7 +75,7 @@ def _calibrate_devices(sc, out: Path) -> Path:
     sdir.mkdir(parents=True, exist_ok=True)
     captures = []
     for pose in ("x_down", "z_down"):
-        drive = drive_from_scenario(replace(sc, camber=replace(sc.camber, pose=pose)), duration_s=6.0)
+        drive = powertrain_car(replace(sc, camber=replace(sc.camber, pose=pose)), duration_s=6.0)
         log = _write_log(run_inprocess(drive, Ecu()), sdir / f"calibration_{pose}.log")
         captures.append(inspection.capture_messages(read_log(log)))
     cals = inspection.calibrate_wheels(*captures)

@@ -46,7 +46,7 @@ class DrivelineFaults:
         return est[:, col:col + 2].copy().view("<i2")[:, 0] * 0.25
 
     def truth(self, car) -> float:
-        return car.c.plant.truth.to
+        return car.sim.plant.truth.to
 
 
 FAULTS = DrivelineFaults()

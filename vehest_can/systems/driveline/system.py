@@ -4,8 +4,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from ...native import lib
+from ...sim.powertrain import powertrain_car
 from ...sim.scenario import load_scenario, scenario_dir
-from ...sim.session import drive_from_scenario
 from .. import EcuEstimator, Registration, Setup
 from . import report
 from .campaign import CAMPAIGN
@@ -25,7 +25,7 @@ class Driveline(Registration):
     faults = FAULTS
     scenario_dir = staticmethod(scenario_dir)
     load = staticmethod(load_scenario)
-    car = staticmethod(drive_from_scenario)
+    car = staticmethod(powertrain_car)
     estimators = (EcuEstimator("dkf_t", "DLS_Sensors", lambda c: c.dkf[lib.VH_ECU_DKF_T].health, _dls_heard),
                   EcuEstimator("dkf_s", "DLS_Sensors", lambda c: c.dkf[lib.VH_ECU_DKF_S].health, _dls_heard))
 

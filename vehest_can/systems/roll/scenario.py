@@ -22,11 +22,10 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import ScenarioError
 from ...paths import ShippedSet
 from ...schema import Num
 from ...sim.scenario import DT, _native, derived_seed, kind_checker, load_shipped, set_channels
-from ..tireforce.scenario import TireForceScenario, tireforce_scenario_from_dict, truth_dtype
+from ..tireforce.scenario import ChassisCar, TireForceScenario, tireforce_scenario_from_dict, truth_dtype
 
 KINDS = ("roll",)
 #: the tables a roll scenario adds to a tyre-force scenario
@@ -140,99 +139,32 @@ def roll_truth_dtype() -> np.dtype:
     return np.dtype([(n, fields[n][0]) for n in _names(base)] + _ARC_FIELDS)
 
 
-class RollCar:
-    """The 14-DOF plant with its active roll actuators, the chassis sensor node and the roll node, as a
-    car on the bus (the interface of :class:`vehest_can.sim.session.Car`, plus ``rx``: the ECU's
-    frames reach the roll node, which applies a command from the tick after the one it arrived in)."""
+class RollCar(ChassisCar):
+    """The 14-DOF plant with its active roll actuators, the chassis sensor node and the roll node
+    (``vh_v14car_t`` with the roll system fitted) behind the car contract. It listens: the ECU's
+    frames reach the roll node, which applies a command from the tick after the one it arrived in."""
+
+    SECOC_NODES: tuple[str, ...] = ("CHS", "ROLL")
 
     def __init__(self, sc: RollScenario, duration_s: float | None = None):
         ffi, lib = _native()
-        self._ffi, self._lib = ffi, lib
-        self.scenario = sc
-        self.name = sc.name
-        self.n = sc.plant.car_steps(duration_s)
+        self.roll_scenario = sc
+        active = sc.active_at(np.arange(sc.n_steps) * DT)
+        super().__init__(sc.plant, duration_s, roll=(sc.node_config(ffi, lib), sc.arc_params(ffi, lib), active))
         self.truth_dtype = roll_truth_dtype()
-        self._base_names = _names(truth_dtype(None))
-        self._inputs = sc.plant.inputs(ffi)
-        self._active = sc.active_at(np.arange(sc.n_steps) * DT)
-        self._arc = sc.arc_params(ffi, lib)
-        self._out = ffi.new("vh_frame_t[7]")  # CHS 1 + the roll node's 4 + both nodes' SecOC sync frames
-        self._rxf = ffi.new("vh_frame_t *")
-        self.node = ffi.new("vh_rln_t *")
-        self.secoc: Any = None  # SecOC off until enable_secoc (a vehest_can.bus.secoc.BusSecoc)
-        self.chs_secoc: Any = None  # and the chassis sensor node's
-        self.reset()
+        self.node = ffi.addressof(self.car, "rln")  # its cfg (fail and stuck masks, bias) may change between ticks
 
-    def reset(self) -> None:
-        ffi, lib = self._ffi, self._lib
-        self._plant = self.scenario.plant.make_plant(ffi, lib)
-        if lib.vh_v14_arc_config(self._plant, ffi.addressof(self._arc[0]), ffi.addressof(self._arc[1])) != lib.VH_OK:
-            raise ScenarioError(f"{self.scenario.plant._where()}: actuators: the plant refuses these limits")
-        self._chs = self.scenario.plant.make_node(ffi, lib)
-        self._chs.cfg.ride_period = 0  # the roll car sends no ride heights (the roll system uses none)
-        if self.chs_secoc is not None:
-            lib.vh_chs_set_secoc(self._chs, self.chs_secoc.c)
-            self.chs_secoc.restart()
-        if lib.vh_rln_init(self.node, self.scenario.node_config(ffi, lib)) != lib.VH_OK:
-            raise ScenarioError(f"{self.scenario.plant._where()}: roll_sensors: the roll node refuses them")
-        if self.secoc is not None:  # the node's SecOC outlives the node (vh_rln_init clears the pointer)
-            lib.vh_rln_set_secoc(self.node, self.secoc.c)
-            self.secoc.restart()  # a new session: a lockstep session's ECU starts afresh too
-        self._k = 0
+    def _attach_secoc(self) -> None:
+        super()._attach_secoc()
+        _native()[1].vh_rln_set_secoc(self.node, self.secoc["ROLL"].c)
 
-    SECOC_NODES = ("CHS", "ROLL")
-
-    def enable_secoc(self, keys: dict, store=None):
-        """SecOC on for the roll node (node ROLL: its secured frames protected, the ECU's commands
-        verified before they are applied) and the chassis sensor node (CHS: its frames protected),
-        each a vehest_can.bus.secoc.BusSecoc (store: their FreshnessStore, or None); reset()
-        restarts them. Returns the roll node's."""
-        from ...bus.secoc import BusSecoc
-
-        self.secoc = BusSecoc("ROLL", keys, store=store)
-        self.chs_secoc = BusSecoc("CHS", keys, store=store)
-        self._lib.vh_rln_set_secoc(self.node, self.secoc.c)
-        self._lib.vh_chs_set_secoc(self._chs, self.chs_secoc.c)
-        return self.secoc
-
-    def secoc_hooks(self) -> list:
-        return [s for s in (self.chs_secoc, self.secoc) if s is not None]
-
-    def rx(self, frame) -> None:
-        """One ECU frame (``can.Message`` or ``vh_frame_t`` cdata) to the roll node."""
-        if hasattr(frame, "arbitration_id"):
-            if frame.is_error_frame or frame.is_remote_frame:
-                return
-            from ...bus.frames import to_frame
-
-            frame = to_frame(frame, self._rxf)
-        self._lib.vh_rln_rx(self.node, frame)
-
-    def tick(self, k: int) -> list:
-        ffi, lib = self._ffi, self._lib
-        self._k = k
-        self.node.cfg.mode_active = int(self._active[k])
-        lib.vh_rln_actuate(self.node, self._plant)
-        lib.vh_v14_step(self._plant, self._inputs + k)
-        n = lib.vh_chs_step(self._chs, ffi.addressof(self._plant, "truth"), self._out, 2)  # + its sync frame
-        n += lib.vh_rln_step(self.node, self._plant, self._out + n, 5)
-        if k and k % lib.VH_SECOC_SYNC_PERIOD_TICKS == 0:
-            for s in self.secoc_hooks():
-                s.maintain()  # once a second: the FV reservation ahead, the receivers' state stored
-        return [self._out[i] for i in range(n)]
-
-    def truth(self) -> np.void:
-        base = np.frombuffer(self._ffi.buffer(self._ffi.addressof(self._plant, "truth")),
-                             dtype=truth_dtype(None))[0]
-        out = np.zeros((), dtype=self.truth_dtype)
-        for name in self._base_names:
-            out[name] = base[name]
-        arc = self._plant.arc
-        out["m_applied"] = (arc.m[0], arc.m[1])
-        out["m_cmd"] = (arc.cmd[0], arc.cmd[1])
-        out["arc_state"] = self.node.state
-        out["mode_active"] = self.node.cfg.mode_active
-        return out[()]  # type: ignore[return-value]
+    def truths(self, raw: np.ndarray) -> np.ndarray:
+        out = np.zeros(len(raw), dtype=self.truth_dtype)
+        for name in _names(raw.dtype["plant"]):
+            out[name] = raw["plant"][name]
+        for field in _ARC_FIELDS:
+            out[field[0]] = raw[field[0]]
+        return out
 
 
 # ---- loading -------------------------------------------------------------------------------------

@@ -30,6 +30,7 @@ import numpy as np
 from ...errors import ScenarioError
 from ...paths import ShippedSet
 from ...schema import Checker, Num, type_name
+from ...sim.car import Car
 from ...sim.scenario import DT, SCENARIO_TOP, ScenarioBase, _native, kind_checker, load_shipped, scenario_top
 
 #: The scenario kind, then its old name (files that say kind = "chassis" keep loading).
@@ -223,55 +224,47 @@ class TireForceScenario(ScenarioBase, node="vh_chs", truth="vh_v14_truth_t", see
         return truth_to_numpy(ffi, out, n), frames
 
 
-class ChassisCar:
-    """The 14-DOF plant and its chassis sensor node as a car on the bus: one tick per call, the
-    interface of :class:`vehest_can.sim.session.Car` (``name``, ``n``, ``truth_dtype``, ``reset``, ``tick``,
-    ``truth``), so the simulator drives it in every mode."""
+class ChassisCar(Car):
+    """The 14-DOF plant and its chassis sensor node (``vh_v14car_t``, no roll system fitted) behind the
+    car contract."""
 
-    def __init__(self, sc: TireForceScenario, duration_s: float | None = None):
+    SECOC_NODES: tuple[str, ...] = ("CHS",)
+
+    def __init__(self, sc: TireForceScenario, duration_s: float | None = None, *, roll=None):
+        """`roll`: (``vh_rln_config_t *``, ``vh_v14_arc_params_t[2]``, the driver's switch per tick) to
+        fit the roll node and its actuators (the roll system's car), or None."""
         from ...native import ffi, lib
 
-        self._ffi, self._lib = ffi, lib
+        super().__init__(sc.name, sc.car_steps(duration_s), "vh_v14car_truth_t")
+        self.truth_dtype = self.c_truth_dtype["plant"]
         self.scenario = sc
-        self.name = sc.name
-        self.n = sc.car_steps(duration_s)
-        self.truth_dtype = truth_dtype(ffi)
         self._inputs = sc.inputs(ffi)
-        self._out = ffi.new("vh_frame_t[3]")  # CHS_Sensors, CHS_RideHeight, the node's SecOC sync frame
-        self.secoc: Any = None  # SecOC off until enable_secoc (a vehest_can.bus.secoc.BusSecoc)
+        self.car = ffi.new("vh_v14car_t *")
+        chs = sc.node_config(ffi, lib)
+        rln_cfg, arc, active = (ffi.NULL, ffi.NULL, None) if roll is None else roll
+        self._active: np.ndarray | None = None
+        if roll is not None:
+            chs.ride_period = 0  # the roll system uses no ride heights
+            self._active = np.ascontiguousarray(active, dtype=np.uint8)
+        if lib.vh_v14car_init(self.car, sc.plant_params(ffi, lib), sc.initial_speed_kmh / 3.6, chs, rln_cfg,
+                              arc) != lib.VH_OK:
+            raise ScenarioError(f"{sc._where()}: the plant, its sensor nodes or its actuators refuse this scenario")
         self.reset()
 
-    SECOC_NODES = ("CHS",)
+    def _start(self) -> None:
+        from ...native import ffi, lib
 
-    def reset(self) -> None:
-        self._plant = self.scenario.make_plant(self._ffi, self._lib)
-        self._node = self.scenario.make_node(self._ffi, self._lib)
-        if self.secoc is not None:  # a new node, a new session: SecOC restarts (as the ECU's does)
-            self._lib.vh_chs_set_secoc(self._node, self.secoc.c)
-            self.secoc.restart()
+        lib.vh_v14car_reset(self.car)
+        active = ffi.NULL if self._active is None else ffi.from_buffer("uint8_t[]", self._active)
+        lib.vh_v14car_car(self.car, self._inputs, active, self.n, self.c)
 
-    def enable_secoc(self, keys: dict, store=None):
-        """SecOC on for the chassis sensor node (node CHS): CHS_Sensors and CHS_RideHeight secured
-        (vehest_can.bus.secoc.BusSecoc; store: its FreshnessStore, or None); reset() restarts it."""
-        from ...bus.secoc import BusSecoc
+    def _attach_secoc(self) -> None:
+        from ...native import ffi, lib
 
-        self.secoc = BusSecoc("CHS", keys, store=store)
-        self._lib.vh_chs_set_secoc(self._node, self.secoc.c)
-        return self.secoc
+        lib.vh_chs_set_secoc(ffi.addressof(self.car, "chs"), self.secoc["CHS"].c)
 
-    def secoc_hooks(self) -> list:
-        return [self.secoc] if self.secoc is not None else []
-
-    def tick(self, k: int) -> list:
-        self._lib.vh_v14_step(self._plant, self._inputs + k)
-        n = self._lib.vh_chs_step(self._node, self._ffi.addressof(self._plant, "truth"), self._out, 3)
-        if self.secoc is not None and k and k % self._lib.VH_SECOC_SYNC_PERIOD_TICKS == 0:
-            self.secoc.maintain()  # once a second: the FV reservation ahead, the receivers' state stored
-        return [self._out[i] for i in range(n)]
-
-    def truth(self) -> np.void:
-        return np.frombuffer(self._ffi.buffer(self._ffi.addressof(self._plant, "truth")),
-                             dtype=self.truth_dtype)[0].copy()
+    def truths(self, raw: np.ndarray) -> np.ndarray:
+        return raw["plant"].copy()
 
 
 def truth_dtype(ffi) -> np.dtype:
