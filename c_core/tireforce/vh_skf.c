@@ -30,7 +30,7 @@ void vh_skf_zeta_steady(const vh_skf_config_t *c, double *zeta1, double *zeta2)
 void vh_skf_config_default(vh_skf_config_t *cfg, int variant)
 {
     static const double s[NX] = {1e-1, 10.0, 10.0, 1e3, 1e2, 1e-3, 1e-3}; /* appendix */
-    /* Tuning (docs/skfmec.md, "Tuning"): scaled coordinates, per 0.5 ms step. */
+    /* Tuning (docs/tireforce.md, "Tuning"): scaled coordinates, per 0.5 ms step. */
     static const double q[NX] = {1e-7, 1e-6, 1e-6, 1e-4, 1e-4, 1e-5, 1e-5};
     static const double p0[NX] = {1e-2, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0};
     static const double gp[NX] = {0.0, 0.0, 0.0, 0.0, 0.0, 3000.0, 3000.0};
@@ -42,7 +42,7 @@ void vh_skf_config_default(vh_skf_config_t *cfg, int variant)
     cfg->kphif = 108205.8; cfg->kphir = 81436.7; cfg->cphif = 826.8; cfg->cphir = 658.9;
     cfg->rw = 0.305; cfg->iw = 2.0; cfg->tf = 0.784; cfg->tr = 0.760; cfg->g = 9.81;
     vh_skf_zeta_steady(cfg, &cfg->zeta1, &cfg->zeta2);
-    cfg->lt_gain = 2.0; /* rigid-body lateral transfer with the half-tracks (docs/skfmec.md) */
+    cfg->lt_gain = 2.0; /* rigid-body lateral transfer with the half-tracks (docs/tireforce.md) */
     cfg->ts = 0.0005;
     cfg->tau_wdot = 0.02;
     for (i = 0; i < NX; ++i) {

@@ -12,7 +12,7 @@
  * SKFMEC = scaled + mec; the paper's plain EKF baseline = neither, with the same Q, R, P0
  * (converted from scaled coordinates, so in exact arithmetic only the compensator differs).
  *
- * Discretisation at the ECU step Ts (docs/skfmec.md): forward Euler for the state (eq. 38),
+ * Discretisation at the ECU step Ts (docs/tireforce.md): forward Euler for the state (eq. 38),
  * Phi* = I + Ts F* for the covariance, discrete measurement update every step (sequential scalar
  * updates in the symmetric expanded Joseph form), Qd = Qc Ts, R = per-sample variances.
  * Unobservable states (vx, vy: no output depends on them) get their variance capped by a
@@ -80,7 +80,7 @@ typedef struct {
     uint8_t x_init;
 } vh_skf_t;
 
-/* The paper's vehicle and S, the project's tuning (docs/skfmec.md) for a variant. */
+/* The paper's vehicle and S, the project's tuning (docs/tireforce.md) for a variant. */
 void vh_skf_config_default(vh_skf_config_t *cfg, int variant);
 /* zeta1, zeta2 that make eq. 31-32 consistent with the model's own steady cornering. */
 void vh_skf_zeta_steady(const vh_skf_config_t *cfg, double *zeta1, double *zeta2);

@@ -2,7 +2,7 @@
  *
  * The same filter as vh_skf with scaled = 1 (same model, discretisation, step order, sequential
  * symmetric-Joseph update, variance cap), in int32 storage with int64 accumulators. Every quantity
- * has its own Q format, chosen by the range analysis in docs/skfmec.md; the scaling S is what
+ * has its own Q format, chosen by the range analysis in docs/tireforce.md; the scaling S is what
  * makes it possible: the states x* = S x are O(1..100) and share one format, while P, the gains
  * and the innovation variances each get theirs. Measurements that are states (r, p) are scaled
  * like those states (z* = T y, T = diag(1, 1, s_r, s_p)), so the innovations share the state format.

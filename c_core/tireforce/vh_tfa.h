@@ -1,5 +1,5 @@
 /* vh_tfa.h - SKFMEC-A in fixed point: what it adds to the fixed-point SKFMEC (seed 000, beyond the
- * paper; docs/skfmec.md "SKFMEC-A"). Integer only.
+ * paper; docs/tireforce.md "SKFMEC-A"). Integer only.
  *
  * After each vh_skfq_step, on the same inputs: (1) the mass ratio k = m^/m by a scalar RLS on the
  * longitudinal balance y = m a_x (y = cos d (Fx1 + Fx2) + Fx3 + Fx4 - sin d 2 Fyf k - drag, the

@@ -2,7 +2,7 @@
 load-sensitive split, in double. Its parts against independent references (the RLS against the
 batch least-squares solution, the split against the cornering-stiffness ratio), and the whole
 against the 14-DOF plant on the paper's scenarios and on stress scenarios that no setting was
-chosen on (firmware_sim/scenarios/chassis/stress/). The figures are in docs/skfmec.md."""
+chosen on (firmware_sim/scenarios/chassis/stress/). The figures are in docs/results.md."""
 import math
 
 import numpy as np

@@ -90,7 +90,7 @@ def test_ecu_estimates_equal_the_array_api_bit_for_bit(paper_session):
 
 
 def test_ecu_estimates_follow_the_plant(paper_session):
-    """Against the 14-DOF plant's truth (the acceptance figures are in docs/skfmec.md): the outer
+    """Against the 14-DOF plant's truth (the acceptance figures are in docs/results.md): the outer
     tyres and both axles within 10 % of their peak |Fy|."""
     ticks, est = decoded(paper_session, TFE)
     ok = np.array([e["SkfmecQ_Health"] != 0 for e in est]) & (ticks * 5e-4 > 0.2)

@@ -1,5 +1,5 @@
 """SKFMEC-A against the SKFMEC on every shipped and stress scenario, with each of its additions
-switched off in turn (the ablation table of docs/skfmec.md):
+switched off in turn (the ablation table of docs/results.md):
 ``python -m vehest_can.systems.tireforce.ablation [--markdown] [SCENARIO ...]``."""
 from __future__ import annotations
 
@@ -55,7 +55,7 @@ def ablation_table(m: dict) -> str:
 
 
 def markdown_row(m: dict) -> str:
-    """One scenario as a row of docs/skfmec.md's ablation table: per variant FL / FR / RL / RR; front / rear."""
+    """One scenario as a row of docs/results.md's ablation table: per variant FL / FR / RL / RR; front / rear."""
     mass = m["variants"]["SKFMEC-A"]["mass"]
     conv = _converged(mass)
     cells = [" / ".join(f"{vm['rms_pct'][w]:.2f}" for w in ("FL", "FR", "RL", "RR")) + "; "
@@ -77,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
                                  description="SKFMEC-A against the SKFMEC, with its ablations")
     ap.add_argument("scenarios", nargs="*", help="scenario files or shipped names (default: the shipped ones "
                                                  "and the stress scenarios)")
-    ap.add_argument("--markdown", action="store_true", help="one table row per scenario (docs/skfmec.md's table)")
+    ap.add_argument("--markdown", action="store_true", help="one table row per scenario (docs/results.md's table)")
     args = ap.parse_args(argv)
     names = args.scenarios or [*list_tireforce_scenarios(),
                                *sorted(str(p) for p in (tireforce_scenario_dir() / STRESS_DIR).glob("*.toml"))]

@@ -1,7 +1,7 @@
 """SKFMEC-A: the paper's SKFMEC with an online mass estimate and a load-sensitive split (double).
 
 A second tyre-force variant beside the paper's SKFMEC (which stays as it is, the baseline). It runs
-the SKFMEC unchanged and adds, per step (docs/skfmec.md, "SKFMEC-A"):
+the SKFMEC unchanged and adds, per step (docs/tireforce.md, "SKFMEC-A"):
 
 1. **mass** m̂ by recursive least squares on the longitudinal balance of the body (the plant's
    equation of motion, docs/chassis_plant.md: m (v̇x − r vy) = ΣFx − F_aero, with a_x = v̇x − r vy
@@ -80,7 +80,7 @@ class AdaptiveConfig:
     tyre_a: tuple = (1.30, -22.1, 1011.0, 1078.0, 1.82, 0.208, 0.0, -0.354, 0.707)
     tyre_fz_scale: float = 1.75
     mu: float = 1.0
-    # per-side friction (docs/skfmec.md, "per-side friction"): the longitudinal coefficients b0..b8
+    # per-side friction (docs/tireforce.md, "per-side friction"): the longitudinal coefficients b0..b8
     # of the same data sheet, the differential slip's low-pass, the gates, the estimate's time
     # constants (towards an observation; back to ``mu`` when there is none) and its floor
     tyre_b: tuple = (1.65, -21.3, 1144.0, 49.6, 226.0, 0.069, -0.006, 0.056, 0.486)
@@ -106,7 +106,7 @@ class AdaptiveConfig:
     tau_vyd: float = 0.1         # [s]
     vyd_gate: float = 4.0        # [m/s^2]
     hold_implausible: float = 0.5  # DEGRADED this long after the last implausible step [s]
-    # the road's friction (docs/skfmec.md, "road friction"): the measurement's low-pass, its gates (the
+    # the road's friction (docs/tireforce.md, "road friction"): the measurement's low-pass, its gates (the
     # lateral excitation; the free-rolling axle whose wheels give v_x), the scalar EKF's noises, prior
     # and finite difference, and the side estimates above which it is used (no split seen)
     tau_kin: float = 0.05        # low-pass of delta - L r / v_x [s]

@@ -8,7 +8,7 @@ Written from the paper's equations, deliberately literal and sharing no code wit
   the C core's hand-derived Jacobians too);
 * the batch Kalman update with a matrix inverse and the Joseph form (the C core does sequential
   scalar updates);
-* the same discretisation and step order as the C core (docs/skfmec.md, "Discretisation"):
+* the same discretisation and step order as the C core (docs/tireforce.md, "Discretisation"):
   forward Euler for the state (eq. 38 with the MEC term), Phi = I + Ts F* for the covariance,
   discrete measurement update at every step.
 
