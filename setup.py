@@ -12,9 +12,8 @@ from setuptools.command.build_py import build_py
 BUILD_SCRIPTS = ["c_core/vehest_build.py", "c_core/roll/roll_build.py", "c_core/xcp/xcp_build.py",
                  "c_core/secoc/secoc_build.py"]
 
-DATA = {"dbc": ("dbc", "*.dbc"), "scenarios": ("firmware_sim/scenarios", "*.toml"),
-        "scenarios/chassis": ("firmware_sim/scenarios/chassis", "*.toml"),
-        "scenarios/roll": ("firmware_sim/scenarios/roll", "*.toml"),
+DATA = {"dbc": ("dbc", "*.dbc"),
+        **{f"scenarios/{s}": (f"firmware_sim/scenarios/{s}", "*.toml") for s in ("driveline", "camber", "tireforce", "roll")},
         "campaigns": ("firmware_sim/campaigns", "*.toml"),
         "examples/hil": ("examples/hil", "*.toml"), "examples/systemd": ("examples/systemd", "*")}
 

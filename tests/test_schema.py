@@ -6,10 +6,10 @@ from vehest_can.errors import ConfigError, ScenarioError
 from vehest_can.faults.spec import load_faults
 from vehest_can.schema import Checker, Num
 from vehest_can.service.hil import load_hil_config
-from vehest_can.sim.scenario import load_scenario
+from vehest_can.systems.driveline.scenario import load_driveline_scenario
 from vehest_can.systems.tireforce.scenario import load_tireforce_scenario
 
-LOADERS = [(load_scenario, ScenarioError), (load_tireforce_scenario, ScenarioError),
+LOADERS = [(load_driveline_scenario, ScenarioError), (load_tireforce_scenario, ScenarioError),
            (load_hil_config, ConfigError), (load_faults, ConfigError)]
 
 

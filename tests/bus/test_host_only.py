@@ -22,8 +22,8 @@ from vehest_can.bus import bus as busmod
 from vehest_can.bus.frames import database
 from vehest_can.cli import main
 from vehest_can.sim.powertrain import powertrain_car
-from vehest_can.sim.scenario import load_scenario
 from vehest_can.sim.session import run_inprocess
+from vehest_can.systems.driveline.scenario import load_driveline_scenario
 from vehest_can.systems.ecu import Ecu
 
 CI = os.environ.get("CI", "").lower() in ("true", "1")
@@ -97,7 +97,7 @@ def test_lockstep_two_processes_on_the_default_bus_in_a_loopback_only_namespace(
     err = (tmp_path / "daemon.err").read_text()
     assert "udp_multicast 239.74.163.2 port 43113 on 127.0.0.1, TTL 0: this host only" in err
     assert "faults: none" in err
-    local = run_inprocess(powertrain_car(load_scenario("launch_2nd"), seconds), Ecu())
+    local = run_inprocess(powertrain_car(load_driveline_scenario("launch_2nd"), seconds), Ecu())
     a, b = ecu_frames(got["frames"], got["frame_tick"]), ecu_frames(local.frames, local.frame_tick)
     assert len(a[0]) == len(b[0]) > 1500
     assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])

@@ -5,12 +5,12 @@ from dataclasses import replace
 
 from vehest_can.campaign import Store, execute, load_campaign, summarize
 from vehest_can.paths import shipped_dir, shipped_file
-from vehest_can.sim.scenario import load_scenario, scenario_dir
 from vehest_can.systems.camber.campaign import CAMPAIGN
+from vehest_can.systems.camber.scenario import load_camber_scenario
 
 
 def test_parked_car_stays_stationary_under_wheel_speed_noise():
-    sc = load_scenario(scenario_dir() / "camber_inspection.toml")
+    sc = load_camber_scenario("camber_inspection")
     # a seed whose standstill wheel-speed noise reaches 0.52-0.60 rad/s: every wheel NOT_STATIONARY
     # with the old single-sample gate
     r = CAMPAIGN.run(replace(sc, seed=2034557733147379882))

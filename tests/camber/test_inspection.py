@@ -7,13 +7,13 @@ import pytest
 
 from vehest_can.cli import main
 from vehest_can.sim.powertrain import powertrain_car
-from vehest_can.sim.scenario import load_scenario, scenario_dir
 from vehest_can.sim.session import run_inprocess
 from vehest_can.systems.camber import inspection
 from vehest_can.systems.camber.api import WHEELS, load_calibrations
+from vehest_can.systems.camber.scenario import load_camber_scenario
 from vehest_can.systems.ecu import Ecu
 
-SC = load_scenario(scenario_dir() / "camber_inspection.toml")
+SC = load_camber_scenario("camber_inspection")
 TRUTH = {w: SC.camber.theta_deg[i] for i, w in enumerate(WHEELS)}
 
 

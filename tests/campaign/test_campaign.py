@@ -252,8 +252,8 @@ max = 7.0
 def test_write_run_scenario_is_a_loadable_scenario(tmp_path):
     c = load_campaign(short(tmp_path, runs=3))
     f = write_run_scenario(c, 2, tmp_path / "run2.toml")
-    from vehest_can.sim.scenario import load_scenario
-    sc = load_scenario(f)
+    from vehest_can.systems.driveline.scenario import load_driveline_scenario
+    sc = load_driveline_scenario(f)
     assert sc.duration_s == 1.5 and sc.seed == c.run_doc(2)[0]["seed"]
 
 

@@ -14,6 +14,7 @@ from vehest_can.cli import main
 def short_scenario(tmp_path, text_extra=""):
     p = tmp_path / "short.toml"
     p.write_text(f"""
+kind = "driveline"
 name = "short"
 description = "1.5 s launch for the CLI test"
 duration_s = 1.5
@@ -58,7 +59,7 @@ def test_demo_end_to_end(tmp_path, capsys):
 def test_demo_chassis_scenario_end_to_end(tmp_path, capsys):
     """A chassis scenario (seed 000) through the daemon: fixed-point estimates from the bus equal
     the array API's, the report tabulates all three estimators and draws Fig. 3-6."""
-    src = Path(__file__).parents[2] / "firmware_sim" / "scenarios" / "chassis" / "chassis_paper_mu_drop.toml"
+    src = Path(__file__).parents[2] / "firmware_sim" / "scenarios" / "tireforce" / "chassis_paper_mu_drop.toml"
     sc = tmp_path / "chassis_short.toml"
     sc.write_text(src.read_text().replace("duration_s = 10.0", "duration_s = 1.0")
                   .replace('name = "chassis_paper_mu_drop"', 'name = "chassis_short"'))

@@ -12,8 +12,8 @@ from vehest_can.bus.log import read_log
 from vehest_can.cli import build_parser
 from vehest_can.sim.powertrain import powertrain_car
 from vehest_can.sim.report import LEGEND, verdict_word
-from vehest_can.sim.scenario import load_scenario
 from vehest_can.systems import Setup
+from vehest_can.systems.driveline.scenario import load_driveline_scenario
 
 
 class Gate:
@@ -25,7 +25,7 @@ class Gate:
     def __init__(self, folder: Path, min_frames: int):
         self.folder, self.min_frames = folder, min_frames
 
-    def scenario_dir(self):
+    def driveline_scenario_dir(self):
         return self.folder
 
     def claims(self, doc):
@@ -35,7 +35,7 @@ class Gate:
         return type("Sc", (), {"name": path.stem})()
 
     def car(self, scenario, duration_s=None):
-        return powertrain_car(load_scenario("launch_2nd"), duration_s or 0.25)
+        return powertrain_car(load_driveline_scenario("launch_2nd"), duration_s or 0.25)
 
     def setup(self, scenarios, out):
         return Setup()

@@ -11,13 +11,13 @@ from daemonproc import start_daemon, stop_daemon
 from vehest_can.bus.bus import cli_args, private_multicast
 from vehest_can.service.monitor import Monitor
 from vehest_can.sim.powertrain import powertrain_car
-from vehest_can.sim.scenario import load_scenario
 from vehest_can.sim.session import run_inprocess
+from vehest_can.systems.driveline.scenario import load_driveline_scenario
 from vehest_can.systems.ecu import Ecu
 
 
 def test_monitor_shows_the_latest_decoded_values():
-    s = run_inprocess(powertrain_car(load_scenario("launch_2nd"), duration_s=1.0), Ecu())
+    s = run_inprocess(powertrain_car(load_driveline_scenario("launch_2nd"), duration_s=1.0), Ecu())
     mon = Monitor()
     for k, m in zip(s.frame_tick, s.messages()):
         mon.feed(m, now=k * 0.0005)

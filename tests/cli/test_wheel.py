@@ -26,7 +26,7 @@ def test_the_wheel_installs_and_runs_in_a_clean_venv(tmp_path):
     (wheel,) = dist.glob("vehest_can-*.whl")
     assert wheel.name.endswith("-cp311-abi3-linux_x86_64.whl"), wheel.name
     names = zipfile.ZipFile(wheel).namelist()
-    for shipped in ("vehest_can/dbc/vehest_pt.dbc", "vehest_can/scenarios/launch_2nd.toml",
+    for shipped in ("vehest_can/dbc/vehest_pt.dbc", "vehest_can/scenarios/driveline/launch_2nd.toml",
                     "vehest_can/examples/hil/loopback.toml", "vehest_can/examples/systemd/vehest-ecu.service"):
         assert shipped in names
     assert any(n.startswith("vehest_can/_native") and n.endswith(".abi3.so") for n in names)
@@ -46,7 +46,7 @@ def test_the_wheel_installs_and_runs_in_a_clean_venv(tmp_path):
     listed = run([exe, "examples"], cwd=work)
     assert listed.returncode == 0 and "hil/loopback.toml" in listed.stdout
     assert str(venv) in listed.stdout  # from the installed package, not the checkout
-    (work / "short.toml").write_text('name = "short"\ndescription = "0.5 s"\nduration_s = 0.5\nseed = 3\n'
+    (work / "short.toml").write_text('kind = "driveline"\nname = "short"\ndescription = "0.5 s"\nduration_s = 0.5\nseed = 3\n'
                                      '[driver]\ngear = 2\nthrottle = [[0.0, 0.3], [0.5, 0.5]]\n')
     demo = run([exe, "demo", "short.toml", "-o", "out"], cwd=work)
     assert demo.returncode == 0, demo.stdout[-2000:] + demo.stderr[-2000:]

@@ -16,7 +16,7 @@ from scipy import integrate, optimize, stats
 
 from vehest_can.native import ffi, lib
 from vehest_can.paths import dbc_path
-from vehest_can.sim.scenario import truth_to_numpy
+from vehest_can.sim.powertrain import truth_to_numpy
 
 DT = 0.0005
 G = 9.81

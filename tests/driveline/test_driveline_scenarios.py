@@ -5,19 +5,19 @@ import pytest
 from vehest_can.native import ffi, lib
 from vehest_can.sim.powertrain import powertrain_car
 from vehest_can.sim.report import decode
-from vehest_can.sim.scenario import load_scenario, scenario_dir
 from vehest_can.sim.session import run_inprocess
 from vehest_can.systems.driveline import reference as dkf_ref
 from vehest_can.systems.driveline import report
 from vehest_can.systems.driveline.api import DkfConfig, DrivelineKF
+from vehest_can.systems.driveline.scenario import driveline_scenario_dir, load_driveline_scenario
 from vehest_can.systems.ecu import Ecu
 
-DRIVELINE = [p for p in sorted(scenario_dir().glob("*.toml")) if load_scenario(p).camber is None]
+DRIVELINE = sorted(driveline_scenario_dir().glob("*.toml"))
 
 
 @pytest.fixture(scope="module", params=DRIVELINE, ids=lambda p: p.stem)
 def scenario(request):
-    return load_scenario(request.param)
+    return load_driveline_scenario(request.param)
 
 
 @pytest.fixture(scope="module")

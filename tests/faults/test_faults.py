@@ -22,15 +22,15 @@ from vehest_can.faults.spec import KINDS, FaultSpec, faults_from_cli, load_fault
 from vehest_can.faults.wire import FaultBus, WireModel
 from vehest_can.paths import dbc_path
 from vehest_can.sim.powertrain import powertrain_car
-from vehest_can.sim.scenario import load_scenario, scenario_dir
 from vehest_can.sim.session import run_inprocess
 from vehest_can.systems.driveline.faults import FAULTS
+from vehest_can.systems.driveline.scenario import driveline_scenario_dir, load_driveline_scenario
 from vehest_can.systems.ecu import Ecu
 
 CATALOGUE = FAULTS.catalogue
 DB = database("pt")
 DLS = DB.get_message_by_name("DLS_Sensors")
-LAUNCH = load_scenario(scenario_dir() / "launch_2nd.toml")
+LAUNCH = load_driveline_scenario(driveline_scenario_dir() / "launch_2nd.toml")
 TICK = 0.0005
 # Wire time of a 16-byte FD frame with BRS at 500 kbit/s / 4 Mbit/s, worst-case stuffing, by hand:
 # 33 bits at the nominal rate (17 arbitration + 3 stuff + 13 tail) = 66 µs, 194 at the data rate

@@ -323,10 +323,11 @@ def test_chassis_sensor_frames_secured_and_verified_independently(keys):
     mass and friction estimation): CHS_Sensors and CHS_RideHeight secured, every MAC verified by the
     independent verifier, none rejected by the ECU, every estimate as with SecOC off; a tampered
     CHS_Sensors is rejected and changes nothing."""
-    from vehest_can.systems.tireforce.scenario import ChassisCar, load_tireforce_scenario
+    from vehest_can.sim.veh14 import Veh14Car
+    from vehest_can.systems.tireforce.scenario import load_tireforce_scenario
 
     sc = load_tireforce_scenario("chassis_paper_mu_drop")
-    car = ChassisCar(sc, 0.5)
+    car = Veh14Car(sc, 0.5)
     car.enable_secoc(keys)
     ecu = secured_ecu(keys)
     on = run_inprocess(car, ecu)
@@ -337,7 +338,7 @@ def test_chassis_sensor_frames_secured_and_verified_independently(keys):
     assert n == {CHS.frame_id: 1000, RIDE.frame_id: 50}
     c = ecu.secoc.counters()
     assert c["rejected"] == 0 and c["accepted"] == 1050 and c["syncs"] == 1
-    off = run_inprocess(ChassisCar(sc, 0.5), Ecu())
+    off = run_inprocess(Veh14Car(sc, 0.5), Ecu())
     by_tick = lambda s: [[m for m, k in zip(s.messages(), s.frame_tick) if k == t] for t in range(s.frame_tick[-1] + 1)]  # noqa: E731
     assert authentic(by_tick(on)) == authentic(by_tick(off))  # SecOC changes no estimate
     # tampered: one bit of the payload of a genuine CHS_Sensors

@@ -19,15 +19,15 @@ from vehest_can.bus.frames import authentic_data, database, to_message
 from vehest_can.bus.secoc import secured_messages
 from vehest_can.paths import dbc_path
 from vehest_can.sim.powertrain import powertrain_car
-from vehest_can.sim.scenario import load_scenario, scenario_dir
 from vehest_can.sim.session import run_inprocess
+from vehest_can.systems.camber.scenario import load_camber_scenario
 from vehest_can.systems.ecu import Ecu
 
 PT = database("pt")
 DLS = PT.get_message_by_name("DLS_Sensors")
 CIS = PT.get_message_by_name("CIS_Accel")
 STATUS = PT.get_message_by_name("VEHEST_Status")
-SC = load_scenario(scenario_dir() / "camber_inspection.toml")
+SC = load_camber_scenario("camber_inspection")
 DURATION = 0.5  # s: 1000 DLS_Sensors, 50 CIS_Accel
 SECURED = {fid for fid, (node, _, _, sync) in secured_messages().items() if node in ("DLS", "CIS") and not sync}
 

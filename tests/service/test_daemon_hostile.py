@@ -14,8 +14,8 @@ from vehest_can.bus.rt import Durations, percentiles_us
 from vehest_can.service.daemon import EcuDaemon
 from vehest_can.sim.powertrain import powertrain_car
 from vehest_can.sim.report import decode
-from vehest_can.sim.scenario import load_scenario
 from vehest_can.sim.session import SimMaster
+from vehest_can.systems.driveline.scenario import load_driveline_scenario
 from vehest_can.systems.ecu import Ecu
 
 
@@ -42,7 +42,7 @@ def test_garbage_datagrams_between_good_frames_are_counted_and_do_not_stall_the_
     time.sleep(0.2)
     junk.start()
     try:
-        session = SimMaster(car_bus, powertrain_car(load_scenario("tip_in_tip_out"), 3.0)).run_realtime()
+        session = SimMaster(car_bus, powertrain_car(load_driveline_scenario("tip_in_tip_out"), 3.0)).run_realtime()
     finally:
         stop.set()
         junk.join(5)

@@ -29,8 +29,8 @@ from vehest_can.paths import dbc_path
 from vehest_can.service.hil import BUS_LOAD_LIMIT_PCT, ResidualBus, load_hil_config
 from vehest_can.sim.powertrain import powertrain_car
 from vehest_can.sim.report import decode
-from vehest_can.sim.scenario import load_scenario
 from vehest_can.sim.session import SimMaster, run_inprocess
+from vehest_can.systems.driveline.scenario import load_driveline_scenario
 from vehest_can.systems.ecu import Ecu
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -329,7 +329,7 @@ def test_paths_are_relative_to_the_config_file(tmp_path):
     sub = tmp_path / "bench"
     sub.mkdir()
     custom_dbc(sub, "pt.dbc")
-    (sub / "drive.toml").write_text((ROOT / "firmware_sim" / "scenarios" / "launch_2nd.toml").read_text())
+    (sub / "drive.toml").write_text((ROOT / "firmware_sim" / "scenarios" / "driveline" / "launch_2nd.toml").read_text())
     cfg = load_hil_config(write(sub, mutate(buses__pt__dbc="pt.dbc", scenario="drive.toml")))
     assert cfg.buses[0].dbc == sub / "pt.dbc"
     assert cfg.scenario.path == sub / "drive.toml"
@@ -394,7 +394,7 @@ def test_lockstep_both_simulated_on_virtual_bus_equals_inprocess(tmp_path):
     cfg = load_hil_config(write(tmp_path, mutate(
         mode="lockstep", buses__pt__interface="virtual", buses__pt__channel=channel)))
     result = ResidualBus(cfg, duration_s=1.0).run()
-    local = run_inprocess(powertrain_car(load_scenario("launch_2nd"), 1.0), Ecu())
+    local = run_inprocess(powertrain_car(load_driveline_scenario("launch_2nd"), 1.0), Ecu())
     assert result.ecu.mode == "lockstep" and result.ecu.ticks == len(local.truth) == 2000
     assert np.array_equal(result.session.frames, local.frames)
     assert np.array_equal(result.session.frame_tick, local.frame_tick)
@@ -581,7 +581,7 @@ def test_ecu_simulated_against_a_car_in_another_process(tmp_path):
     try:
         car_bus = busmod.open_bus({"interface": "udp_multicast", "channel": channel, "fd": True})
         try:
-            session = SimMaster(car_bus, powertrain_car(load_scenario("launch_2nd"), 1.5)).run_realtime()
+            session = SimMaster(car_bus, powertrain_car(load_driveline_scenario("launch_2nd"), 1.5)).run_realtime()
         finally:
             car_bus.shutdown()
     finally:

@@ -16,8 +16,8 @@ from vehest_can.bus.log import SessionLog, iter_log_arrays, read_log
 from vehest_can.errors import ConfigError
 from vehest_can.service.replay import ECU_TX, Replayer, replay, replay_file
 from vehest_can.sim.powertrain import powertrain_car
-from vehest_can.sim.scenario import load_scenario
 from vehest_can.sim.session import run_inprocess
+from vehest_can.systems.driveline.scenario import load_driveline_scenario
 from vehest_can.systems.ecu import Ecu
 
 
@@ -57,7 +57,7 @@ def wire(msgs):
 
 @pytest.fixture(scope="module")
 def session():
-    return run_inprocess(powertrain_car(load_scenario("launch_2nd"), duration_s=1.0), Ecu())
+    return run_inprocess(powertrain_car(load_driveline_scenario("launch_2nd"), duration_s=1.0), Ecu())
 
 
 def lockstep_messages(session):
@@ -150,7 +150,7 @@ def test_a_frame_older_than_the_batch_before_is_counted(tmp_path):
 
 def test_an_hour_gap_is_not_stepped_tick_by_tick(tmp_path):
     """#15: 1,001 frames with a 1 h gap took 50 s and 2.4 GB. Now: 1 s of idle ticks, then a jump."""
-    sensors = [m for m in run_inprocess(powertrain_car(load_scenario("launch_2nd"), duration_s=0.5),
+    sensors = [m for m in run_inprocess(powertrain_car(load_driveline_scenario("launch_2nd"), duration_s=0.5),
                                         Ecu()).messages() if m.arbitration_id not in ECU_TX][:1001]
     for m in sensors[500:]:
         m.timestamp += 3600.0

@@ -41,15 +41,15 @@ from vehest_can.native import lib
 from vehest_can.service.daemon import EcuDaemon
 from vehest_can.service.replay import replay
 from vehest_can.sim.powertrain import powertrain_car
-from vehest_can.sim.scenario import load_scenario, scenario_dir
 from vehest_can.sim.session import run_inprocess
+from vehest_can.systems.driveline.scenario import driveline_scenario_dir, load_driveline_scenario
 from vehest_can.systems.ecu import Ecu
 
 GUEST = Path(__file__).resolve().parents[1] / "vcan_guest"
 PY = shlex.quote(sys.executable)
 REPO = Path(__file__).resolve().parents[2]
 # the driveline (seed 001) scenarios, full length; the camber inspection has its own bus tests
-SCENARIOS = [sc for sc in (load_scenario(p) for p in sorted(scenario_dir().glob("*.toml"))) if sc.camber is None]
+SCENARIOS = [load_driveline_scenario(p) for p in sorted(driveline_scenario_dir().glob("*.toml"))]
 
 DB = database("pt")
 EST = DB.get_message_by_name("VEHEST_DrivelineEst")
@@ -347,7 +347,7 @@ def test_canplayer_sensor_log_into_realtime_daemon(faults_run):
     no RX fault, and the valid estimates follow the plant's output-shaft torque."""
     r = faults_run.result["canplayer"]
     out = faults_run.out
-    sc = load_scenario("launch_2nd")
+    sc = load_driveline_scenario("launch_2nd")
     local = run_inprocess(powertrain_car(sc, 4.0), Ecu())
     dls_local = [to_message(f) for f in local.frames if f["id"] == DLS.frame_id]
     start = int(round(1.0 / TICK_S))
@@ -505,7 +505,7 @@ def test_lockstep_daemon_survives_link_down_and_up(faults_run):
     stats = daemon_ok(r)
     assert (stats["bus_outages"], stats["recv_errors"], stats["send_failures"]) == (1, 1, 0)
     assert r["stderr"].count("bus error on receive") == 1 and r["stderr"].count("bus back after") == 1
-    local = run_inprocess(powertrain_car(load_scenario("launch_2nd"), 0.5), Ecu())
+    local = run_inprocess(powertrain_car(load_driveline_scenario("launch_2nd"), 0.5), Ecu())
     frames, ticks, truth = _session(faults_run.out / "link_lockstep.session.npz")
     assert r["session_ticks"] == 1000 == stats["ticks"]
     assert np.array_equal(frames, local.frames) and np.array_equal(ticks, local.frame_tick)

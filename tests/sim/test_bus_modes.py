@@ -20,11 +20,11 @@ from vehest_can.bus.log import read_log
 from vehest_can.service.daemon import EcuDaemon
 from vehest_can.service.replay import replay
 from vehest_can.sim.powertrain import powertrain_car
-from vehest_can.sim.scenario import load_scenario, scenario_dir
 from vehest_can.sim.session import SimMaster, run_inprocess
+from vehest_can.systems.driveline.scenario import driveline_scenario_dir, load_driveline_scenario
 from vehest_can.systems.ecu import Ecu
 
-LAUNCH = load_scenario(scenario_dir() / "launch_2nd.toml")
+LAUNCH = load_driveline_scenario(driveline_scenario_dir() / "launch_2nd.toml")
 ECU_IDS = {m.frame_id for m in database("pt").messages if "VEHEST" in m.senders and m.name != "VEHEST_SyncAck"}
 
 

@@ -14,15 +14,15 @@ from vehest_can.bus.bus import open_bus, private_multicast
 from vehest_can.bus.log import SessionLog
 from vehest_can.sim import session as session_mod
 from vehest_can.sim.powertrain import powertrain_car
-from vehest_can.sim.scenario import load_scenario
 from vehest_can.sim.session import CAR_NODES, SimMaster
+from vehest_can.systems.driveline.scenario import load_driveline_scenario
 
 
 def retained_bytes_per_frame(tmp_path, keep: bool, seconds: float = 3.0) -> tuple[float, SimMaster, object]:
     """Python-traced memory (tracemalloc: numpy's arrays included) against frames sent, sampled every
     0.1 s while the car runs on a bus of its own with a log file; the slope of a least-squares line
     over the samples after the first second (the start-up's allocations are not growth)."""
-    drive = powertrain_car(load_scenario("tip_in_tip_out"), duration_s=seconds)
+    drive = powertrain_car(load_driveline_scenario("tip_in_tip_out"), duration_s=seconds)
     bus = open_bus(private_multicast())
     writer = SessionLog(tmp_path / f"sim-{keep}.log", CAR_NODES)
     master = SimMaster(bus, drive, log_writer=writer, keep=keep)

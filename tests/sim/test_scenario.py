@@ -10,9 +10,17 @@ import pytest
 
 from vehest_can.errors import ConfigError, ScenarioError
 from vehest_can.native import ffi, lib
-from vehest_can.sim.scenario import DT, Scenario, list_scenarios, load_scenario, scenario_dir, scenario_from_dict
+from vehest_can.sim.powertrain import PowertrainScenario
+from vehest_can.sim.scenario import DT
+from vehest_can.systems.driveline.scenario import (
+    driveline_scenario_dir,
+    driveline_scenario_from_dict,
+    list_driveline_scenarios,
+    load_driveline_scenario,
+)
 
 GOOD = """\
+kind = "driveline"
 name = "mine"
 description = "a test"
 duration_s = 2.0
@@ -33,17 +41,17 @@ def write(tmp_path, text, name="s.toml"):
 # ---- shipped scenarios ---------------------------------------------------------------------
 
 def test_shipped_scenarios_are_found_and_load():
-    names = list_scenarios()
+    names = list_driveline_scenarios()
     assert {"launch_2nd", "tip_in_tip_out"} <= set(names)
-    assert scenario_dir().is_dir()
+    assert driveline_scenario_dir().is_dir()
     for name in names:
-        sc = load_scenario(name)
-        assert sc.name == name and sc.path == scenario_dir() / f"{name}.toml"
+        sc = load_driveline_scenario(name)
+        assert sc.name == name and sc.path == driveline_scenario_dir() / f"{name}.toml"
         assert sc.description and sc.duration_s > 0
 
 
 def test_launch_2nd_is_the_papers_case():
-    sc = load_scenario("launch_2nd")
+    sc = load_driveline_scenario("launch_2nd")
     assert sc.gear == 2 and sc.initial_speed_kmh == 0.0
     assert 8.0 <= sc.duration_s <= 15.0
     thr = sc.throttle_at(sc.times())
@@ -60,7 +68,7 @@ def test_launch_2nd_is_the_papers_case():
 
 
 def test_tip_in_tip_out_starts_rolling_and_goes_into_overrun():
-    sc = load_scenario("tip_in_tip_out")
+    sc = load_driveline_scenario("tip_in_tip_out")
     tr = sc.run_truth(ffi, lib)
     assert tr["v"][0] * 3.6 == pytest.approx(sc.initial_speed_kmh, rel=0.01)
     assert (tr["sr"] > 1.0).any() and (tr["to"] < 0).any()  # lift-off: wheels drive the engine
@@ -69,7 +77,7 @@ def test_tip_in_tip_out_starts_rolling_and_goes_into_overrun():
 # ---- a good file and its conversions -------------------------------------------------------
 
 def test_good_file_and_defaults(tmp_path):
-    sc = load_scenario(write(tmp_path, GOOD))
+    sc = load_driveline_scenario(write(tmp_path, GOOD))
     assert (sc.name, sc.duration_s, sc.seed, sc.gear, sc.initial_speed_kmh) == ("mine", 2.0, 3, 2, 0.0)
     prm = ffi.new("vh_dlp_params_t *")
     lib.vh_dlp_params_default(prm)
@@ -82,7 +90,7 @@ def test_good_file_and_defaults(tmp_path):
 
 
 def test_throttle_profile_is_piecewise_linear_and_held(tmp_path):
-    sc = load_scenario(write(tmp_path, GOOD.replace("[[0.0, 0.0], [0.5, 0.2], [1.0, 0.2]]",
+    sc = load_driveline_scenario(write(tmp_path, GOOD.replace("[[0.0, 0.0], [0.5, 0.2], [1.0, 0.2]]",
                                                     "[[0.2, 0.1], [0.6, 0.5], [1.0, 0.3]]")))
     t = np.array([0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 5.0])
     np.testing.assert_allclose(sc.throttle_at(t), [0.1, 0.1, 0.3, 0.5, 0.4, 0.3, 0.3])
@@ -102,7 +110,7 @@ def test_overrides_reach_the_c_structs(tmp_path):
         wheel_speed_std_rad_s = 0.25
         shaft_torque_std_nm = 3
     """))
-    sc = load_scenario(path)
+    sc = load_driveline_scenario(path)
     prm = sc.plant_params(ffi, lib)
     assert (prm.road_std, prm.road_bw, prm.jv, prm.ks) == (55.5, 12.0, 180.0, 12000.0)
     assert list(prm.ri) == [0.3, 0.45, 0.7, 0.95, 1.2]
@@ -166,7 +174,7 @@ EXTRA = [
 
 def check_error(path, key, words):
     with pytest.raises(ScenarioError) as info:
-        load_scenario(path)
+        load_driveline_scenario(path)
     msg = str(info.value)
     assert msg.startswith(f"{path}: {key}: "), msg
     assert words in msg, msg
@@ -197,21 +205,22 @@ def test_table_that_is_not_a_table(tmp_path, table):
 def test_toml_syntax_error_names_the_file(tmp_path):
     path = write(tmp_path, GOOD + "\nthis is = = not toml\n")
     with pytest.raises(ScenarioError, match="TOML syntax") as info:
-        load_scenario(path)
+        load_driveline_scenario(path)
     assert str(path) in str(info.value)
 
 
 def test_missing_file(tmp_path):
     path = tmp_path / "nope.toml"
     with pytest.raises(ScenarioError, match="cannot read") as info:
-        load_scenario(path)
+        load_driveline_scenario(path)
     assert str(path) in str(info.value)
     with pytest.raises(ScenarioError, match="no_such_scenario"):
-        load_scenario("no_such_scenario")
+        load_driveline_scenario("no_such_scenario")
 
 
 def test_from_dict_names_its_source():
     with pytest.raises(ScenarioError, match=r"^<scenario>: duration_s: missing"):
-        scenario_from_dict({"name": "x", "driver": {"gear": 1, "throttle": [[0, 0]]}})
-    sc = scenario_from_dict({"name": "x", "duration_s": 1, "driver": {"gear": 1, "throttle": [[0, 0]]}})
-    assert isinstance(sc, Scenario) and sc.n_steps == 2000 and not math.isnan(sc.road_std_nm)
+        driveline_scenario_from_dict({"kind": "driveline", "name": "x", "driver": {"gear": 1, "throttle": [[0, 0]]}})
+    sc = driveline_scenario_from_dict({"kind": "driveline", "name": "x", "duration_s": 1,
+                                       "driver": {"gear": 1, "throttle": [[0, 0]]}})
+    assert isinstance(sc, PowertrainScenario) and sc.n_steps == 2000 and not math.isnan(sc.road_std_nm)

@@ -9,8 +9,8 @@ import pytest
 from vehest_can import systems
 from vehest_can.cli import build_parser
 from vehest_can.sim.powertrain import powertrain_car
-from vehest_can.sim.scenario import load_scenario
 from vehest_can.systems import Setup, register, registered, unregister
+from vehest_can.systems.driveline.scenario import load_driveline_scenario
 
 PKG = Path(systems.__file__).parent.parent
 
@@ -22,7 +22,7 @@ def test_the_shipped_systems_are_registered():
 
 
 def test_every_shipped_scenario_has_exactly_one_system():
-    from vehest_can.sim.scenario import read_toml
+    from vehest_can.schema import read_toml
 
     dirs = {s.scenario_dir() for s in registered()}
     for path in (p for d in dirs for p in d.glob("*.toml")):
@@ -30,9 +30,19 @@ def test_every_shipped_scenario_has_exactly_one_system():
         assert sum(s.claims(doc) for s in registered()) == 1, path
 
 
-def test_old_kind_names_still_load():
-    (tf,) = [s for s in registered() if s.name == "tireforce"]
-    assert tf.kinds == ("tireforce", "chassis") and tf.claims({"kind": "chassis"})
+def test_every_scenario_file_says_its_kind_and_a_missing_one_is_named(tmp_path):
+    from vehest_can.errors import ScenarioError
+    from vehest_can.schema import read_toml
+    from vehest_can.systems import load_any_scenario, shipped_scenarios
+
+    for path in shipped_scenarios():
+        assert "kind" in read_toml(path), path
+    (tmp_path / "old.toml").write_text('kind = "chassis"\nname = "x"\nduration_s = 1.0\n')
+    (tmp_path / "none.toml").write_text('name = "x"\nduration_s = 1.0\n')
+    with pytest.raises(ScenarioError, match="no registered system reads kind = 'chassis'.*\"tireforce\""):
+        load_any_scenario(tmp_path / "old.toml")
+    with pytest.raises(ScenarioError, match='kind: missing: .*"driveline"'):
+        load_any_scenario(tmp_path / "none.toml")
 
 
 SYSTEM_NAMES = re.compile(r"driveline|tire|tyre|camber|chassis|skf|dkf|veh14|inspection", re.I)
@@ -66,7 +76,7 @@ class Toy:
         self.folder = folder
         self.seen: list = []
 
-    def scenario_dir(self) -> Path:
+    def driveline_scenario_dir(self) -> Path:
         return self.folder
 
     def claims(self, doc: dict) -> bool:
@@ -76,7 +86,7 @@ class Toy:
         return ToyScenario(path.stem, 0.25)
 
     def car(self, scenario, duration_s=None):
-        return powertrain_car(load_scenario("launch_2nd"), duration_s or scenario.seconds)
+        return powertrain_car(load_driveline_scenario("launch_2nd"), duration_s or scenario.seconds)
 
     def setup(self, scenarios: list, out: Path) -> Setup:
         return Setup()
@@ -106,16 +116,3 @@ def test_a_registered_toy_system_runs_through_the_demo(tmp_path, capsys):
     assert "bus lockstep == in-process lockstep: identical" in out
     assert re.search(r"toy table: toy_one \d+ frames", out)
     assert (tmp_path / "out" / "toy_one" / "session.log").is_file()
-
-
-def test_a_tireforce_file_loads_under_its_name_and_its_old_name(tmp_path):
-    from dataclasses import replace
-
-    from vehest_can.systems.tireforce.scenario import load_tireforce_scenario, tireforce_scenario_dir
-
-    shipped = tireforce_scenario_dir() / "chassis_paper_mu_drop.toml"
-    text = shipped.read_text()
-    assert 'kind = "chassis"' in text
-    (tmp_path / "new.toml").write_text(text.replace('kind = "chassis"', 'kind = "tireforce"'))
-    old, new = load_tireforce_scenario(shipped), load_tireforce_scenario(tmp_path / "new.toml")
-    assert replace(old, path=None) == replace(new, path=None)

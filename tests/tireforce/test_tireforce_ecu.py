@@ -21,9 +21,10 @@ from vehest_can.bus.log import read_log
 from vehest_can.native import lib
 from vehest_can.service.replay import replay
 from vehest_can.sim.session import SimMaster, run_inprocess
+from vehest_can.sim.veh14 import Veh14Car
 from vehest_can.systems.ecu import Ecu
 from vehest_can.systems.tireforce import api as tf
-from vehest_can.systems.tireforce.scenario import ChassisCar, load_tireforce_scenario
+from vehest_can.systems.tireforce.scenario import load_tireforce_scenario
 
 DB = database("ch")
 CHS = DB.get_message_by_name("CHS_Sensors")
@@ -53,7 +54,7 @@ def inputs_of(session) -> tf.Inputs:
 
 @pytest.fixture(scope="module")
 def paper_session():
-    return run_inprocess(ChassisCar(PAPER), Ecu())
+    return run_inprocess(Veh14Car(PAPER), Ecu())
 
 
 def test_ecu_estimates_equal_the_array_api_bit_for_bit(paper_session):
@@ -180,7 +181,7 @@ def test_stuck_wheel_speed_saturates_counts_and_survives(paper_session):
 @pytest.mark.multicast
 def test_lockstep_over_multicast_equals_inprocess_and_replays(tmp_path):
     """The chassis car and the ECU daemon as two processes on one udp_multicast bus."""
-    car = ChassisCar(PAPER, 1.5)
+    car = Veh14Car(PAPER, 1.5)
     config = private_multicast()
     proc = start_daemon(config, "--mode", "lockstep", "--idle-timeout", "30", tmp_path=tmp_path)
     try:
@@ -193,7 +194,7 @@ def test_lockstep_over_multicast_equals_inprocess_and_replays(tmp_path):
     finally:
         rc, err = stop_daemon(proc)
     assert rc == 0, err
-    local = run_inprocess(ChassisCar(PAPER, 1.5), Ecu())
+    local = run_inprocess(Veh14Car(PAPER, 1.5), Ecu())
     assert len(session.frames) == len(local.frames) > 6000
     assert np.array_equal(session.frames, local.frames)
     assert np.array_equal(session.truth, local.truth)
@@ -203,7 +204,7 @@ def test_lockstep_over_multicast_equals_inprocess_and_replays(tmp_path):
 
 def golden_inputs():
     """CHS_Sensors and CHS_RideHeight of the paper scenario from 3.0 s to 3.3 s (cornering, braking)."""
-    s = run_inprocess(ChassisCar(PAPER, 3.3), Ecu())
+    s = run_inprocess(Veh14Car(PAPER, 3.3), Ecu())
     sel = np.isin(s.frames["id"], (CHS.frame_id, RIDE.frame_id)) & (s.frame_tick >= 6000)
     return [can.Message(timestamp=float(k) * 5e-4, arbitration_id=int(f["id"]), is_extended_id=False, is_fd=True,
                         bitrate_switch=True, data=bytes(f["data"][: f["len"]]), channel="vcan0")

@@ -29,14 +29,9 @@ from vehest_can.bus.busload import bus_load
 from vehest_can.cli import main as cli_main
 from vehest_can.errors import ScenarioError
 from vehest_can.native import ffi, lib
-from vehest_can.sim.scenario import list_scenarios, load_scenario, scenario_dir
-from vehest_can.systems.tireforce.scenario import (
-    TireForceScenario,
-    list_tireforce_scenarios,
-    load_tireforce_scenario,
-    tireforce_scenario_dir,
-    truth_to_numpy,
-)
+from vehest_can.sim.veh14 import Veh14Scenario, truth_to_numpy
+from vehest_can.systems.driveline.scenario import driveline_scenario_dir, list_driveline_scenarios, load_driveline_scenario
+from vehest_can.systems.tireforce.scenario import list_tireforce_scenarios, load_tireforce_scenario, tireforce_scenario_dir
 
 ROOT = Path(__file__).resolve().parents[2]
 DT = 0.0005
@@ -815,7 +810,7 @@ def test_ch_bus_load_within_budget(capsys):
 # ---- chassis scenarios -------------------------------------------------------------------------
 
 GOOD = """\
-kind = "chassis"
+kind = "tireforce"
 name = "mine"
 duration_s = 1.0
 
@@ -832,7 +827,7 @@ def write(tmp_path, text, name="c.toml"):
 
 def test_shipped_chassis_scenarios_load_and_follow_the_paper():
     assert set(list_tireforce_scenarios()) == {"chassis_relation_70kph", "chassis_paper_mu_drop"}
-    assert tireforce_scenario_dir().name == "chassis"
+    assert tireforce_scenario_dir().name == "tireforce"
     rel = load_tireforce_scenario("chassis_relation_70kph")
     assert rel.initial_speed_kmh == 70.0 and rel.duration_s == 10.0
     np.testing.assert_allclose(rel.steer_rad_at([0.0, 5.0, 10.0]), np.radians([0.0, 2.0, 4.0]))
@@ -845,8 +840,8 @@ def test_shipped_chassis_scenarios_load_and_follow_the_paper():
     prm = drop.plant_params(ffi, lib)
     assert prm.ms == 1661.0 + 200.0
     # the driveline side does not see them
-    assert not set(list_scenarios()) & set(list_tireforce_scenarios())
-    assert not list(scenario_dir().glob("chassis_*.toml"))
+    assert not set(list_driveline_scenarios()) & set(list_tireforce_scenarios())
+    assert not list(driveline_scenario_dir().glob("chassis_*.toml"))
 
 
 def test_good_file_defaults_and_input_layout(tmp_path):
@@ -890,8 +885,8 @@ def test_split_mu_sensors_tyre_and_vehicle_keys(tmp_path):
 
 
 @pytest.mark.parametrize("text, key, fragment", [
-    ('name = "x"\nduration_s = 1.0\n[driver]\nsteer_deg = [[0.0, 0.0]]\n', "kind", 'kind = "chassis"'),
-    ('kind = "driveline"\nname = "x"\nduration_s = 1.0\n', "kind", 'must be "tireforce" (or its old name "chassis")'),
+    ('name = "x"\nduration_s = 1.0\n[driver]\nsteer_deg = [[0.0, 0.0]]\n', "kind", 'kind = "tireforce"'),
+    ('kind = "driveline"\nname = "x"\nduration_s = 1.0\n', "kind", 'must be "tireforce"'),
     ("speed = 3\n" + GOOD, "speed", "unknown key"),
     (GOOD.replace("duration_s = 1.0", ""), "duration_s", "missing"),
     (GOOD.replace("steer_deg", "steer"), "driver.steer", "unknown key"),
@@ -909,7 +904,7 @@ def test_split_mu_sensors_tyre_and_vehicle_keys(tmp_path):
     (GOOD + "[tyre]\nlateral_coefficients = [1.3]\n", "tyre.lateral_coefficients", "9"),
     (GOOD + "[sensors]\naccel_gravity = 1\n", "sensors.accel_gravity", "true or false"),
     (GOOD + "[sensors]\nay_std_m_s2 = -1.0\n", "sensors.ay_std_m_s2", "out of range"),
-    ("kind = \"chassis\"\nname = \"x\"\nduration_s = [1\n", "(TOML syntax)", ""),
+    ("kind = \"tireforce\"\nname = \"x\"\nduration_s = [1\n", "(TOML syntax)", ""),
 ])
 def test_chassis_loader_errors_name_file_and_key(tmp_path, text, key, fragment):
     path = write(tmp_path, text)
@@ -921,22 +916,18 @@ def test_chassis_loader_errors_name_file_and_key(tmp_path, text, key, fragment):
 
 
 def test_loaders_keep_to_their_own_files(tmp_path):
-    with pytest.raises(ScenarioError, match="kind: unknown key"):
-        load_scenario(tireforce_scenario_dir() / "chassis_paper_mu_drop.toml")
-    with pytest.raises(ScenarioError, match="kind: missing"):
-        load_tireforce_scenario(scenario_dir() / "launch_2nd.toml")
+    with pytest.raises(ScenarioError, match='kind: must be "driveline", not \'tireforce\''):
+        load_driveline_scenario(tireforce_scenario_dir() / "chassis_paper_mu_drop.toml")
+    with pytest.raises(ScenarioError, match='kind: must be "tireforce", not \'driveline\''):
+        load_tireforce_scenario(driveline_scenario_dir() / "launch_2nd.toml")
     with pytest.raises(ScenarioError, match="cannot read"):
         load_tireforce_scenario(tmp_path / "nope.toml")
-    assert isinstance(load_tireforce_scenario("chassis_paper_mu_drop"), TireForceScenario)
+    assert isinstance(load_tireforce_scenario("chassis_paper_mu_drop"), Veh14Scenario)
 
 
-def test_command_line_summary_and_bench(capsys):
-    from vehest_can.systems.tireforce import scenario as chassis
-    assert chassis.main(["chassis_paper_mu_drop"]) == 0
-    out = capsys.readouterr().out
-    assert "fy_peak_FL_N" in out and "ay_peak_g" in out
-    assert chassis.main([str(ROOT / "nope.toml")]) == 1
-    figures = chassis.bench(seconds=1.0, repeats=1)
+def test_plant_bench():
+    from vehest_can.sim.veh14 import bench
+    figures = bench(load_tireforce_scenario("chassis_paper_mu_drop"), seconds=1.0, repeats=1)
     assert figures["steps"] == 2000 and figures["x_real_time_cpu_best"] > 1.0
 
 

@@ -38,8 +38,8 @@ from guestlib import STATUS_ID, cansend, cansend_frame  # noqa: E402
 
 from vehest_can.bus.frames import frame_id, message, to_message  # noqa: E402
 from vehest_can.sim.powertrain import powertrain_car
-from vehest_can.sim.scenario import load_scenario  # noqa: E402
 from vehest_can.sim.session import SimMaster, run_inprocess  # noqa: E402
+from vehest_can.systems.driveline.scenario import load_driveline_scenario  # noqa: E402
 from vehest_can.systems.ecu import Ecu
 
 DLS_ID = frame_id("DLS_Sensors")
@@ -52,7 +52,7 @@ MARK_BEFORE, MARK_AFTER = "7AA#0102030405060708", "7AB#0807060504030201"
 
 def dls_messages(seconds: float) -> list[can.Message]:
     """The DLS_Sensors frames of the scenario's first seconds, from the in-process run."""
-    s = run_inprocess(powertrain_car(load_scenario(SCENARIO), seconds), Ecu())
+    s = run_inprocess(powertrain_car(load_driveline_scenario(SCENARIO), seconds), Ecu())
     return [to_message(f) for f in s.frames if f["id"] == DLS_ID]
 
 
@@ -185,7 +185,7 @@ def phase_link_lockstep(out: Path) -> dict:
     time.sleep(0.2)
     bus = guestlib.open_bus()  # a socket bound after the outage: no pending ENETDOWN
     try:
-        drive = powertrain_car(load_scenario(SCENARIO), 0.5)
+        drive = powertrain_car(load_driveline_scenario(SCENARIO), 0.5)
         session = SimMaster(bus, drive, ack_timeout=30.0).run_lockstep(end=False)
     finally:
         bus.shutdown()

@@ -19,8 +19,8 @@ from vehest_can.bus.frames import database
 from vehest_can.schema import read_toml
 from vehest_can.service.daemon import EcuDaemon
 from vehest_can.sim.powertrain import powertrain_car
-from vehest_can.sim.scenario import load_scenario
 from vehest_can.sim.session import SimMaster
+from vehest_can.systems.driveline.scenario import load_driveline_scenario
 from vehest_can.systems.ecu import Ecu
 from vehest_can.systems.roll.scenario import RollCar, roll_scenario_from_dict, roll_scenario_path
 from vehest_can.xcp import ecu as xcp_ecu
@@ -55,7 +55,7 @@ class DaemonRig:
         self.threads = [threading.Thread(target=lambda: self.stats.update(d=self.daemon.serve_realtime()), daemon=True)]
         # the car drives for drive_s at most: close() stops it (a loaded machine must not see the drive
         # end, and the filter settle at standstill, before a test's last reading)
-        self.car = SimMaster(self.car_bus, powertrain_car(load_scenario("launch_2nd"), drive_s))
+        self.car = SimMaster(self.car_bus, powertrain_car(load_driveline_scenario("launch_2nd"), drive_s))
         self.threads.append(threading.Thread(target=lambda: self.stats.update(car=self.car.run_realtime()), daemon=True))
         for t in self.threads:
             t.start()

@@ -20,8 +20,8 @@ from daemonproc import start_daemon, stop_daemon
 from vehest_can.bus import bus as busmod
 from vehest_can.bus.frames import database
 from vehest_can.sim.powertrain import powertrain_car
-from vehest_can.sim.scenario import load_scenario
 from vehest_can.sim.session import SimMaster
+from vehest_can.systems.driveline.scenario import load_driveline_scenario
 from vehest_can.xcp import ecu as xcp_ecu
 from vehest_can.xcp.description import C_TYPES
 from vehest_can.xcp.keys import write_key
@@ -65,7 +65,7 @@ def test_daq_over_the_daemon_on_its_own_xcp_bus_equals_its_estimate_frames(pyxcp
         elif msg.arbitration_id == desc.dto_id:  # (the one CRO there is the test's own)
             xcp_on_main.append(msg)
     notifier = can.Notifier(listen_bus, [hear], timeout=0.01)
-    car = threading.Thread(target=SimMaster(car_bus, powertrain_car(load_scenario("launch_2nd"), seconds + 4.0))
+    car = threading.Thread(target=SimMaster(car_bus, powertrain_car(load_driveline_scenario("launch_2nd"), seconds + 4.0))
                            .run_realtime, daemon=True)
     car.start()
     try:

@@ -20,8 +20,8 @@ import pytest
 
 from vehest_can.native import ffi
 from vehest_can.sim.powertrain import powertrain_car
-from vehest_can.sim.scenario import load_scenario
 from vehest_can.sim.session import run_inprocess
+from vehest_can.systems.driveline.scenario import load_driveline_scenario
 from vehest_can.systems.ecu import Ecu, EcuConfig
 from vehest_can.xcp import ecu as xcp_ecu
 from vehest_can.xcp import ecu_desc
@@ -158,7 +158,7 @@ def test_upload_reads_the_running_filters():
     ecu = Ecu()
     cro = Cro(ecu, max_cto=64)  # CAN FD: a double in one SHORT_UPLOAD (at most MAX_CTO - 1 bytes)
     cro(0xFF, 0)
-    drive = powertrain_car(load_scenario("launch_2nd"), 0.3)
+    drive = powertrain_car(load_driveline_scenario("launch_2nd"), 0.3)
     run_inprocess(drive, ecu)  # the filters have run: the states are not zero
     desc = cro.desc
     # the innovation first: the ticks of the commands have no sensor frame (prediction only)
@@ -245,7 +245,7 @@ def _estimates(session) -> np.ndarray:
 def test_a_calibration_write_is_bit_exact_with_the_same_value_set_at_start():
     """Lockstep: the torque-sensor variance written through XCP before the drive gives the same
     estimate frames, bit for bit, as an ECU configured with that value; and not the default's."""
-    drive = powertrain_car(load_scenario("launch_2nd"), 1.0)
+    drive = powertrain_car(load_driveline_scenario("launch_2nd"), 1.0)
     value = 4.0 * Ecu().c.cfg.dkf[0].r[2]
     cfg = EcuConfig.default()
     started = Ecu(replace(cfg, dkf_t=replace(cfg.dkf_t, r=(cfg.dkf_t.r[0], cfg.dkf_t.r[1], value))))
@@ -263,7 +263,7 @@ def test_a_calibration_write_is_bit_exact_with_the_same_value_set_at_start():
 
 
 def test_xcp_idle_changes_no_frame_of_the_systems():
-    drive = powertrain_car(load_scenario("launch_2nd"), 0.5)
+    drive = powertrain_car(load_driveline_scenario("launch_2nd"), 0.5)
     with_xcp = Ecu()
     xcp_ecu.enable(with_xcp, KEY)
     a, b = run_inprocess(drive, Ecu()).frames, run_inprocess(drive, with_xcp).frames
@@ -339,7 +339,7 @@ def test_daq_values_equal_what_the_ecu_publishes_on_its_estimate_frames():
     items = [cro.desc.item(n) for n in names]
     start_daq(cro, [items], event=0)
     first = ecu.tick  # the session runs on from here (the commands took ticks)
-    session = run_inprocess(powertrain_car(load_scenario("launch_2nd"), 1.0), ecu)
+    session = run_inprocess(powertrain_car(load_driveline_scenario("launch_2nd"), 1.0), ecu)
     est = decode(session, "VEHEST_DrivelineEst")
     fmt = "<" + "".join(C_TYPES[it.ctype][4] for it in items)
     dtos = session.frames[session.frames["id"] == cro.desc.dto_id]

@@ -9,13 +9,13 @@ import numpy as np
 
 from ..errors import ScenarioError
 from ..schema import read_toml
-from ..systems import CampaignRunner, System, claiming, registered
+from ..systems import CampaignRunner, System, claiming, registered, unclaimed
 
 
 def system_for(doc: dict) -> System:
     system = claiming(doc)
     if system is None:
-        raise ScenarioError(f"kind: no registered system reads this scenario (kind = {doc.get('kind')!r})")
+        raise ScenarioError(unclaimed(doc))
     _runner(system)
     return system
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import json
 
 from ..sim.powertrain import powertrain_car
-from ..sim.scenario import load_scenario, scenario_dir
+from ..systems.driveline.scenario import driveline_scenario_dir, load_driveline_scenario
 from ..tools import bench, replay_bench
 from ._common import check_range
 
@@ -33,8 +33,8 @@ def run(args) -> int:
         return 0
     res = bench.run(quick=args.quick)
     factors = {}
-    for path in sorted(scenario_dir().glob("*.toml")):
-        sc = load_scenario(path)
+    for path in sorted(driveline_scenario_dir().glob("*.toml")):
+        sc = load_driveline_scenario(path)
         factors[sc.name] = bench.lockstep_factor(lambda sc=sc: powertrain_car(sc), repeats=1 if args.quick else 3)
     print(bench.table(res, factors))
     if rep:

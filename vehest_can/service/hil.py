@@ -29,7 +29,7 @@ from ..errors import ConfigError, ScenarioError, VehestError
 from ..paths import dbc_dir
 from ..schema import Checker, Num, read_toml, type_name
 from ..sim.session import SimMaster
-from ..systems import System, claiming, registered, shipped_scenarios
+from ..systems import System, claiming, registered, shipped_scenarios, unclaimed
 from .daemon import EcuDaemon
 
 log = logging.getLogger(__name__)
@@ -596,7 +596,7 @@ def _scenario(c: _Checker, key: str, value: str, base: Path) -> tuple[System, An
         doc = read_toml(p, ScenarioError)
         system = claiming(doc)
         if system is None:
-            c.fail(key, f"{p}: no registered system reads this scenario (kind = {doc.get('kind')!r})")
+            c.fail(key, f"{p}: {unclaimed(doc)}")
         return system, system.load(p)
     except ScenarioError as exc:
         c.fail(key, str(exc))

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..bus.frames import TICK_S, database, message
+from ..bus.frames import BUSES, TICK_S, database, e2e_config, message
 from .session import Session
 
 
@@ -35,7 +35,7 @@ def write_metrics(metrics: list[dict], path: Path) -> None:
 def counter_gaps(session: Session, name: str) -> tuple[int, int]:
     """(frames received, frames missing between them) of a message in a session, from its E2E
     alive counter (0..14): what was lost on the way while this side was listening."""
-    msg = database("pt").get_message_by_name(name)
+    msg = message(name)
     counters = [int(f["data"][1]) & 0x0F for f in session.frames[session.frames["id"] == msg.frame_id]]
     gaps = sum((b - a - 1) % 15 for a, b in zip(counters, counters[1:]))
     return len(counters), gaps
@@ -48,8 +48,9 @@ def realtime_summary(session: Session, daemon: dict) -> dict:
     check counts counter skips). ECU -> car: the ECU keeps publishing before the car starts and
     after it stops listening, so losses are the gaps in the E2E alive counters of what arrived."""
     sensors_sent = int(session.stats.get("frames_sent", 0))
-    est_n, est_gaps = counter_gaps(session, "VEHEST_DrivelineEst")
-    sts_n, sts_gaps = counter_gaps(session, "VEHEST_Status")
+    got = [counter_gaps(session, m.name) for b in BUSES for m in database(b).messages
+           if "VEHEST" in m.senders and e2e_config(m) is not None]
+    ecu_n, ecu_gaps = sum(n for n, _ in got), sum(g for _, g in got)
     out = {
         "mode": "realtime",
         "duration_s": len(session.truth) * TICK_S,
@@ -57,8 +58,8 @@ def realtime_summary(session: Session, daemon: dict) -> dict:
         "sensor_frames_received_by_ecu": int(daemon.get("frames_rx", 0)),
         "ecu_counter_skips": int(daemon.get("counters", {}).get("counter_skip", 0)),
         "ecu_frames_sent": int(daemon.get("frames_tx", 0)),
-        "ecu_frames_received_by_car": est_n + sts_n,
-        "ecu_frames_missing_in_counters": est_gaps + sts_gaps,
+        "ecu_frames_received_by_car": ecu_n,
+        "ecu_frames_missing_in_counters": ecu_gaps,
         "ecu_deadline_misses": int(daemon.get("deadline_misses", 0)),
         "car_deadline_misses": int(session.stats.get("deadline_misses", 0)),
         "ecu_tick_lateness_us": daemon.get("lateness_us", {}),

@@ -178,6 +178,14 @@ def claiming(doc: dict, systems: list[System] | None = None) -> System | None:
     return next((s for s in (systems or registered()) if s.claims(doc)), None)
 
 
+def unclaimed(doc: dict, systems: list[System] | None = None) -> str:
+    """Why no system reads a parsed scenario file: ``kind: ...``, naming the kinds there are."""
+    kinds = ", ".join(f'"{k}"' for s in (systems or registered()) for k in s.kinds)
+    if not isinstance(doc, dict) or "kind" not in doc:
+        return f"kind: missing: a scenario starts with its system's kind, one of {kinds}"
+    return f"kind: no registered system reads kind = {doc['kind']!r} (the kinds: {kinds})"
+
+
 def _dirs(systems: list[System]) -> list[Path]:
     return list(dict.fromkeys(s.scenario_dir() for s in systems))
 
@@ -197,5 +205,5 @@ def load_any_scenario(name_or_path: str | Path, systems: list[System] | None = N
     doc = read_toml(path) if path.suffix == ".toml" and path.is_file() else {}
     system = claiming(doc, systems)
     if system is None:
-        raise ScenarioError(f"{path}: no registered system reads this scenario (kind = {doc.get('kind')!r})")
+        raise ScenarioError(f"{path}: {unclaimed(doc, systems)}")
     return system, system.load(path)

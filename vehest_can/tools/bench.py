@@ -198,11 +198,11 @@ def tireforce(c_samples: int = 40000, ref_steps: int = 400, repeats: int = 3) ->
 
 
 def chassis_plant(seconds: float = 10.0, repeats: int = 9) -> dict[str, float]:
-    """The 14-DOF chassis plant alone (vehest_can.systems.tireforce.scenario.bench, what
-    `python -m vehest_can.systems.tireforce.scenario --bench` prints)."""
-    from ..systems.tireforce import scenario as chassis
+    """The 14-DOF chassis plant alone on the tyre-force paper's manoeuvre (vehest_can.sim.veh14.bench)."""
+    from ..sim.veh14 import bench
+    from ..systems.tireforce.scenario import load_tireforce_scenario
 
-    return chassis.bench(seconds=seconds, repeats=repeats)
+    return bench(load_tireforce_scenario("chassis_paper_mu_drop"), seconds=seconds, repeats=repeats)
 
 
 def lockstep_factor(drive_factory, repeats: int = 3) -> float:

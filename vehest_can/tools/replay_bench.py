@@ -22,8 +22,8 @@ from ..bus.frames import TICK_S
 from ..bus.log import bus_of_id
 from ..service.replay import ECU_TX
 from ..sim.powertrain import powertrain_car
-from ..sim.scenario import load_scenario
 from ..sim.session import run_inprocess
+from ..systems.driveline.scenario import load_driveline_scenario
 from ..systems.ecu import Ecu
 
 EPOCH = 1764620000.0
@@ -31,7 +31,7 @@ EPOCH = 1764620000.0
 
 def _segment_lines(seconds: float) -> tuple[list[str], np.ndarray, int]:
     """One lockstep session as candump -L line bodies (all after the timestamp) and their ticks."""
-    s = run_inprocess(powertrain_car(load_scenario("tip_in_tip_out"), duration_s=seconds), Ecu())
+    s = run_inprocess(powertrain_car(load_driveline_scenario("tip_in_tip_out"), duration_s=seconds), Ecu())
     bus = bus_of_id()
     ecu = np.isin(s.frames["id"], np.array(sorted(ECU_TX)))
     n_ticks = len(s.truth)

@@ -14,8 +14,8 @@ import numpy as np
 
 from vehest_can.bus import bus as busmod
 from vehest_can.sim.powertrain import powertrain_car
-from vehest_can.sim.scenario import load_scenario
 from vehest_can.sim.session import SimMaster
+from vehest_can.systems.driveline.scenario import load_driveline_scenario
 
 out = Path(sys.argv[1])
 seconds = float(sys.argv[2])
@@ -38,7 +38,7 @@ try:
     config = busmod.bus_config(argparse.Namespace())
     bus = busmod.open_bus(config)
     try:
-        session = SimMaster(bus, powertrain_car(load_scenario("launch_2nd"), seconds)).run_lockstep()
+        session = SimMaster(bus, powertrain_car(load_driveline_scenario("launch_2nd"), seconds)).run_lockstep()
     finally:
         bus.shutdown()
     _, err = daemon.communicate(timeout=60)

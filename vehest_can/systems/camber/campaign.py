@@ -5,25 +5,16 @@ inspected with those calibrations loaded, the ECU's published camber against the
 from __future__ import annotations
 
 from dataclasses import replace
-from pathlib import Path
 
-from ...errors import ScenarioError
 from ...sim.powertrain import powertrain_car
-from ...sim.scenario import scenario_from_dict
 from ...sim.session import run_inprocess
 from .. import CampaignRunner
 from ..ecu import Ecu
 from . import inspection
 from .api import WHEELS
+from .scenario import camber_scenario_from_dict
 
 FIXTURE_S = 6.0  # each calibration capture, as the demo's
-
-
-def _from_dict(doc: dict, path: Path):
-    sc = scenario_from_dict(doc, path)
-    if sc.camber is None:
-        raise ScenarioError(f"{path}: camber: missing (a camber campaign needs the [camber] table)")
-    return sc
 
 
 def _run(scenario) -> dict:
@@ -49,4 +40,4 @@ def _run(scenario) -> dict:
     return out
 
 
-CAMPAIGN = CampaignRunner(from_dict=_from_dict, run=_run)
+CAMPAIGN = CampaignRunner(from_dict=camber_scenario_from_dict, run=_run)

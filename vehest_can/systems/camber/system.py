@@ -6,28 +6,25 @@ from pathlib import Path
 
 from ...bus.log import SessionLog, read_log
 from ...sim.powertrain import powertrain_car
-from ...sim.scenario import load_scenario, scenario_dir
 from ...sim.session import run_inprocess
 from .. import Registration, Setup
 from ..ecu import Ecu
 from . import inspection
 from .api import WHEELS, Calibration, load_calibrations, save_calibrations
 from .campaign import CAMPAIGN
+from .scenario import KINDS, camber_scenario_dir, load_camber_scenario
 
 
 class Camber(Registration):
     name = "camber"
-    kinds: tuple[str, ...] = ()   # a driveline scenario file with a [camber] table
+    kinds = KINDS
     realtime = False
-    nodes = ("DLS", "SIM", "CIS")  # the driveline car carrying the inspection devices
+    nodes = ("DLS", "SIM", "CIS")  # the powertrain car carrying the inspection devices
     faults = None
     campaign = CAMPAIGN  # vehest-can campaign
-    scenario_dir = staticmethod(scenario_dir)
-    load = staticmethod(load_scenario)
+    scenario_dir = staticmethod(camber_scenario_dir)
+    load = staticmethod(load_camber_scenario)
     car = staticmethod(powertrain_car)
-
-    def claims(self, doc: dict) -> bool:
-        return "kind" not in doc and "camber" in doc
 
     def setup(self, scenarios: list, out: Path) -> Setup:
         """The calibration step of an inspection line, on the first camber scenario: each device in its

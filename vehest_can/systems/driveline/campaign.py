@@ -3,11 +3,11 @@ document, and one in-process run (plant + sensor node + ECU, lockstep) to its fi
 from __future__ import annotations
 
 from ...sim.powertrain import powertrain_car
-from ...sim.scenario import scenario_from_dict
 from ...sim.session import run_inprocess
 from .. import CampaignRunner
 from ..ecu import Ecu
 from .report import driveline_metrics
+from .scenario import driveline_scenario_from_dict
 
 
 def _run(scenario) -> dict:
@@ -15,4 +15,4 @@ def _run(scenario) -> dict:
     return {s["measurement_set"]: {k: v for k, v in s.items() if k != "measurement_set"} for s in m["sets"]}
 
 
-CAMPAIGN = CampaignRunner(from_dict=scenario_from_dict, run=_run)
+CAMPAIGN = CampaignRunner(from_dict=driveline_scenario_from_dict, run=_run)

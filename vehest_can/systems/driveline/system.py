@@ -5,11 +5,11 @@ from pathlib import Path
 
 from ...native import lib
 from ...sim.powertrain import powertrain_car
-from ...sim.scenario import load_scenario, scenario_dir
 from .. import EcuEstimator, Registration, Setup
 from . import report
 from .campaign import CAMPAIGN
 from .faults import FAULTS
+from .scenario import KINDS, driveline_scenario_dir, load_driveline_scenario
 
 
 def _dls_heard(c) -> bool:
@@ -19,18 +19,15 @@ def _dls_heard(c) -> bool:
 class Driveline(Registration):
     campaign = CAMPAIGN  # vehest-can campaign
     name = "driveline"
-    kinds: tuple[str, ...] = ()   # driveline scenario files carry no `kind`
+    kinds = KINDS
     realtime = True
     nodes = ("DLS", "SIM", "CIS")  # the car (vh_dlsim_t): sensor node, plant; CIS when it carries inspection devices
     faults = FAULTS
-    scenario_dir = staticmethod(scenario_dir)
-    load = staticmethod(load_scenario)
+    scenario_dir = staticmethod(driveline_scenario_dir)
+    load = staticmethod(load_driveline_scenario)
     car = staticmethod(powertrain_car)
     estimators = (EcuEstimator("dkf_t", "DLS_Sensors", lambda c: c.dkf[lib.VH_ECU_DKF_T].health, _dls_heard),
                   EcuEstimator("dkf_s", "DLS_Sensors", lambda c: c.dkf[lib.VH_ECU_DKF_S].health, _dls_heard))
-
-    def claims(self, doc: dict) -> bool:
-        return "kind" not in doc and "camber" not in doc
 
     def metrics(self, scenario, session, out_dir: Path, setup: Setup) -> dict:
         metrics = report.driveline_metrics(session)

@@ -27,7 +27,7 @@ def paper_case(speed_kmh: float, steer_deg: float = 5.0, t_ramp=(0.5, 2.5), dura
     """A chassis scenario document: steer ramp 0 -> steer_deg between t_ramp[0] and t_ramp[1],
     held; level dry road (mu 1); no aerodynamic drag (the paper neglects it)."""
     return {
-        "kind": "chassis", "name": f"roll_paper_{int(speed_kmh)}kph",
+        "kind": "roll", "name": f"roll_paper_{int(speed_kmh)}kph",
         "description": f"seed 003 Fig. 2: steer ramp to {steer_deg} deg at {speed_kmh} km/h",
         "duration_s": duration_s, "seed": seed, "initial_speed_kmh": speed_kmh,
         "driver": {"steer_deg": [[0.0, 0.0], [t_ramp[0], 0.0], [t_ramp[1], steer_deg]]},
@@ -38,9 +38,9 @@ def paper_case(speed_kmh: float, steer_deg: float = 5.0, t_ramp=(0.5, 2.5), dura
 
 def run_plant(doc: dict) -> np.ndarray:
     from vehest_can.native import ffi, lib
-    from vehest_can.systems.tireforce.scenario import tireforce_scenario_from_dict as chassis_scenario_from_dict
+    from vehest_can.sim.veh14 import veh14_scenario_from_dict
 
-    sc = chassis_scenario_from_dict(doc)
+    sc = veh14_scenario_from_dict(doc, "<scenario>", doc["kind"])
     return sc.run_truth(ffi, lib)
 
 
@@ -240,11 +240,12 @@ def closed_loop_plant(speed_kmh: float = 72.0, active: bool = True, prec: str = 
     the applied moments (an actuator status would report them) are the UKF's known inputs, and the
     SMC's command reaches the actuators one plant tick (0.5 ms) later."""
     from vehest_can.native import ffi, lib
-    from vehest_can.systems.tireforce.scenario import tireforce_scenario_from_dict as chassis_scenario_from_dict
+    from vehest_can.sim.veh14 import veh14_scenario_from_dict
 
     noise = dict(NOISE, **(noise or {}))
     rng = np.random.default_rng(seed)
-    sc = chassis_scenario_from_dict(paper_case(speed_kmh, seed=seed, **case_kw))
+    doc = paper_case(speed_kmh, seed=seed, **case_kw)
+    sc = veh14_scenario_from_dict(doc, "<scenario>", doc["kind"])
     plant = sc.make_plant(ffi, lib)
     inputs = sc.inputs(ffi)
     n = sc.n_steps
@@ -284,7 +285,7 @@ def closed_loop_plant(speed_kmh: float = 72.0, active: bool = True, prec: str = 
         mc.append((mf, mr))
         sh.append(hs)
         uh.append(h)
-    from vehest_can.systems.tireforce.scenario import truth_to_numpy
+    from vehest_can.sim.veh14 import truth_to_numpy
     return PlantLoopResult(truth_to_numpy(ffi, out, n), np.array(idx), np.array(xh, float), np.array(mc),
                            m_act, np.array(sh, np.uint32), np.array(uh, np.uint32))
 

@@ -2,8 +2,8 @@
 chassis sensor node and the roll node (vh_rollnode: roll sensors, actuator supervision, the driver's
 mode switch), and the car they make.
 
-A roll scenario is a tyre-force scenario (``driver``, ``road``, ``vehicle``, ``tyre``, ``sensors``:
-the 14-DOF plant and the chassis sensor node, read by the tyre-force loader) plus three tables of its
+A roll scenario is a 14-DOF scenario (``driver``, ``road``, ``vehicle``, ``tyre``, ``sensors``:
+the plant and the chassis sensor node, read by :mod:`vehest_can.sim.veh14`) plus three tables of its
 own, read here with the one schema reader (:mod:`vehest_can.schema`):
 
 * ``[control] mode = [[t, "passive" | "active"], ...]``: the driver's switch over time (ROLL_ModeCmd),
@@ -25,10 +25,10 @@ import numpy as np
 from ...paths import ShippedSet
 from ...schema import Num
 from ...sim.scenario import DT, _native, derived_seed, kind_checker, load_shipped, set_channels
-from ..tireforce.scenario import ChassisCar, TireForceScenario, tireforce_scenario_from_dict, truth_dtype
+from ...sim.veh14 import Veh14Car, Veh14Scenario, truth_dtype, veh14_scenario_from_dict
 
 KINDS = ("roll",)
-#: the tables a roll scenario adds to a tyre-force scenario
+#: the tables a roll scenario adds to a 14-DOF scenario
 _ROLL_TABLES = ("control", "actuators", "roll_sensors")
 MODES = ("passive", "active")
 
@@ -72,9 +72,9 @@ def _plant_attr(name: str) -> Any:
 
 @dataclass(frozen=True)
 class RollScenario:
-    """A validated roll scenario: the plant's part (a tyre-force scenario) and the roll node's."""
+    """A validated roll scenario: the plant's part (a 14-DOF scenario) and the roll node's."""
 
-    plant: TireForceScenario
+    plant: Veh14Scenario
     mode: tuple[tuple[float, str], ...]            # (t, "passive" | "active")
     actuators: tuple[tuple[str, float], ...] = ()  # only the keys written
     roll_sensors: tuple[tuple[str, float], ...] = ()
@@ -139,7 +139,7 @@ def roll_truth_dtype() -> np.dtype:
     return np.dtype([(n, fields[n][0]) for n in _names(base)] + _ARC_FIELDS)
 
 
-class RollCar(ChassisCar):
+class RollCar(Veh14Car):
     """The 14-DOF plant with its active roll actuators, the chassis sensor node and the roll node
     (``vh_v14car_t`` with the roll system fitted) behind the car contract. It listens: the ECU's
     frames reach the roll node, which applies a command from the tick after the one it arrived in."""
@@ -150,7 +150,7 @@ class RollCar(ChassisCar):
         ffi, lib = _native()
         self.roll_scenario = sc
         active = sc.active_at(np.arange(sc.n_steps) * DT)
-        super().__init__(sc.plant, duration_s, roll=(sc.node_config(ffi, lib), sc.arc_params(ffi, lib), active))
+        super().__init__(sc.plant, duration_s, actuators=(sc.node_config(ffi, lib), sc.arc_params(ffi, lib), active))
         self.truth_dtype = roll_truth_dtype()
         self.node = ffi.addressof(self.car, "rln")  # its cfg (fail and stuck masks, bias) may change between ticks
 
@@ -177,9 +177,7 @@ def roll_scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> RollS
     """Validate a parsed roll scenario (``path`` names it in errors)."""
     ffi, lib = _native()
     c = kind_checker(doc, path, KINDS, '"roll"')
-    plant_doc = {k: v for k, v in doc.items() if k not in _ROLL_TABLES}
-    plant_doc["kind"] = "tireforce"
-    plant = tireforce_scenario_from_dict(plant_doc, path)
+    plant = veh14_scenario_from_dict({k: v for k, v in doc.items() if k not in _ROLL_TABLES}, path, KINDS[0])
 
     control = c.table(doc.get("control", {}), "control", {"mode"})
     mode = c.profile(control.get("mode", [[0.0, "passive"]]), "control.mode", MODES, columns=("mode",))

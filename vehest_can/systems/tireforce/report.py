@@ -1,7 +1,7 @@
 """Tire-force report (seed 000): the three estimators against the 14-DOF plant's truth.
 
 The tyre-force scenario runs offline (plant and sensor node tick by tick,
-:meth:`~vehest_can.systems.tireforce.scenario.TireForceScenario.run_with_frames`); the ``CHS_Sensors`` frames are decoded
+:meth:`~vehest_can.sim.veh14.Veh14Scenario.run_with_frames`); the ``CHS_Sensors`` frames are decoded
 with cantools (the DBC is the only description of the bytes, SNA and qualifiers included) and fed to
 SKFMEC (double), SKFMEC (fixed point, the ECU's) and the plain EKF (:mod:`vehest_can.systems.tireforce.api`).
 What comes out: a metrics dict (JSON), the paper's figures as PNGs (Fig. 3-4 relation check,

@@ -6,12 +6,13 @@ from pathlib import Path
 import numpy as np
 
 from ...sim.report import decode
+from ...sim.veh14 import Veh14Car
 from .. import EcuEstimator, Registration, Setup
 from . import api as tf
 from . import report
 from .adaptive import AdaptiveFixed
 from .campaign import CAMPAIGN
-from .scenario import KINDS, ChassisCar, load_tireforce_scenario, tireforce_scenario_dir
+from .scenario import KINDS, load_tireforce_scenario, tireforce_scenario_dir
 
 
 class TireForce(Registration):
@@ -23,7 +24,7 @@ class TireForce(Registration):
     faults = None
     scenario_dir = staticmethod(tireforce_scenario_dir)
     load = staticmethod(load_tireforce_scenario)
-    car = staticmethod(ChassisCar)
+    car = staticmethod(Veh14Car)
     estimators = (EcuEstimator("skfmec_q", "CHS_Sensors", lambda c: c.chs.skf.health, lambda c: bool(c.chs.heard)),
                   EcuEstimator("skfmec_a", "CHS_Sensors", lambda c: c.chs.tfa.health, lambda c: bool(c.chs.heard)))
 
