@@ -71,13 +71,13 @@ class EcuConfig:
     def to_c(self):
         c = ffi.new("vh_ecu_config_t *")
         lib.vh_ecu_config_default(c)
-        self.dkf_t.to_c(ffi.addressof(c.dkf[lib.VH_ECU_DKF_T]))
-        self.dkf_s.to_c(ffi.addressof(c.dkf[lib.VH_ECU_DKF_S]))
+        self.dkf_t.to_c(ffi.addressof(c.app.drv.dkf[lib.VH_ECU_DKF_T]))
+        self.dkf_s.to_c(ffi.addressof(c.app.drv.dkf[lib.VH_ECU_DKF_S]))
         if not 0 <= self.rx_burst_frames <= 255:
             raise ConfigError(f"rx_burst_frames must be 0..255 (0 = off), got {self.rx_burst_frames}")
         c.rx_burst_frames = self.rx_burst_frames
         if self.skf is not None:
-            self.skf.to_c(ffi.addressof(c, "skf"))
+            self.skf.to_c(ffi.addressof(c.app.tf, "skf"))
         return c
 
 
@@ -91,7 +91,7 @@ class Ecu:
         check(lib.vh_ecu_init(self.c, self._c_config), "ECU configuration")
         self._rx = ffi.new("vh_frame_t *")
         self._tx = ffi.new("vh_frame_t[]", lib.VH_ECU_MAX_TX)
-        self._wide = (WideCounters(lambda: self.c.cnt, COUNTERS), WideCounters(lambda: self.c.chs.cnt, CHASSIS_COUNTERS))
+        self._wide = (WideCounters(lambda: self.c.cnt, COUNTERS), WideCounters(lambda: self.c.app.tf.cnt, CHASSIS_COUNTERS))
         self._steps = self._frames = 0
         self.secoc: Any = None  # SecOC off until enable_secoc (a vehest_can.bus.secoc.BusSecoc)
 
@@ -150,7 +150,7 @@ class Ecu:
         """Load inspection-device calibrations ({wheel: camber.Calibration}, e.g. from
         camber.load_calibrations); they persist across ECU resets."""
         for wheel, cal in calibrations.items():
-            check(lib.vh_ecu_set_camber_calibration(self.c, WHEELS.index(wheel), cal._to_c()),
+            check(lib.vh_camber_app_set_calibration(ffi.addressof(self.c.app, "camber"), WHEELS.index(wheel), cal._to_c()),
                   f"camber calibration of {wheel}")
 
     def note_deadline_miss(self, n: int = 1) -> None:

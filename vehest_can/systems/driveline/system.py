@@ -13,7 +13,7 @@ from .faults import FAULTS
 
 
 def _dls_heard(c) -> bool:
-    return bool(c.drv.dls.rx.e2e.have_last)
+    return bool(c.app.drv.dls.rx.e2e.have_last)
 
 
 class Driveline(Registration):
@@ -26,8 +26,8 @@ class Driveline(Registration):
     scenario_dir = staticmethod(scenario_dir)
     load = staticmethod(load_scenario)
     car = staticmethod(drive_from_scenario)
-    estimators = (EcuEstimator("dkf_t", "DLS_Sensors", lambda c: c.dkf[lib.VH_ECU_DKF_T].health, _dls_heard),
-                  EcuEstimator("dkf_s", "DLS_Sensors", lambda c: c.dkf[lib.VH_ECU_DKF_S].health, _dls_heard))
+    estimators = (EcuEstimator("dkf_t", "DLS_Sensors", lambda c: c.app.drv.dkf[lib.VH_ECU_DKF_T].health, _dls_heard),
+                  EcuEstimator("dkf_s", "DLS_Sensors", lambda c: c.app.drv.dkf[lib.VH_ECU_DKF_S].health, _dls_heard))
 
     def claims(self, doc: dict) -> bool:
         return "kind" not in doc and "camber" not in doc

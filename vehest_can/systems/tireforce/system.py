@@ -24,8 +24,8 @@ class TireForce(Registration):
     scenario_dir = staticmethod(tireforce_scenario_dir)
     load = staticmethod(load_tireforce_scenario)
     car = staticmethod(ChassisCar)
-    estimators = (EcuEstimator("skfmec_q", "CHS_Sensors", lambda c: c.chs.skf.health, lambda c: bool(c.chs.heard)),
-                  EcuEstimator("skfmec_a", "CHS_Sensors", lambda c: c.chs.tfa.health, lambda c: bool(c.chs.heard)))
+    estimators = (EcuEstimator("skfmec_q", "CHS_Sensors", lambda c: c.app.tf.skf.health, lambda c: bool(c.app.tf.heard)),
+                  EcuEstimator("skfmec_a", "CHS_Sensors", lambda c: c.app.tf.tfa.health, lambda c: bool(c.app.tf.heard)))
 
     def metrics(self, scenario, session, out_dir: Path, setup: Setup) -> dict:
         """Against the plant: the ECU's fixed-point estimates from the bus, and the double SKFMEC and
