@@ -21,6 +21,7 @@ import pytest
 from vehest_can.native import ffi
 from vehest_can.sim.scenario import load_scenario
 from vehest_can.sim.session import drive_from_scenario, run_inprocess
+from vehest_can.systems.driveline.system import EcuPart
 from vehest_can.systems.ecu import Ecu, EcuConfig
 from vehest_can.xcp import ecu as xcp_ecu
 from vehest_can.xcp import ecu_desc
@@ -249,8 +250,8 @@ def test_a_calibration_write_is_bit_exact_with_the_same_value_set_at_start():
     estimate frames, bit for bit, as an ECU configured with that value; and not the default's."""
     drive = drive_from_scenario(load_scenario("launch_2nd"), 1.0)
     value = 4.0 * Ecu().c.app.drv.cfg.dkf[0].r[2]
-    cfg = EcuConfig.default()
-    started = Ecu(replace(cfg, dkf_t=replace(cfg.dkf_t, r=(cfg.dkf_t.r[0], cfg.dkf_t.r[1], value))))
+    part = EcuPart.default()
+    started = Ecu(EcuConfig(systems={"driveline": replace(part, dkf_t=replace(part.dkf_t, r=(*part.dkf_t.r[:2], value)))}))
     assert started.c.app.drv.cfg.dkf[0].r[2] == value
     calibrated = Ecu()
     cro = Cro(calibrated)

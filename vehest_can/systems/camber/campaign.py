@@ -13,7 +13,7 @@ from ...sim.session import drive_from_scenario, run_inprocess
 from .. import CampaignRunner
 from ..ecu import Ecu
 from . import inspection
-from .api import WHEELS
+from .api import WHEELS, load_into_ecu
 
 FIXTURE_S = 6.0  # each calibration capture, as the demo's
 
@@ -31,7 +31,7 @@ def _run(scenario) -> dict:
         drive = drive_from_scenario(replace(scenario, camber=replace(scenario.camber, pose=pose)), FIXTURE_S)
         captures.append(inspection.capture_messages(run_inprocess(drive, Ecu()).messages()))
     ecu = Ecu()
-    ecu.set_camber_calibrations(inspection.calibrate_wheels(*captures))
+    load_into_ecu(ecu, inspection.calibrate_wheels(*captures))
     results = inspection.ecu_results(run_inprocess(drive_from_scenario(scenario), ecu).messages()) or {}
     nan = float("nan")
     out: dict = {}

@@ -1,15 +1,29 @@
 """The driveline system's registration: what the demo and the reports ask of it (:class:`~vehest_can.systems.System`)."""
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
-from ...native import lib
+from ...native import ffi, lib
 from ...sim.scenario import load_scenario, scenario_dir
 from ...sim.session import drive_from_scenario
 from .. import EcuEstimator, Registration, Setup
 from . import report
+from .api import DkfConfig
 from .campaign import CAMPAIGN
 from .faults import FAULTS
+
+
+@dataclass
+class EcuPart:
+    """The driveline's part of an EcuConfig (``systems["driveline"]``): its two filters."""
+
+    dkf_t: DkfConfig
+    dkf_s: DkfConfig
+
+    @classmethod
+    def default(cls) -> EcuPart:
+        return cls(DkfConfig.default("speeds+torque"), DkfConfig.default("speeds"))
 
 
 def _dls_heard(c) -> bool:
@@ -31,6 +45,11 @@ class Driveline(Registration):
 
     def claims(self, doc: dict) -> bool:
         return "kind" not in doc and "camber" not in doc
+
+    def configure_ecu(self, app, part: EcuPart | None) -> None:
+        part = part or EcuPart.default()
+        part.dkf_t.to_c(ffi.addressof(app.drv.dkf[lib.VH_ECU_DKF_T]))
+        part.dkf_s.to_c(ffi.addressof(app.drv.dkf[lib.VH_ECU_DKF_S]))
 
     def metrics(self, scenario, session, out_dir: Path, setup: Setup) -> dict:
         metrics = report.driveline_metrics(session)
