@@ -23,7 +23,11 @@
  *   VH_APP_RX(m, frame_id)           a frame ID it receives (an ID may go to several apps)
  *   VH_APP_STEP(m, fn, period)       a runnable every period ticks
  *   VH_APP_TX(m, fn, MSG, period)    a TX frame: the codec's MSG_FRAME_ID, _LENGTH, _IS_FD
- * VH_CYCLE_TICKS(MSG) is the DBC cycle time of MSG in ticks.
+ *   VH_APP_MEAS(m, "path", "fields", "comment")  an XCP measurement: a member of vh_<m>_app_t
+ *   VH_APP_CAL(m, "path", "fields", "comment")   an XCP characteristic: a member of vh_<m>_app_cal_t
+ * VH_CYCLE_TICKS(MSG) is the DBC cycle time of MSG in ticks. The XCP items' fields are the body of
+ * a TOML inline table (unit, min, max, factor, offset, elements, class: vehest_can/xcp/ecu_desc.py);
+ * c_core/ecu_gen.py gathers them into vehest_can/xcp/ecu.toml under app.<m>.
  */
 #ifndef VH_APP_H
 #define VH_APP_H

@@ -12,6 +12,10 @@
 #define TICKS(cycle_us) ((cycle_us) / VH_TICK_US)
 #define VH_CYCLE_TICKS(MSG) TICKS(MSG##_CYCLE_TIME_US)
 
+/* the XCP items are c_core/ecu_gen.py's (into the XCP description): nothing here */
+#define VH_APP_MEAS(m, path, fields, comment)
+#define VH_APP_CAL(m, path, fields, comment)
+
 typedef void (*rx_fn_t)(vh_ecu_t *ecu, vh_app_ctx_t *ctx, const vh_frame_t *f);
 typedef void (*step_fn_t)(vh_ecu_t *ecu, vh_app_ctx_t *ctx);
 typedef int (*fill_fn_t)(vh_ecu_t *ecu, vh_app_ctx_t *ctx, uint8_t *data);
