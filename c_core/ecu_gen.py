@@ -11,24 +11,32 @@ scheduler; ``VH_APP_MEAS`` / ``VH_APP_CAL`` entries are its XCP items. This scri
   configuration, calibration), plain C that cffi reads;
 * ``c_core/ecu/vh_ecu_apps.inc``: the descriptors in order, for the scheduler (``vh_ecu.c``);
 * ``vehest_can/xcp/ecu.toml``: the ECU's XCP description, its own part
-  (``c_core/ecu/vh_ecu_xcp.toml``) and each application's items under ``app.<m>.``; the limit
-  table, the A2L and the XCP bus's DBC are made of it (vehest_can/xcp/ecu_desc.py).
+  (``c_core/ecu/vh_ecu_xcp.toml``) and each application's items under ``app.<m>.``;
+* made of it and the structs' layout (the headers through cffi, as the build reads them):
+  ``c_core/ecu/vh_ecu_xcp_table.inc`` (the slave's limits and readable regions),
+  ``vehest_can/xcp/VEHEST_ECU.a2l`` and ``vehest_can/xcp/vehest_xcp.dbc``, by
+  vehest_can/xcp/ecu_desc.py (loaded by its path with the two modules it imports, not the package).
 
-Standalone (no import of the vehest_can package): ``python c_core/ecu_gen.py [--out DIR]
-[--toml FILE] [--def EXTRA.def ...]`` (a test adds a toy application this way, into a folder of
-its own).
+Standalone (no import of the vehest_can package): ``python c_core/ecu_gen.py [--check]`` for the
+shipped files (--check: write nothing, exit 1 if one differs); ``--out DIR --toml FILE --def
+EXTRA.def`` writes the app list and the description of another set (a test adds a toy application
+this way, into a folder of its own).
 """
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import re
+import sys
 import tomllib
+import types
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 OUT = HERE / "ecu"
-TOML = HERE.parent / "vehest_can" / "xcp" / "ecu.toml"
+XCP_DIR = HERE.parent / "vehest_can" / "xcp"
+TOML = XCP_DIR / "ecu.toml"
 ECU_PART = OUT / "vh_ecu_xcp.toml"
 _APP = re.compile(r"^\s*VH_APP\(\s*(\w+)\s*,\s*(\d+)\s*\)", re.M)
 _STR = r'"(?:[^"\\]|\\.)*"'
@@ -121,17 +129,62 @@ def generate(extra: list[Path] = ()) -> dict[str, str]:
     return {"vh_ecu_apps.h": "\n".join(h), "vh_ecu_apps.inc": "\n".join(inc), "ecu.toml": xcp_toml(apps)}
 
 
+def _ecu_desc():
+    """vehest_can/xcp/ecu_desc.py with description.py and a2l.py, loaded by path into a package of
+    their own: pure Python that imports nothing but each other (not vehest_can, not its C)."""
+    name = "_vh_ecu_gen_xcp"
+    if f"{name}.ecu_desc" not in sys.modules:
+        pkg = types.ModuleType(name)
+        pkg.__path__ = [str(XCP_DIR)]
+        sys.modules[name] = pkg
+        for mod in ("description", "a2l", "ecu_desc"):
+            spec = importlib.util.spec_from_file_location(f"{name}.{mod}", XCP_DIR / f"{mod}.py")
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[spec.name] = module
+            spec.loader.exec_module(module)
+    return sys.modules[f"{name}.ecu_desc"]
+
+
+def xcp_outputs(toml: Path = TOML) -> dict[Path, str]:
+    """{path: text} of the limit table, the A2L and the DBC made of the description `toml`, laid
+    out by the firmware's headers (c_core/ecu's app list, as committed or just written)."""
+    from cffi import FFI
+
+    sys.path.insert(0, str(HERE))
+    import vehest_build  # the headers and their cdef (c_core, beside this file)
+
+    ecu_desc = _ecu_desc()
+    ffi = FFI()
+    ffi.cdef(vehest_build.cdef_text())
+    desc = ecu_desc.describe(ffi, toml)
+    return ecu_desc.outputs(desc, toml)
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=OUT, help="folder of vh_ecu_apps.{h,inc}")
     ap.add_argument("--toml", type=Path, default=TOML, help="the XCP description to write")
     ap.add_argument("--def", dest="extra", type=Path, action="append", default=[])
+    ap.add_argument("--check", action="store_true", help="write nothing; exit 1 if a shipped file differs")
     args = ap.parse_args(argv)
-    args.out.mkdir(parents=True, exist_ok=True)
-    for name, text in generate(args.extra).items():
-        p = args.toml if name == "ecu.toml" else args.out / name
-        if not p.exists() or p.read_text() != text:
-            p.write_text(text)
+    shipped = args.out == OUT and args.toml == TOML and not args.extra
+    if args.check and not shipped:
+        ap.error("--check is for the shipped files (no --out, --toml, --def)")
+    files = {args.toml if name == "ecu.toml" else args.out / name: text for name, text in generate(args.extra).items()}
+    stale = [p for p, text in files.items() if not p.exists() or p.read_text() != text]
+    if not args.check:
+        args.out.mkdir(parents=True, exist_ok=True)
+        for p in stale:
+            p.write_text(files[p])
+    if shipped and not (args.check and stale):  # the description is as written: what is made of it
+        made = xcp_outputs(args.toml)
+        stale += [p for p, text in made.items() if not p.exists() or p.read_text() != text]
+        if not args.check:
+            for p, text in made.items():
+                if not p.exists() or p.read_text() != text:
+                    p.write_text(text)
+    if args.check and stale:
+        sys.exit("out of date (run python c_core/ecu_gen.py): " + ", ".join(str(p) for p in stale))
 
 
 if __name__ == "__main__":

@@ -26,6 +26,23 @@ def test_the_committed_app_list_and_xcp_description_are_the_descriptors():
     assert [m for _, m, _ in ecu_gen.descriptors()] == ["drv", "camber", "tf", "roll"]
 
 
+def test_the_generator_is_standalone_and_every_shipped_file_is_current(tmp_path):
+    """c_core/ecu_gen.py --check (app list, XCP description, limit table, A2L, XCP DBC) runs
+    without importing the vehest_can package, and finds nothing to regenerate."""
+    code = "\n".join([
+        "import runpy, sys",
+        "sys.argv = ['ecu_gen.py', '--check']",
+        "code = 0",
+        "try:",
+        f"    runpy.run_path({str(ROOT / 'c_core' / 'ecu_gen.py')!r}, run_name='__main__')",
+        "except SystemExit as e:",
+        "    code = e.code",
+        "assert not [m for m in sys.modules if m.split('.')[0] == 'vehest_can'], 'imported vehest_can'",
+        "sys.exit(code)"])
+    run = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stdout + run.stderr
+
+
 def test_the_scheduler_names_no_system():
     """No system in c_core/ecu outside the generated app list."""
     import re
