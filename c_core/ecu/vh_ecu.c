@@ -20,8 +20,10 @@ typedef void (*rx_fn_t)(vh_ecu_t *ecu, vh_app_ctx_t *ctx, const vh_frame_t *f);
 typedef void (*step_fn_t)(vh_ecu_t *ecu, vh_app_ctx_t *ctx);
 typedef int (*fill_fn_t)(vh_ecu_t *ecu, vh_app_ctx_t *ctx, uint8_t *data);
 
-/* ---- the descriptors, expanded: each entry point as a function of the ECU (the one place that
- * knows an application's member of vh_ecu_t.app) ---- */
+/* ---- the descriptors, expanded (each block defines the four entry macros, includes the list and
+ * undefines them) ---- */
+/* 1. each entry point as a function of the ECU: the one place that knows an application's member
+ * of vh_ecu_t.app */
 #define VH_APP(m, order) \
     static void rx_##m(vh_ecu_t *e, vh_app_ctx_t *c, const vh_frame_t *f) { vh_##m##_app_rx(&e->app.m, c, f); }
 #define VH_APP_RX(m, id)
@@ -35,7 +37,7 @@ typedef int (*fill_fn_t)(vh_ecu_t *ecu, vh_app_ctx_t *ctx, uint8_t *data);
 #undef VH_APP_STEP
 #undef VH_APP_TX
 
-/* the applications' TX frames: room for them in a tick's TX beside SecOC's and XCP's */
+/* 2. the applications' TX frames: room for them in a tick's TX beside SecOC's and XCP's */
 #define VH_APP(m, order)
 #define VH_APP_RX(m, id)
 #define VH_APP_STEP(m, fn, period)
@@ -44,11 +46,15 @@ enum { N_APP_TX = 0
 #include "vh_ecu_apps.inc"
 };
 typedef char vh_ecu_tx_room_check[(VH_ECU_MAX_TX >= N_APP_TX + 2 + VH_ECU_XCP_MAX_TX) ? 1 : -1];
+#undef VH_APP
+#undef VH_APP_RX
+#undef VH_APP_STEP
 #undef VH_APP_TX
 
-/* RX: every application that receives an ID, in the applications' order */
-#undef VH_APP_RX
+/* 3. RX: every application that receives an ID, in the applications' order */
+#define VH_APP(m, order)
 #define VH_APP_RX(m, id) {(id), rx_##m},
+#define VH_APP_STEP(m, fn, period)
 #define VH_APP_TX(m, fn, MSG, period)
 static const struct {
     uint32_t id;
@@ -56,6 +62,7 @@ static const struct {
 } RX_TABLE[] = {
 #include "vh_ecu_apps.inc"
 };
+#undef VH_APP
 #undef VH_APP_RX
 #undef VH_APP_STEP
 #undef VH_APP_TX
@@ -67,8 +74,9 @@ static void xcp_ev_tick(vh_ecu_t *ecu, vh_app_ctx_t *c) { (void)c; vh_ecu_xcp_ev
 static void xcp_ev_1ms(vh_ecu_t *ecu, vh_app_ctx_t *c) { (void)c; vh_ecu_xcp_event(ecu, 1u); }
 static void xcp_ev_10ms(vh_ecu_t *ecu, vh_app_ctx_t *c) { (void)c; vh_ecu_xcp_event(ecu, 2u); }
 
-/* A step (step != NULL) or a TX frame (fill: its payload; 0 = nothing to send this time), run in
- * this order every period_ticks ticks (at tick 0, then each multiple). */
+/* 4. the runnables: a step (step != NULL) or a TX frame (fill: its payload; 0 = nothing to send
+ * this time), run in this order every period_ticks ticks (at tick 0, then each multiple) */
+#define VH_APP(m, order)
 #define VH_APP_RX(m, id)
 #define VH_APP_STEP(m, fn, period) {run_##m##_##fn, NULL, 0u, 0u, 0u, (period)},
 #define VH_APP_TX(m, fn, MSG, period) {NULL, tx_##m##_##fn, MSG##_FRAME_ID, MSG##_LENGTH, MSG##_IS_FD, (period)},
