@@ -45,9 +45,10 @@ def units(gen_dir: Path) -> dict[str, list[Path]]:
     return rows
 
 
-def _table_targets(src: Path, fn: str, known: set[str]) -> set[str]:
-    """The functions listed in the static tables that fn indexes (``TABLE[i].member(...)``)."""
-    text = src.read_text()
+def _table_targets(src: Path, fn: str, known: set[str], inc: list[str]) -> set[str]:
+    """The functions listed in the static tables that fn indexes (``TABLE[i].member(...)``), in the
+    preprocessed source (the scheduler's tables are expanded from the applications' descriptors)."""
+    text = subprocess.run([CC, *TARGET, "-E", "-P", *inc, str(src)], check=True, capture_output=True, text=True).stdout
     body = re.search(rf"\b{fn}\([^;{{]*\)\s*\{{(.*?)\n\}}", text, re.S)
     out = set()
     for name, entries in re.findall(r"static const struct \{.*?\} (\w+)\[\] = \{(.*?)\n\};", text, re.S):
@@ -105,7 +106,7 @@ def measure(tmp: Path) -> tuple[dict, dict[str, set[str]]]:
     for fn, callees in calls.items():
         if "__indirect_call" in callees and file_of.get(fn):
             callees.discard("__indirect_call")
-            callees |= _table_targets(Path(file_of[fn]), fn.rsplit(":", 1)[-1], set(stack))
+            callees |= _table_targets(Path(file_of[fn]), fn.rsplit(":", 1)[-1], set(stack), inc)
 
     memo: dict[str, tuple[int, list[str]]] = {}
 

@@ -150,7 +150,7 @@ int main(void)
         samples[i] = vh_bench_now_ns() - t0;
     }
     vh_bench_report("ecu_tick_chassis", samples, N_SAMPLES, clock_ns);
-    printf("ecu_chassis_skf %d %u %u\n", N_SAMPLES, (unsigned)ecu.chs.skf.steps, (unsigned)ecu.chs.skf.resets);
+    printf("ecu_chassis_skf %d %u %u\n", N_SAMPLES, (unsigned)ecu.app.tf.skf.steps, (unsigned)ecu.app.tf.skf.resets);
 
     {
         static vh_frame_t all[N_SAMPLES][ALL_PER_TICK];
@@ -185,7 +185,7 @@ int main(void)
             worst = best[i] > worst ? best[i] : worst;
         }
         vh_bench_report("ecu_tick_all", samples, N_SAMPLES, clock_ns);
-        printf("ecu_all_roll %d %u %.0f\n", N_SAMPLES, (unsigned)ecu.roll.ukf.steps, worst - clock_ns);
+        printf("ecu_all_roll %d %u %.0f\n", N_SAMPLES, (unsigned)ecu.app.roll.ukf.steps, worst - clock_ns);
     }
 
     vh_dkf_config_default(&kcfg, VH_DKF_SPEEDS_TORQUE);

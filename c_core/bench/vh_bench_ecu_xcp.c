@@ -78,11 +78,12 @@ static int connect_unlocked(vh_ecu_t *ecu)
 
 #define M(member, size) {offsetof(vh_ecu_t, member), size}
 static const struct { size_t off; uint8_t size; } ODT0[] = {
-    M(tick, 4), M(dkf[0].health, 1), M(dkf[1].health, 1), M(cnt.crc_error, 2), M(cnt.counter_repeat, 2),
+    M(tick, 4), M(app.drv.dkf[0].health, 1), M(app.drv.dkf[1].health, 1), M(cnt.crc_error, 2), M(cnt.counter_repeat, 2),
     M(cnt.counter_skip, 2), M(cnt.dlc_error, 2), M(cnt.timeout, 2), M(cnt.unknown_id, 2), M(cnt.signal_invalid, 2),
-    M(cnt.input_invalid, 2), M(cnt.filter_reset, 2), M(cnt.deadline_miss, 2), M(cnt.rx_burst, 2), M(dkf[0].x[2], 8)};
+    M(cnt.input_invalid, 2), M(cnt.filter_reset, 2), M(cnt.deadline_miss, 2), M(cnt.rx_burst, 2), M(app.drv.dkf[0].x[2], 8)};
 static const struct { size_t off; uint8_t size; } ODT1[] = {
-    M(dkf[0].x[0], 8), M(dkf[0].innov[2], 8), M(dkf[0].p[10], 8), M(dkf[1].x[2], 8), M(drv.dls.to, 8)};
+    M(app.drv.dkf[0].x[0], 8), M(app.drv.dkf[0].innov[2], 8), M(app.drv.dkf[0].p[10], 8), M(app.drv.dkf[1].x[2], 8),
+    M(app.drv.dls.to, 8)};
 
 /* Dynamic DAQ (ASAM sequence: FREE, ALLOC_DAQ, ALLOC_ODT, ALLOC_ODT_ENTRY, SET_DAQ_PTR,
  * WRITE_DAQ, SET_DAQ_LIST_MODE, START_STOP_DAQ_LIST): 20 measurements, 2 ODTs, event 1. */

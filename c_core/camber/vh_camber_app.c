@@ -10,27 +10,77 @@
 
 #define CIS_TIMEOUT_TICKS (VH_PT_CIS_ACCEL_RX_TIMEOUT_CYCLES * (VH_PT_CIS_ACCEL_CYCLE_TIME_US / VH_TICK_US))
 
-int vh_cmb_app_check(const vh_camber_config_t *cfg, double still_ww)
+void vh_camber_app_config_default(vh_camber_app_config_t *cfg)
+{
+    memset(cfg, 0, sizeof *cfg);
+    vh_camber_config_default(&cfg->cmb);
+    cfg->still_ww = 0.5; /* 0.15 m/s at the wheel: parked, not rolling */
+}
+
+int vh_camber_app_config_host(vh_camber_app_config_t *cfg)
+{
+    (void)cfg; /* nothing derived */
+    return VH_OK;
+}
+
+int vh_camber_app_check(const vh_camber_app_config_t *cfg)
 {
     vh_camber_t probe; /* vh_camber_init's own checks, on a scratch instance */
-    return still_ww >= 0.0 && isfinite(still_ww) && vh_camber_init(&probe, cfg, NULL) == VH_OK ? VH_OK : VH_EINVAL;
+    return cfg->still_ww >= 0.0 && isfinite(cfg->still_ww) && vh_camber_init(&probe, &cfg->cmb, NULL) == VH_OK
+               ? VH_OK
+               : VH_EINVAL;
 }
 
-void vh_cmb_app_reset(vh_ecu_cis_t *c, const vh_camber_config_t *cfg)
+void vh_camber_app_init(vh_camber_app_t *a, const vh_camber_app_config_t *cfg)
+{
+    memset(a, 0, sizeof *a); /* no calibration yet */
+    a->cfg = *cfg;
+    vh_camber_app_reset(a);
+}
+
+void vh_camber_app_reset(vh_camber_app_t *a)
 {
     int i;
+    const vh_camber_app_config_t cfg = a->cfg;
     vh_camber_cal_t cal[VH_ECU_N_WHEELS];
     for (i = 0; i < VH_ECU_N_WHEELS; ++i) {
-        cal[i] = c->cmb[i].cal;
+        cal[i] = a->cmb[i].cal;
     }
-    memset(c, 0, sizeof *c);
+    memset(a, 0, sizeof *a);
+    a->cfg = cfg;
     for (i = 0; i < VH_ECU_N_WHEELS; ++i) {
-        (void)vh_camber_init(&c->cmb[i], cfg, cal[i].valid ? &cal[i] : NULL); /* cfg validated by the caller */
+        (void)vh_camber_init(&a->cmb[i], &cfg.cmb, cal[i].valid ? &cal[i] : NULL); /* cfg checked at init */
     }
-    vh_rx_init(&c->rx);
+    vh_rx_init(&a->rx);
 }
 
-int vh_cmb_app_set_calibration(vh_ecu_cis_t *c, unsigned wheel, const vh_camber_cal_t *cal)
+void vh_camber_app_cal_gather(const vh_camber_app_t *a, vh_camber_app_cal_t *c)
+{
+    c->still_ww = a->cfg.still_ww;
+    c->mag_tol_g = a->cfg.cmb.mag_tol_g;
+    c->std_max_g = a->cfg.cmb.std_max_g;
+}
+
+void vh_camber_app_cal_apply(vh_camber_app_t *a, const vh_camber_app_cal_t *c)
+{
+    int i;
+    a->cfg.still_ww = c->still_ww;
+    a->cfg.cmb.mag_tol_g = c->mag_tol_g;
+    a->cfg.cmb.std_max_g = c->std_max_g;
+    for (i = 0; i < VH_ECU_N_WHEELS; ++i) {
+        a->cmb[i].cfg.mag_tol_g = c->mag_tol_g;
+        a->cmb[i].cfg.std_max_g = c->std_max_g;
+    }
+}
+
+unsigned vh_camber_app_safety(vh_camber_app_t *a, int hold)
+{
+    (void)a; /* no speed source, no actuators */
+    (void)hold;
+    return 0u;
+}
+
+int vh_camber_app_set_calibration(vh_camber_app_t *c, unsigned wheel, const vh_camber_cal_t *cal)
 {
     if (wheel >= VH_ECU_N_WHEELS) {
         return VH_EINVAL;
@@ -39,8 +89,9 @@ int vh_cmb_app_set_calibration(vh_ecu_cis_t *c, unsigned wheel, const vh_camber_
     return vh_camber_set_calibration(&c->cmb[wheel], cal);
 }
 
-void vh_cmb_app_rx(vh_ecu_cis_t *c, vh_ecu_counters_t *cnt, const vh_frame_t *f)
+void vh_camber_app_rx(vh_camber_app_t *c, vh_app_ctx_t *ctx, const vh_frame_t *f)
 {
+    vh_ecu_counters_t *cnt = ctx->cnt;
     struct vh_pt_cis_accel_t m;
     if ((f->flags & VH_FRAME_EXT) != 0u) { /* an extended-ID twin is not ours: ignored, not counted */
         return;
@@ -56,11 +107,13 @@ void vh_cmb_app_rx(vh_ecu_cis_t *c, vh_ecu_counters_t *cnt, const vh_frame_t *f)
     c->present = m.cis_present;
 }
 
-void vh_cmb_app_step(vh_ecu_cis_t *c, int still, vh_ecu_counters_t *cnt, unsigned burst_limit)
+void vh_camber_app_step(vh_camber_app_t *c, vh_app_ctx_t *ctx)
 {
     const int fresh = c->rx.fresh;
+    /* the stationary gate of this tick (vh_drv_app_still with this app's limit) */
+    const int still = ctx->sig->wheel_speed_ok && ctx->sig->wheel_speed_lp < c->cfg.still_ww;
     int w;
-    if (vh_rx_tick(cnt, &c->rx, CIS_TIMEOUT_TICKS, burst_limit) && fresh) {
+    if (vh_rx_tick(ctx->cnt, &c->rx, CIS_TIMEOUT_TICKS, ctx->burst_limit) && fresh) {
         for (w = 0; w < VH_ECU_N_WHEELS; ++w) {
             if (c->present & (1u << w)) {
                 vh_camber_result_t r;
@@ -91,9 +144,10 @@ void vh_cmb_app_step(vh_ecu_cis_t *c, int still, vh_ecu_counters_t *cnt, unsigne
         }                                                                                                      \
     } while (0)
 
-int vh_cmb_app_fill(vh_ecu_cis_t *c, uint8_t *data)
+int vh_camber_app_fill(vh_camber_app_t *c, vh_app_ctx_t *ctx, uint8_t *data)
 {
     struct vh_pt_vehest_camber_t m;
+    (void)ctx;
     if (c->rx.timed_out) {
         return 0;
     }

@@ -14,33 +14,64 @@ enum { SIG_WO = 0, SIG_WWL, SIG_WWR, SIG_TO, SIG_WE, SIG_WT, N_SIG };
 /* RX timeout in ticks: RxTimeoutCycles of the DBC times the cycle time */
 #define DLS_TIMEOUT_TICKS (VH_PT_DLS_SENSORS_RX_TIMEOUT_CYCLES * (VH_PT_DLS_SENSORS_CYCLE_TIME_US / VH_TICK_US))
 
-int vh_drv_app_check(const double gear_ratio[VH_ECU_N_GEARS], double we_min, const vh_dkf_config_t dkf[VH_ECU_N_DKF])
+void vh_drv_app_config_default(vh_drv_app_config_t *cfg)
+{
+    memset(cfg, 0, sizeof *cfg);
+    vh_dkf_config_default(&cfg->dkf[VH_ECU_DKF_T], VH_DKF_SPEEDS_TORQUE);
+    vh_dkf_config_default(&cfg->dkf[VH_ECU_DKF_S], VH_DKF_SPEEDS);
+    /* w_o = R_i w_t; 2nd gear = 0.43 (Table 1), the others a typical 5-speed transaxle */
+    cfg->gear_ratio[1] = 0.28;
+    cfg->gear_ratio[2] = 0.43;
+    cfg->gear_ratio[3] = 0.66;
+    cfg->gear_ratio[4] = 0.91;
+    cfg->gear_ratio[5] = 1.18;
+    cfg->we_min = 40.0; /* well below idle (~80 rad/s): an engine this slow is stalling */
+}
+
+int vh_drv_app_config_host(vh_drv_app_config_t *cfg)
+{
+    (void)cfg; /* nothing derived: the flashed init takes it as it is */
+    return VH_OK;
+}
+
+int vh_drv_app_check(const vh_drv_app_config_t *cfg)
 {
     int i;
     vh_dkf_t probe; /* vh_dkf_init's own checks, on a scratch instance */
-    if (!(we_min > 0.0) || !isfinite(we_min)) {
+    if (!(cfg->we_min > 0.0) || !isfinite(cfg->we_min)) {
         return VH_EINVAL;
     }
     for (i = 1; i < VH_ECU_N_GEARS; ++i) {
-        if (!(gear_ratio[i] >= 0.0) || !isfinite(gear_ratio[i])) {
+        if (!(cfg->gear_ratio[i] >= 0.0) || !isfinite(cfg->gear_ratio[i])) {
             return VH_EINVAL;
         }
     }
     for (i = 0; i < VH_ECU_N_DKF; ++i) {
-        if (vh_dkf_init(&probe, &dkf[i]) != VH_OK) {
+        if (vh_dkf_init(&probe, &cfg->dkf[i]) != VH_OK) {
             return VH_EINVAL;
         }
     }
     return VH_OK;
 }
 
-void vh_drv_app_reset(vh_drv_app_t *a, const vh_dkf_config_t cfg[VH_ECU_N_DKF], const double gear_ratio[VH_ECU_N_GEARS])
+void vh_drv_app_init(vh_drv_app_t *a, const vh_drv_app_config_t *cfg)
 {
+    a->cfg = *cfg;
+    vh_drv_app_reset(a);
+}
+
+void vh_drv_app_reset(vh_drv_app_t *a)
+{
+    const vh_drv_app_config_t cfg = a->cfg; /* the configuration survives */
     int i, g;
     memset(a, 0, sizeof *a);
+    a->cfg = cfg;
+    for (i = 0; i < VH_ECU_N_DKF; ++i) {
+        (void)vh_dkf_init(&a->dkf[i], &cfg.dkf[i]); /* checked at init */
+    }
     for (i = 0; i < VH_ECU_N_DKF; ++i) {
         for (g = 1; g < VH_ECU_N_GEARS; ++g) {
-            (void)vh_dkf_gear_model(&cfg[i], gear_ratio[g], &a->gears[i][g]); /* 0: not usable, left zero */
+            (void)vh_dkf_gear_model(&cfg.dkf[i], cfg.gear_ratio[g], &a->gears[i][g]); /* 0: not usable, left zero */
         }
     }
     a->gear = 0u;
@@ -65,9 +96,10 @@ static void take(vh_ecu_dls_t *d, vh_ecu_counters_t *cnt, int ok, double value, 
     take(d, cnt, m.qf_##sig && m.sig != VH_PT_DLS_SENSORS_##SIG##_SNA_CHOICE, \
          vh_pt_dls_sensors_##sig##_decode(m.sig), &d->dst, bit)
 
-void vh_drv_app_rx(vh_drv_app_t *a, const double gear_ratio[VH_ECU_N_GEARS], vh_ecu_counters_t *cnt,
-                   const vh_frame_t *f)
+void vh_drv_app_rx(vh_drv_app_t *a, vh_app_ctx_t *ctx, const vh_frame_t *f)
 {
+    vh_ecu_counters_t *cnt = ctx->cnt;
+    const double *gear_ratio = a->cfg.gear_ratio;
     struct vh_pt_dls_sensors_t m;
     vh_ecu_dls_t *d = &a->dls;
     if ((f->flags & VH_FRAME_EXT) != 0u) {
@@ -99,9 +131,10 @@ void vh_drv_app_rx(vh_drv_app_t *a, const double gear_ratio[VH_ECU_N_GEARS], vh_
 }
 
 /* Inputs for this tick: timeout, gear, turbine torque (eq. 9, held when not usable). */
-static unsigned update_inputs(vh_drv_app_t *a, vh_dkf_t dkf[VH_ECU_N_DKF], double we_min, vh_ecu_counters_t *cnt,
-                              unsigned burst_limit)
+static unsigned update_inputs(vh_drv_app_t *a, vh_ecu_counters_t *cnt, unsigned burst_limit)
 {
+    vh_dkf_t *dkf = a->dkf;
+    const double we_min = a->cfg.we_min;
     vh_ecu_dls_t *d = &a->dls;
     const int fresh = d->rx.fresh;
     unsigned mask = 0u;
@@ -154,18 +187,20 @@ static unsigned update_inputs(vh_drv_app_t *a, vh_dkf_t dkf[VH_ECU_N_DKF], doubl
     return mask;
 }
 
-void vh_drv_app_step(vh_drv_app_t *a, vh_dkf_t dkf[VH_ECU_N_DKF], double we_min, vh_ecu_counters_t *cnt,
-                     unsigned burst_limit)
+void vh_drv_app_step(vh_drv_app_t *a, vh_app_ctx_t *ctx)
 {
-    const unsigned mask = update_inputs(a, dkf, we_min, cnt, burst_limit);
+    const unsigned mask = update_inputs(a, ctx->cnt, ctx->burst_limit);
     const vh_ecu_dls_t *d = &a->dls;
     const double z[VH_DKF_NZ] = {d->wo, 0.5 * (d->wwl + d->wwr), d->to};
     int i;
     for (i = 0; i < VH_ECU_N_DKF; ++i) {
-        if (vh_dkf_step(&dkf[i], a->ti, z, mask)) {
-            vh_rx_count(&cnt->filter_reset);
+        if (vh_dkf_step(&a->dkf[i], a->ti, z, mask)) {
+            vh_rx_count(&ctx->cnt->filter_reset);
         }
     }
+    /* the stationary gate for the apps after this one (vh_drv_app_still with their own limit) */
+    ctx->sig->wheel_speed_lp = d->still_lp;
+    ctx->sig->wheel_speed_ok = (uint8_t)(!d->rx.timed_out && (d->valid & (1u << SIG_WWL)) && (d->valid & (1u << SIG_WWR)));
 }
 
 int vh_drv_app_still(const vh_drv_app_t *a, double lim)
@@ -174,9 +209,48 @@ int vh_drv_app_still(const vh_drv_app_t *a, double lim)
     return !d->rx.timed_out && (d->valid & (1u << SIG_WWL)) && (d->valid & (1u << SIG_WWR)) && d->still_lp < lim;
 }
 
-int vh_drv_app_fill_est(vh_drv_app_t *a, const vh_dkf_t dkf[VH_ECU_N_DKF], uint8_t *data)
+unsigned vh_drv_app_safety(vh_drv_app_t *a, int hold)
 {
+    (void)hold; /* no actuators */
+    if (a->dls.rx.timed_out) {
+        return VH_APP_SPEED;
+    }
+    return VH_APP_SPEED | VH_APP_SPEED_LIVE | (vh_drv_app_still(a, VH_DRV_XCP_STILL_WW) ? VH_APP_STILL : 0u);
+}
+
+void vh_drv_app_cal_gather(const vh_drv_app_t *a, vh_drv_app_cal_t *c)
+{
+    int i;
+    for (i = 0; i < VH_ECU_N_DKF; ++i) {
+        memcpy(c->dkf[i].q, a->cfg.dkf[i].q, sizeof c->dkf[i].q);
+        memcpy(c->dkf[i].r, a->cfg.dkf[i].r, sizeof c->dkf[i].r);
+        c->dkf[i].p_max = a->cfg.dkf[i].p_max;
+    }
+    c->we_min = a->cfg.we_min;
+}
+
+/* Into the configuration (a reset keeps it) and into the running filters. */
+void vh_drv_app_cal_apply(vh_drv_app_t *a, const vh_drv_app_cal_t *c)
+{
+    int i, k;
+    for (i = 0; i < VH_ECU_N_DKF; ++i) {
+        vh_dkf_config_t *cfg[2];
+        cfg[0] = &a->cfg.dkf[i];
+        cfg[1] = &a->dkf[i].cfg;
+        for (k = 0; k < 2; ++k) {
+            memcpy(cfg[k]->q, c->dkf[i].q, sizeof c->dkf[i].q);
+            memcpy(cfg[k]->r, c->dkf[i].r, sizeof c->dkf[i].r);
+            cfg[k]->p_max = c->dkf[i].p_max;
+        }
+    }
+    a->cfg.we_min = c->we_min;
+}
+
+int vh_drv_app_fill_est(vh_drv_app_t *a, vh_app_ctx_t *ctx, uint8_t *data)
+{
+    const vh_dkf_t *dkf = a->dkf;
     struct vh_pt_vehest_driveline_est_t est;
+    (void)ctx;
     memset(&est, 0, sizeof est);
     est.dkf_t_health = dkf[VH_ECU_DKF_T].health;
     est.dkf_s_health = dkf[VH_ECU_DKF_S].health;
@@ -202,9 +276,11 @@ int vh_drv_app_fill_est(vh_drv_app_t *a, const vh_dkf_t dkf[VH_ECU_N_DKF], uint8
     X(crc_error) X(counter_repeat) X(counter_skip) X(dlc_error) X(timeout) X(unknown_id) \
     X(signal_invalid) X(input_invalid) X(filter_reset) X(deadline_miss) X(rx_burst) X(secoc_reject)
 
-int vh_drv_app_fill_status(vh_drv_app_t *a, const vh_dkf_t dkf[VH_ECU_N_DKF], const vh_ecu_counters_t *cnt,
-                           uint32_t tick, uint8_t *data)
+int vh_drv_app_fill_status(vh_drv_app_t *a, vh_app_ctx_t *ctx, uint8_t *data)
 {
+    const vh_dkf_t *dkf = a->dkf;
+    const vh_ecu_counters_t *cnt = ctx->cnt;
+    const uint32_t tick = ctx->tick;
     struct vh_pt_vehest_status_t st;
     const vh_ecu_dls_t *d = &a->dls;
     memset(&st, 0, sizeof st);

@@ -1,6 +1,5 @@
 /* vh_ecu_xcp.c - the ECU's XCP application: the slave's memory is the ECU itself, its
  * calibration segment the tuning block vh_ecu_cal_t (see vh_ecu_xcp.h). */
-#include <math.h>
 #include <string.h>
 
 #include "vh_ecu.h"
@@ -10,93 +9,25 @@ typedef char vh_ecu_xcp_regions_fit[(VH_ECU_XCP_N_REGIONS <= VH_XCP_MAX_REGIONS)
 
 #define EXT_BIT 0x80000000u /* XCP-on-CAN convention: bit 31 of an identifier = 29-bit */
 
-/* The roll tuning: one list of the members, for gather and apply (the same names on both sides). */
-#define ROLL_UKF_SCALARS(X) X(reg_eps) X(nis_max) X(phi_max)
-#define ROLL_SMC_SCALARS(X) X(lambda) X(k) X(p) X(ref_frac) X(ref_tau) X(ay_tau) X(front_share) \
-    X(m_max_f) X(m_max_r) X(rate_max_f) X(rate_max_r) X(fade_time) X(recover_time) X(not_ok_debounce)
-
-static void roll_gather(const vh_roll_app_config_t *cfg, vh_ecu_cal_roll_t *c)
-{
-    memcpy(c->ukf.q, cfg->ukf.q, sizeof c->ukf.q);
-    memcpy(c->ukf.r, cfg->ukf.r, sizeof c->ukf.r);
-    memcpy(c->ukf.p0, cfg->ukf.p0, sizeof c->ukf.p0);
-#define GET_UKF(m) c->ukf.m = cfg->ukf.m;
-#define GET_SMC(m) c->smc.m = cfg->smc.m;
-    ROLL_UKF_SCALARS(GET_UKF)
-    ROLL_SMC_SCALARS(GET_SMC)
-    c->stuck_samples = cfg->stuck_samples;
-}
-
-/* Into the configuration (vh_roll_app_reset starts from it) and into the running float32 UKF and
- * SMC, converted as their inits convert (a plain cast): the same as a start with these values.
- * Nothing of the filters derives from these at init, except p0, which only a reset reads. */
-static void roll_apply(vh_roll_app_config_t *cfg, vh_roll_app_t *a, const vh_ecu_cal_roll_t *c)
-{
-    int i;
-    for (i = 0; i < VH_ROLL_NX; ++i) {
-        cfg->ukf.q[i] = c->ukf.q[i];
-        cfg->ukf.p0[i] = c->ukf.p0[i];
-        a->ukf.q[i] = (float)c->ukf.q[i];
-        a->ukf.p0[i] = (float)c->ukf.p0[i];
-    }
-    for (i = 0; i < VH_ROLL_NZ; ++i) {
-        cfg->ukf.r[i] = c->ukf.r[i];
-        a->ukf.r[i] = (float)c->ukf.r[i];
-    }
-#define SET_UKF(m) cfg->ukf.m = c->ukf.m; a->ukf.m = (float)c->ukf.m;
-#define SET_SMC(m) cfg->smc.m = c->smc.m; a->smc.m = (float)c->smc.m;
-    ROLL_UKF_SCALARS(SET_UKF)
-    ROLL_SMC_SCALARS(SET_SMC)
-    cfg->stuck_samples = c->stuck_samples;
-}
+typedef char vh_ecu_xcp_heard_fits[(VH_ECU_N_APPS <= 8) ? 1 : -1]; /* a bit each in heard */
 
 void vh_ecu_cal_gather(const vh_ecu_t *ecu, vh_ecu_cal_t *c)
 {
-    int i;
     memset(c, 0, sizeof *c); /* padding too: the pages compare and upload byte for byte */
-    for (i = 0; i < VH_ECU_N_DKF; ++i) {
-        memcpy(c->dkf[i].q, ecu->cfg.dkf[i].q, sizeof c->dkf[i].q);
-        memcpy(c->dkf[i].r, ecu->cfg.dkf[i].r, sizeof c->dkf[i].r);
-        c->dkf[i].p_max = ecu->cfg.dkf[i].p_max;
-    }
-    memcpy(c->skf.q, ecu->chs.skf.prm.q, sizeof c->skf.q);
-    memcpy(c->skf.r, ecu->chs.skf.prm.r, sizeof c->skf.r);
-    c->we_min = ecu->cfg.we_min;
-    c->camber_still_ww = ecu->cfg.camber_still_ww;
-    c->camber_mag_tol_g = ecu->cfg.camber.mag_tol_g;
-    c->camber_std_max_g = ecu->cfg.camber.std_max_g;
-    c->rx_burst_frames = ecu->cfg.rx_burst_frames;
-    roll_gather(&ecu->cfg.roll, &c->roll);
+#define GATHER(m) vh_##m##_app_cal_gather(&ecu->app.m, &c->app.m);
+    VH_ECU_APPS(GATHER)
+#undef GATHER
+    c->rx_burst_frames = ecu->rx_burst_frames;
 }
 
-/* Into the configuration (so vh_ecu_reset keeps it) and into the running filters. The values
- * are within the A2L limits (the slave checked them), which keep every filter's init checks. */
+/* Into each application's configuration (so vh_ecu_reset keeps it) and its running filters. The
+ * values are within the A2L limits (the slave checked them), which keep every filter's init checks. */
 void vh_ecu_cal_apply(vh_ecu_t *ecu, const vh_ecu_cal_t *c)
 {
-    int i;
-    for (i = 0; i < VH_ECU_N_DKF; ++i) {
-        vh_dkf_config_t *cfg[2];
-        int k;
-        cfg[0] = &ecu->cfg.dkf[i];
-        cfg[1] = &ecu->dkf[i].cfg;
-        for (k = 0; k < 2; ++k) {
-            memcpy(cfg[k]->q, c->dkf[i].q, sizeof c->dkf[i].q);
-            memcpy(cfg[k]->r, c->dkf[i].r, sizeof c->dkf[i].r);
-            cfg[k]->p_max = c->dkf[i].p_max;
-        }
-    }
-    memcpy(ecu->chs.skf.prm.q, c->skf.q, sizeof c->skf.q); /* vh_tf_app_reset restarts from prm */
-    memcpy(ecu->chs.skf.prm.r, c->skf.r, sizeof c->skf.r);
-    ecu->cfg.we_min = c->we_min;
-    ecu->cfg.camber_still_ww = c->camber_still_ww;
-    ecu->cfg.camber.mag_tol_g = c->camber_mag_tol_g;
-    ecu->cfg.camber.std_max_g = c->camber_std_max_g;
-    for (i = 0; i < VH_ECU_N_WHEELS; ++i) {
-        ecu->cis.cmb[i].cfg.mag_tol_g = c->camber_mag_tol_g;
-        ecu->cis.cmb[i].cfg.std_max_g = c->camber_std_max_g;
-    }
-    ecu->cfg.rx_burst_frames = c->rx_burst_frames;
-    roll_apply(&ecu->cfg.roll, &ecu->roll, &c->roll);
+#define APPLY(m) vh_##m##_app_cal_apply(&ecu->app.m, &c->app.m);
+    VH_ECU_APPS(APPLY)
+#undef APPLY
+    ecu->rx_burst_frames = c->rx_burst_frames;
 }
 
 int vh_ecu_xcp_enable(vh_ecu_t *ecu, const vh_ecu_xcp_config_t *cfg)
@@ -184,17 +115,31 @@ int vh_ecu_xcp_rx(vh_ecu_t *ecu, const vh_frame_t *f) { return xcp_rx(ecu, f, 0)
 
 int vh_ecu_xcp_rx_own(vh_ecu_t *ecu, const vh_frame_t *f) { return xcp_rx(ecu, f, 1); }
 
-/* The safe state of this tick, decided here (the ECU's, not the host's): see vh_ecu_xcp.h. */
+/* The safe state of this tick, decided here (the ECU's, not the host's): see vh_ecu_xcp.h. In
+ * calibration mode each application holds its actuators passive first (before any of them steps). */
 static uint8_t safe_state(vh_ecu_t *ecu)
 {
     vh_ecu_xcp_t *a = &ecu->xcp;
-    const int dls = !ecu->drv.dls.rx.timed_out, chs = !ecu->roll.rx[VH_ROLL_RX_CHS].timed_out;
-    const int passive = ecu->roll.smc.fade <= 0.0f && ecu->roll.smc.m_f == 0.0f && ecu->roll.smc.m_r == 0.0f;
-    int still;
-    a->heard = (uint8_t)(a->heard | (dls ? 1u : 0u) | (chs ? 2u : 0u));
-    /* a source heard once and silent now is unknown, not still */
-    still = (dls ? vh_drv_app_still(&ecu->drv, VH_ECU_XCP_STILL_WW) : !(a->heard & 1u)) &&
-            (chs ? (ecu->roll.u_ok && fabsf(ecu->roll.vx) < (float)VH_ECU_XCP_STILL_VX) : !(a->heard & 2u));
+    unsigned s[VH_ECU_N_APPS], i = 0u;
+    int passive = 1, still = 1;
+#define SAFETY(m) s[i++] = vh_##m##_app_safety(&ecu->app.m, a->cal_mode);
+    VH_ECU_APPS(SAFETY)
+#undef SAFETY
+    for (i = 0u; i < VH_ECU_N_APPS; ++i) {
+        const uint8_t bit = (uint8_t)(1u << i);
+        if (s[i] & VH_APP_ACTIVE) {
+            passive = 0;
+        }
+        if (!(s[i] & VH_APP_SPEED)) {
+            continue;
+        }
+        if (s[i] & VH_APP_SPEED_LIVE) {
+            a->heard = (uint8_t)(a->heard | bit);
+            still = still && (s[i] & VH_APP_STILL) != 0u;
+        } else {
+            still = still && !(a->heard & bit); /* a source heard once and silent now is unknown, not still */
+        }
+    }
     return (uint8_t)(passive && (still || a->cal_mode));
 }
 
@@ -203,9 +148,6 @@ void vh_ecu_xcp_tick(vh_ecu_t *ecu)
     vh_ecu_xcp_t *a = &ecu->xcp;
     if (!a->enabled) {
         return;
-    }
-    if (a->cal_mode) {
-        ecu->roll.mode_active = 0u; /* calibration mode: the roll actuators passive (before roll steps) */
     }
     a->safe = safe_state(ecu);
     vh_xcp_tick(&a->slave, a->ticks);

@@ -8,14 +8,15 @@
  * adjacent ones merged), so pointers, the slave's own state and configuration stay unreadable.
  * The seed & key key is not in vh_ecu_t at all (caller-owned, like SecOC's keys).
  *
- * Safe state (the ECU's decision, every tick): roll control passive (faded out, zero moment) AND
- * the car at standstill (every speed source heard since enable says so now: the driveline's wheel
- * speeds and the chassis' vx; a source heard once and silent now is not standstill), or the
- * calibration mode (cal_mode, the host's start option) with the roll actuators held passive.
+ * Safe state (the ECU's decision, every tick, from each application's vh_<m>_app_safety): every
+ * application's actuators passive (e.g. faded out, zero moment) AND the car at standstill (every
+ * speed source heard since enable says so now; a source heard once and silent now is not
+ * standstill), or the calibration mode
+ * (cal_mode, the host's start option) with the actuators held passive.
  * Safety-relevant characteristics are written and committed only then (ERR_WRITE_PROTECTED).
  *
  * Calibration: one segment at VH_ECU_XCP_CAL_ADDRESS + offsetof(vh_ecu_cal_t, member), the
- * tuning of every system gathered in one block. Page 1 (reference, never written) is the tuning
+ * tuning of every application gathered in one block (vh_<m>_app_cal_gather, _apply). Page 1 (reference, never written) is the tuning
  * the ECU was configured with; page 0 (working, RAM) is what DOWNLOAD writes, range-checked
  * against the limits of the generated table (vh_ecu_xcp_table.inc, from
  * vehest_can/xcp/ecu.toml: the same limits as the A2L). A characteristic reaches `page`, the
@@ -29,10 +30,7 @@
 #ifndef VH_ECU_XCP_H
 #define VH_ECU_XCP_H
 
-#include "vh_dkf.h"
-#include "vh_driveline_app.h"
-#include "vh_roll.h"
-#include "vh_skfq.h"
+#include "vh_ecu_apps.h"
 #include "vh_xcp.h"
 
 #define VH_ECU_XCP_MEAS_ADDRESS 0x10000000
@@ -41,57 +39,11 @@
 #define VH_ECU_XCP_MAX_TX 1 /* XCP frames per tick: one 64-byte DTO per 500 us is the budget */
 #define VH_ECU_XCP_UNLOCK_DELAY_TICKS 1000 /* 0.5 s after a wrong key, doubled with each further one */
 #define VH_ECU_XCP_UNLOCK_ATTEMPTS 5       /* wrong keys in a row: seed & key locked until restart */
-#define VH_ECU_XCP_STILL_WW 0.5            /* standstill: driveline wheel speeds below [rad/s] */
-#define VH_ECU_XCP_STILL_VX 0.2            /* standstill: chassis vx below [m/s] */
 
-/* The driveline filters' tuning: -> dkf[i].cfg.q, .r, .p_max */
+/* Every application's tuning the master may change (the calibration segment). */
 typedef struct {
-    double q[VH_DKF_NX]; /* diagonal of Q */
-    double r[VH_DKF_NZ]; /* diagonal of R, z = [w_o, w_w, T_o] */
-    double p_max;        /* divergence limit on a P diagonal */
-} vh_ecu_cal_dkf_t;
-
-/* The fixed-point SKFMEC's tuning: -> chs.skf.prm.q, .r */
-typedef struct {
-    int32_t q[VH_SKFQ_NX]; /* process noise Q* (VH_SKFQ_FP) */
-    int32_t r[VH_SKFQ_NY]; /* measurement noise R* (VH_SKFQ_FU) */
-} vh_ecu_cal_skf_t;
-
-/* The roll UKF's tuning (seed 003), as in vh_roll_params_t: -> cfg.roll.ukf and roll.ukf */
-typedef struct {
-    double q[VH_ROLL_NX];  /* process noise Q diagonal, per step */
-    double r[VH_ROLL_NZ];  /* measurement noise R diagonal */
-    double p0[VH_ROLL_NX]; /* initial covariance diagonal (eq. 14): used at the filter's next reset */
-    double reg_eps;        /* regularisation of the Cholesky retry, relative to the mean diagonal */
-    double nis_max;        /* innovation test per measurement (0 off) */
-    double phi_max;        /* |roll| above this: diverged, reset [rad] */
-} vh_ecu_cal_roll_ukf_t;
-
-/* The roll sliding-mode controller's tuning, as in vh_roll_smc_params_t: -> cfg.roll.smc and
- * roll.smc. Its model terms (i_roll, ms_e, kphi, cphi) and dt are the vehicle's, not tuning. */
-typedef struct {
-    double lambda, k, p;                    /* eq. 28, eq. 32-33, eq. 34-35 */
-    double ref_frac, ref_tau, ay_tau, front_share;
-    double m_max_f, m_max_r, rate_max_f, rate_max_r;
-    double fade_time, recover_time, not_ok_debounce;
-} vh_ecu_cal_roll_smc_t;
-
-typedef struct {
-    vh_ecu_cal_roll_ukf_t ukf;
-    vh_ecu_cal_roll_smc_t smc;
-    uint8_t stuck_samples;  /* -> cfg.roll.stuck_samples */
-} vh_ecu_cal_roll_t;
-
-/* Every system's tuning the master may change (the calibration segment). */
-typedef struct {
-    vh_ecu_cal_dkf_t dkf[VH_ECU_N_DKF];
-    vh_ecu_cal_skf_t skf;
-    vh_ecu_cal_roll_t roll;
-    double we_min;            /* -> cfg.we_min [rad/s] */
-    double camber_still_ww;   /* -> cfg.camber_still_ww [rad/s] */
-    float camber_mag_tol_g;   /* -> cfg.camber.mag_tol_g and each window's */
-    float camber_std_max_g;   /* -> cfg.camber.std_max_g and each window's */
-    uint8_t rx_burst_frames;  /* -> cfg.rx_burst_frames */
+    vh_ecu_apps_cal_t app;
+    uint8_t rx_burst_frames;  /* -> the ECU's rx_burst_frames */
 } vh_ecu_cal_t;
 
 /* What the integrator chooses (the rest is fixed by the ECU). */
@@ -105,7 +57,7 @@ typedef struct {
     uint8_t salt[VH_XCP_SALT_LEN]; /* random per start (the host's) */
     uint8_t own_bus;  /* XCP on a bus of its own: a CRO through vh_ecu_rx (the vehicle bus) is not
                        * answered, only counted (cro_foreign); vh_ecu_xcp_rx_own takes the XCP bus */
-    uint8_t cal_mode; /* calibration mode: roll held passive; the safe state needs no standstill */
+    uint8_t cal_mode; /* calibration mode: actuators held passive; the safe state needs no standstill */
 } vh_ecu_xcp_config_t;
 
 typedef struct {
@@ -123,7 +75,7 @@ typedef struct {
     uint8_t own_bus;
     uint8_t cal_mode;
     uint8_t safe;        /* the safe state of this tick (the slave reads it at every write) */
-    uint8_t heard;       /* speed sources heard since enable: 1 driveline wheel speeds, 2 chassis vx */
+    uint8_t heard;       /* speed sources heard since enable: bit i, the i-th application's */
 } vh_ecu_xcp_t;
 
 #endif /* VH_ECU_XCP_H */

@@ -40,12 +40,26 @@ int vh_roll_app_check(const vh_roll_app_config_t *cfg)
     return VH_OK;
 }
 
-void vh_roll_app_reset(vh_roll_app_t *a, const vh_roll_app_config_t *cfg)
+int vh_roll_app_config_host(vh_roll_app_config_t *cfg)
+{
+    (void)cfg; /* nothing derived */
+    return VH_OK;
+}
+
+void vh_roll_app_init(vh_roll_app_t *a, const vh_roll_app_config_t *cfg)
+{
+    a->cfg = *cfg;
+    vh_roll_app_reset(a);
+}
+
+void vh_roll_app_reset(vh_roll_app_t *a)
 {
     int i;
+    const vh_roll_app_config_t cfg = a->cfg; /* the configuration survives */
     memset(a, 0, sizeof *a);
-    (void)vh_roll_ukf_init_f32(&a->ukf, &cfg->ukf); /* checked in vh_ecu_init */
-    (void)vh_roll_smc_init_f32(&a->smc, &cfg->smc);
+    a->cfg = cfg;
+    (void)vh_roll_ukf_init_f32(&a->ukf, &cfg.ukf); /* checked at init */
+    (void)vh_roll_smc_init_f32(&a->smc, &cfg.smc);
     for (i = 0; i < VH_ROLL_N_RX; ++i) {
         vh_rx_init(&a->rx[i]);
     }
@@ -175,9 +189,11 @@ static const struct {
                            RX_MSG(CHS_SENSORS, rx_chs), RX_MSG(ROLL_ACTUATOR_STATUS, rx_act),
                            RX_MSG(ROLL_MODE_CMD, rx_mode)};
 
-void vh_roll_app_rx(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, const vh_frame_t *f)
+void vh_roll_app_rx(vh_roll_app_t *a, vh_app_ctx_t *ctx, const vh_frame_t *f)
 {
+    const vh_roll_app_config_t *cfg = &a->cfg;
     int i;
+    (void)ctx; /* its own counters */
     if ((f->flags & VH_FRAME_EXT) != 0u) {
         vh_rx_count(&a->cnt.dlc_error);
         return;
@@ -193,8 +209,9 @@ void vh_roll_app_rx(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, const vh_
     vh_rx_count(&a->cnt.unknown_id);
 }
 
-void vh_roll_app_tick(vh_roll_app_t *a, unsigned burst_limit)
+void vh_roll_app_tick(vh_roll_app_t *a, vh_app_ctx_t *ctx)
 {
+    const unsigned burst_limit = ctx->burst_limit;
     int i;
     for (i = 0; i < VH_ROLL_N_RX; ++i) {
         if (!vh_rx_tick(&a->cnt, &a->rx[i], RX_MSGS[i].timeout, burst_limit)) {
@@ -209,13 +226,14 @@ void vh_roll_app_tick(vh_roll_app_t *a, unsigned burst_limit)
     }
 }
 
-void vh_roll_app_step(vh_roll_app_t *a)
+void vh_roll_app_step(vh_roll_app_t *a, vh_app_ctx_t *ctx)
 {
     float u[VH_ROLL_NU];
     uint32_t mask, h, est;
     const int act_ok = !a->rx[VH_ROLL_RX_ACT].timed_out;
     const int arc_ok = act_ok && a->arc_state != 2u && a->arc_state != 3u; /* not HOLD, not FAILSAFE */
     const int u_ok = !a->rx[VH_ROLL_RX_CHS].timed_out && a->u_ok;
+    (void)ctx;
     a->stepped_now = 0u;
     if (!a->heard) {
         return;
@@ -266,9 +284,10 @@ void vh_roll_app_step(vh_roll_app_t *a)
                                a->mode_active && !a->rx[VH_ROLL_RX_MODE].timed_out);
 }
 
-int vh_roll_app_fill_cmd(vh_roll_app_t *a, uint8_t *data)
+int vh_roll_app_fill_cmd(vh_roll_app_t *a, vh_app_ctx_t *ctx, uint8_t *data)
 {
     struct vh_ch_vehest_roll_cmd_t m;
+    (void)ctx;
     if (!a->stepped_now) {
         return 0;
     }
@@ -283,11 +302,12 @@ int vh_roll_app_fill_cmd(vh_roll_app_t *a, uint8_t *data)
 
 static uint8_t sat8(uint32_t v) { return (uint8_t)(v > 255u ? 255u : v); }
 
-int vh_roll_app_fill_est(vh_roll_app_t *a, uint8_t *data)
+int vh_roll_app_fill_est(vh_roll_app_t *a, vh_app_ctx_t *ctx, uint8_t *data)
 {
     struct vh_ch_vehest_roll_est_t m;
     const uint32_t h = a->ukf.health;
     const int ok = a->stepped && h != VH_ROLL_H_INIT && !a->rx[VH_ROLL_RX_SENS].timed_out;
+    (void)ctx;
     if (!a->stepped) {
         return 0;
     }
@@ -308,4 +328,64 @@ int vh_roll_app_fill_est(vh_roll_app_t *a, uint8_t *data)
     (void)vh_ch_vehest_roll_est_pack(data, &m, VH_CH_VEHEST_ROLL_EST_LENGTH);
     vh_e2e_protect(VH_CH_VEHEST_ROLL_EST_E2E, data, VH_CH_VEHEST_ROLL_EST_LENGTH, &a->tx_counter[1]);
     return 1;
+}
+
+/* ---- XCP: the tuning, and what the safe state needs ---- */
+
+/* One list of the members, for gather and apply (the same names on both sides). */
+#define ROLL_UKF_SCALARS(X) X(reg_eps) X(nis_max) X(phi_max)
+#define ROLL_SMC_SCALARS(X) X(lambda) X(k) X(p) X(ref_frac) X(ref_tau) X(ay_tau) X(front_share) \
+    X(m_max_f) X(m_max_r) X(rate_max_f) X(rate_max_r) X(fade_time) X(recover_time) X(not_ok_debounce)
+
+void vh_roll_app_cal_gather(const vh_roll_app_t *a, vh_roll_app_cal_t *c)
+{
+    const vh_roll_app_config_t *cfg = &a->cfg;
+    memcpy(c->ukf.q, cfg->ukf.q, sizeof c->ukf.q);
+    memcpy(c->ukf.r, cfg->ukf.r, sizeof c->ukf.r);
+    memcpy(c->ukf.p0, cfg->ukf.p0, sizeof c->ukf.p0);
+#define GET_UKF(m) c->ukf.m = cfg->ukf.m;
+#define GET_SMC(m) c->smc.m = cfg->smc.m;
+    ROLL_UKF_SCALARS(GET_UKF)
+    ROLL_SMC_SCALARS(GET_SMC)
+    c->stuck_samples = cfg->stuck_samples;
+}
+
+/* Into the configuration (a reset starts from it) and into the running float32 UKF and SMC,
+ * converted as their inits convert (a plain cast): the same as a start with these values.
+ * Nothing of the filters derives from these at init, except p0, which only a reset reads. */
+void vh_roll_app_cal_apply(vh_roll_app_t *a, const vh_roll_app_cal_t *c)
+{
+    vh_roll_app_config_t *cfg = &a->cfg;
+    int i;
+    for (i = 0; i < VH_ROLL_NX; ++i) {
+        cfg->ukf.q[i] = c->ukf.q[i];
+        cfg->ukf.p0[i] = c->ukf.p0[i];
+        a->ukf.q[i] = (float)c->ukf.q[i];
+        a->ukf.p0[i] = (float)c->ukf.p0[i];
+    }
+    for (i = 0; i < VH_ROLL_NZ; ++i) {
+        cfg->ukf.r[i] = c->ukf.r[i];
+        a->ukf.r[i] = (float)c->ukf.r[i];
+    }
+#define SET_UKF(m) cfg->ukf.m = c->ukf.m; a->ukf.m = (float)c->ukf.m;
+#define SET_SMC(m) cfg->smc.m = c->smc.m; a->smc.m = (float)c->smc.m;
+    ROLL_UKF_SCALARS(SET_UKF)
+    ROLL_SMC_SCALARS(SET_SMC)
+    cfg->stuck_samples = c->stuck_samples;
+}
+
+unsigned vh_roll_app_safety(vh_roll_app_t *a, int hold)
+{
+    const int live = !a->rx[VH_ROLL_RX_CHS].timed_out;
+    unsigned s = VH_APP_SPEED;
+    if (hold) {
+        a->mode_active = 0u; /* the actuators passive (before roll steps) */
+    }
+    if (!(a->smc.fade <= 0.0f && a->smc.m_f == 0.0f && a->smc.m_r == 0.0f)) {
+        s |= VH_APP_ACTIVE;
+    }
+    if (live) {
+        s |= VH_APP_SPEED_LIVE | ((a->u_ok && fabsf(a->vx) < (float)VH_ROLL_XCP_STILL_VX) ? VH_APP_STILL : 0u);
+    }
+    return s;
 }

@@ -16,6 +16,7 @@
 #ifndef VH_ROLL_APP_H
 #define VH_ROLL_APP_H
 
+#include "vh_app.h"
 #include "vh_roll.h"
 #include "vh_rx.h"
 #include "vh_types.h"
@@ -41,7 +42,35 @@ typedef struct {
     uint8_t stuck_samples;      /* identical raw values in a row that make a measurement stuck; 0: off */
 } vh_roll_app_config_t;
 
+#define VH_ROLL_XCP_STILL_VX 0.2 /* XCP's standstill: vx from CHS_Sensors below [m/s] */
+
+/* The roll UKF's tuning (XCP), as in vh_roll_params_t: -> cfg.ukf and ukf */
 typedef struct {
+    double q[VH_ROLL_NX];  /* process noise Q diagonal, per step */
+    double r[VH_ROLL_NZ];  /* measurement noise R diagonal */
+    double p0[VH_ROLL_NX]; /* initial covariance diagonal (eq. 14): used at the filter's next reset */
+    double reg_eps;        /* regularisation of the Cholesky retry, relative to the mean diagonal */
+    double nis_max;        /* innovation test per measurement (0 off) */
+    double phi_max;        /* |roll| above this: diverged, reset [rad] */
+} vh_roll_app_cal_ukf_t;
+
+/* The sliding-mode controller's tuning, as in vh_roll_smc_params_t: -> cfg.smc and smc. Its model
+ * terms (i_roll, ms_e, kphi, cphi) and dt are the vehicle's, not tuning. */
+typedef struct {
+    double lambda, k, p;                    /* eq. 28, eq. 32-33, eq. 34-35 */
+    double ref_frac, ref_tau, ay_tau, front_share;
+    double m_max_f, m_max_r, rate_max_f, rate_max_r;
+    double fade_time, recover_time, not_ok_debounce;
+} vh_roll_app_cal_smc_t;
+
+typedef struct {
+    vh_roll_app_cal_ukf_t ukf;
+    vh_roll_app_cal_smc_t smc;
+    uint8_t stuck_samples;  /* -> cfg.stuck_samples */
+} vh_roll_app_cal_t;
+
+typedef struct {
+    vh_roll_app_config_t cfg;
     vh_roll_ukf_f32 ukf;
     vh_roll_smc_f32 smc;
     vh_ecu_rxmsg_t rx[VH_ROLL_N_RX];
@@ -70,22 +99,27 @@ typedef struct {
     uint8_t tx_counter[2];      /* E2E counters: RollCmd, RollEst */
 } vh_roll_app_t;
 
-/* Defaults: the roll system's parameters at the ROLL_Sensors cycle, R for the node's averaged
- * samples, the plant's wheel radius, stuck after 8 frames. */
+/* The application's entry points (vh_app.h). Defaults: the roll system's parameters at the
+ * ROLL_Sensors cycle, R for the node's averaged samples, the plant's wheel radius, stuck after 8
+ * frames. check: VH_EINVAL for a configuration the UKF or SMC refuses or a step that is not the
+ * cycle. rx: CHS_Sensors and ROLL_*. safety: roll control passive, vx from CHS_Sensors; hold
+ * sets the mode passive. */
 void vh_roll_app_config_default(vh_roll_app_config_t *cfg);
-/* VH_OK, or VH_EINVAL for a configuration the UKF or SMC refuses or a step that is not the cycle. */
+int vh_roll_app_config_host(vh_roll_app_config_t *cfg);
 int vh_roll_app_check(const vh_roll_app_config_t *cfg);
-/* Restart (the configuration is checked: vh_roll_app_check). */
-void vh_roll_app_reset(vh_roll_app_t *a, const vh_roll_app_config_t *cfg);
-/* One received frame of the application (CHS_Sensors, ROLL_*), checked and counted. */
-void vh_roll_app_rx(vh_roll_app_t *a, const vh_roll_app_config_t *cfg, const vh_frame_t *f);
-/* Every tick: ages and timeouts of the RX messages. */
-void vh_roll_app_tick(vh_roll_app_t *a, unsigned burst_limit);
-/* Every tick: one UKF and controller step when a ROLL_Sensors frame has arrived (one step per
- * sample, whatever the arrival jitter), or, without one, on the nominal cycle (prediction only). */
-void vh_roll_app_step(vh_roll_app_t *a);
-/* The payloads of VEHEST_RollCmd and VEHEST_RollEst; 0 (send nothing) before the roll sensors are heard. */
-int vh_roll_app_fill_cmd(vh_roll_app_t *a, uint8_t *data);
-int vh_roll_app_fill_est(vh_roll_app_t *a, uint8_t *data);
+void vh_roll_app_init(vh_roll_app_t *a, const vh_roll_app_config_t *cfg);
+void vh_roll_app_reset(vh_roll_app_t *a);
+void vh_roll_app_rx(vh_roll_app_t *a, vh_app_ctx_t *ctx, const vh_frame_t *f);
+void vh_roll_app_cal_gather(const vh_roll_app_t *a, vh_roll_app_cal_t *c);
+void vh_roll_app_cal_apply(vh_roll_app_t *a, const vh_roll_app_cal_t *c);
+unsigned vh_roll_app_safety(vh_roll_app_t *a, int hold);
+/* Runnables. tick: every tick, ages and timeouts of the RX messages. step: every tick, one UKF
+ * and controller step when a ROLL_Sensors frame has arrived (one step per sample, whatever the
+ * arrival jitter), or, without one, on the nominal cycle (prediction only). The payloads of
+ * VEHEST_RollCmd and VEHEST_RollEst; 0 (send nothing) before the roll sensors are heard. */
+void vh_roll_app_tick(vh_roll_app_t *a, vh_app_ctx_t *ctx);
+void vh_roll_app_step(vh_roll_app_t *a, vh_app_ctx_t *ctx);
+int vh_roll_app_fill_cmd(vh_roll_app_t *a, vh_app_ctx_t *ctx, uint8_t *data);
+int vh_roll_app_fill_est(vh_roll_app_t *a, vh_app_ctx_t *ctx, uint8_t *data);
 
 #endif /* VH_ROLL_APP_H */

@@ -13,7 +13,14 @@
 #define RIDE_TIMEOUT_TICKS \
     (VH_CH_CHS_RIDE_HEIGHT_RX_TIMEOUT_CYCLES * (VH_CH_CHS_RIDE_HEIGHT_CYCLE_TIME_US / VH_TICK_US))
 
-void vh_tf_app_reset(vh_ecu_chs_t *c)
+void vh_tf_app_init(vh_tf_app_t *a, const vh_tf_app_config_t *cfg)
+{
+    a->skf.prm = cfg->skfq; /* the filters keep their constants; a reset re-initialises from them */
+    a->tfa.prm = cfg->tfaq;
+    vh_tf_app_reset(a);
+}
+
+void vh_tf_app_reset(vh_tf_app_t *c)
 {
     const vh_skfq_params_t prm = c->skf.prm;
     memset(c->u, 0, sizeof c->u);
@@ -28,12 +35,12 @@ void vh_tf_app_reset(vh_ecu_chs_t *c)
     c->ride_heard = 0u;
     memset(&c->ride_rx, 0, sizeof c->ride_rx);
     vh_rx_init(&c->ride_rx);
-    (void)vh_skfq_init(&c->skf, &prm); /* validated in vh_ecu_init */
+    (void)vh_skfq_init(&c->skf, &prm); /* checked at init */
     vh_tfa_reset(&c->tfa);             /* in place: its constants (a 3.7 KB table) are not copied */
 }
 
 /* One chassis channel: a raw SNA value or a cleared qualifier makes it invalid (counted). */
-static void take_ch(vh_ecu_chs_t *c, int ok, int32_t value, int ch)
+static void take_ch(vh_tf_app_t *c, int ok, int32_t value, int ch)
 {
     if (!ok) {
         vh_rx_count(&c->cnt.signal_invalid);
@@ -50,7 +57,7 @@ static void take_ch(vh_ecu_chs_t *c, int ok, int32_t value, int ch)
     take_ch(c, m.qf_##sig && m.sig != VH_CH_CHS_SENSORS_##SIG##_SNA_CHOICE,                        \
             vh_ch_chs_sensors_##sig##_decode_q(m.sig, (frac), &ignored), ch)
 
-void vh_tf_app_rx(vh_ecu_chs_t *c, const vh_frame_t *f)
+static void rx_sensors(vh_tf_app_t *c, const vh_frame_t *f)
 {
     struct vh_ch_chs_sensors_t m;
     uint32_t ignored = 0u;
@@ -86,7 +93,7 @@ void vh_tf_app_rx(vh_ecu_chs_t *c, const vh_frame_t *f)
     }                                                                                                     \
     v[i] = vh_ch_chs_ride_height_##sig##_decode_q(m.sig, VH_TFA_FH, &ignored)
 
-void vh_tf_app_rx_ride(vh_ecu_chs_t *c, const vh_frame_t *f)
+static void rx_ride(vh_tf_app_t *c, const vh_frame_t *f)
 {
     struct vh_ch_chs_ride_height_t m;
     uint32_t ignored = 0u;
@@ -111,8 +118,38 @@ void vh_tf_app_rx_ride(vh_ecu_chs_t *c, const vh_frame_t *f)
     }
 }
 
-void vh_tf_app_step(vh_ecu_chs_t *c, unsigned burst_limit)
+void vh_tf_app_rx(vh_tf_app_t *a, vh_app_ctx_t *ctx, const vh_frame_t *f)
 {
+    (void)ctx; /* its own counters */
+    if (f->id == VH_CH_CHS_RIDE_HEIGHT_FRAME_ID) {
+        rx_ride(a, f);
+    } else {
+        rx_sensors(a, f);
+    }
+}
+
+void vh_tf_app_cal_gather(const vh_tf_app_t *a, vh_tf_app_cal_t *c)
+{
+    memcpy(c->skf.q, a->skf.prm.q, sizeof c->skf.q);
+    memcpy(c->skf.r, a->skf.prm.r, sizeof c->skf.r);
+}
+
+void vh_tf_app_cal_apply(vh_tf_app_t *a, const vh_tf_app_cal_t *c)
+{
+    memcpy(a->skf.prm.q, c->skf.q, sizeof c->skf.q); /* a reset restarts from prm */
+    memcpy(a->skf.prm.r, c->skf.r, sizeof c->skf.r);
+}
+
+unsigned vh_tf_app_safety(vh_tf_app_t *a, int hold)
+{
+    (void)a; /* no speed source of the safe state, no actuators */
+    (void)hold;
+    return 0u;
+}
+
+void vh_tf_app_step(vh_tf_app_t *c, vh_app_ctx_t *ctx)
+{
+    const unsigned burst_limit = ctx->burst_limit;
     vh_skfq_t *f = &c->skf;
     const int fresh = c->rx.fresh;
     const int was_out = c->rx.timed_out;
@@ -155,15 +192,20 @@ void vh_tf_app_step(vh_ecu_chs_t *c, unsigned burst_limit)
     X(est_yaw_rate, EST_YAW_RATE, VH_SKF_R) X(est_roll_angle, EST_ROLL_ANGLE, VH_SKF_PHI)
 #define QS_OK(sig, SIG, i) &&vh_ch_vehest_tire_force_est_##sig##_qs_ok(prm->s_num[i], prm->s_den[i])
 
-int vh_tf_app_check(const vh_skfq_params_t *prm, const vh_tfa_params_t *tprm)
+int vh_tf_app_check(const vh_tf_app_config_t *cfg)
 {
-    return vh_tfa_check(tprm) == VH_OK &&
+    const vh_skfq_params_t *prm = &cfg->skfq;
+    const vh_tfa_params_t *tprm = &cfg->tfaq;
+    vh_skfq_t probe; /* vh_skfq_init's own checks, on a scratch instance */
+    return vh_skfq_init(&probe, prm) == VH_OK && vh_tfa_check(tprm) == VH_OK &&
            vh_ch_vehest_tire_force_adaptive_est_mass_qs_ok(tprm->m_den, tprm->m_num) &&
-           vh_ch_vehest_tire_force_adaptive_est_mass_std_qs_ok(tprm->m_den, tprm->m_num) STATES(QS_OK);
+           vh_ch_vehest_tire_force_adaptive_est_mass_std_qs_ok(tprm->m_den, tprm->m_num) STATES(QS_OK)
+               ? VH_OK
+               : VH_EINVAL;
 }
 
 /* Every frame: none before the first CHS_Sensors frame (0), else m zeroed to be filled (1). */
-static int begin(const vh_ecu_chs_t *c, void *m, size_t size)
+static int begin(const vh_tf_app_t *c, void *m, size_t size)
 {
     if (!c->heard) {
         return 0;
@@ -174,7 +216,7 @@ static int begin(const vh_ecu_chs_t *c, void *m, size_t size)
 
 /* An estimate frame's filter: its health, its valid flag (OK while CHS_Sensors has not timed out);
  * returns whether its estimates go out (not timed out, OK or DEGRADED; else their SNA). */
-static int report(const vh_ecu_chs_t *c, uint8_t health, uint8_t *health_sig, uint8_t *valid_sig)
+static int report(const vh_tf_app_t *c, uint8_t health, uint8_t *health_sig, uint8_t *valid_sig)
 {
     *health_sig = health;
     *valid_sig = (uint8_t)(!c->rx.timed_out && health == VH_HEALTH_OK);
@@ -198,11 +240,12 @@ static int report(const vh_ecu_chs_t *c, uint8_t health, uint8_t *health_sig, ui
 #define FY(k, n) TYRE(vehest_tire_force_est, VEHEST_TIRE_FORCE_EST, fy##n, FY##n, f->fy[k])
 #define FYA(k, n) TYRE(vehest_tire_force_adaptive, VEHEST_TIRE_FORCE_ADAPTIVE, fy_a##n, FY_A##n, a->fy[k])
 
-int vh_tf_app_fill_est(vh_ecu_chs_t *c, uint8_t *data)
+int vh_tf_app_fill_est(vh_tf_app_t *c, vh_app_ctx_t *ctx, uint8_t *data)
 {
     struct vh_ch_vehest_tire_force_est_t m;
     const vh_skfq_t *f = &c->skf;
     int ok;
+    (void)ctx; /* its own counters */
     if (!begin(c, &m, sizeof m)) {
         return 0;
     }
@@ -214,11 +257,12 @@ int vh_tf_app_fill_est(vh_ecu_chs_t *c, uint8_t *data)
     return 1;
 }
 
-int vh_tf_app_fill_status(vh_ecu_chs_t *c, uint8_t *data)
+int vh_tf_app_fill_status(vh_tf_app_t *c, vh_app_ctx_t *ctx, uint8_t *data)
 {
     struct vh_ch_vehest_chassis_status_t m;
     /* the sum of two wrapping counters wraps the same way: differences stay exact */
     const uint16_t cnt_err = (uint16_t)(c->cnt.counter_repeat + c->cnt.counter_skip);
+    (void)ctx; /* its own counters */
     if (!begin(c, &m, sizeof m)) {
         return 0;
     }
@@ -236,11 +280,12 @@ int vh_tf_app_fill_status(vh_ecu_chs_t *c, uint8_t *data)
     return 1;
 }
 
-int vh_tf_app_fill_adaptive(vh_ecu_chs_t *c, uint8_t *data)
+int vh_tf_app_fill_adaptive(vh_tf_app_t *c, vh_app_ctx_t *ctx, uint8_t *data)
 {
     struct vh_ch_vehest_tire_force_adaptive_t m;
     const vh_tfa_t *a = &c->tfa;
     int ok;
+    (void)ctx; /* its own counters */
     if (!begin(c, &m, sizeof m)) {
         return 0;
     }

@@ -85,7 +85,7 @@ int main(void)
         }
     }
     for (i = 0; i < VH_ECU_N_DKF; ++i) {
-        if (!isfinite(ecu.dkf[i].x[2])) {
+        if (!isfinite(ecu.app.drv.dkf[i].x[2])) {
             fprintf(stderr, "non-finite estimate\n");
             return 1;
         }

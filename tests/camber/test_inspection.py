@@ -9,7 +9,7 @@ from vehest_can.cli import main
 from vehest_can.sim.powertrain import powertrain_car
 from vehest_can.sim.session import run_inprocess
 from vehest_can.systems.camber import inspection
-from vehest_can.systems.camber.api import WHEELS, load_calibrations
+from vehest_can.systems.camber.api import WHEELS, load_calibrations, load_into_ecu
 from vehest_can.systems.camber.scenario import load_camber_scenario
 from vehest_can.systems.ecu import Ecu
 
@@ -39,7 +39,7 @@ def cal_file(tmp_path_factory):
 
 def ecu_with(cal_file):
     ecu = Ecu()
-    ecu.set_camber_calibrations(load_calibrations(cal_file))
+    load_into_ecu(ecu, load_calibrations(cal_file))
     return ecu
 
 
@@ -56,7 +56,7 @@ def test_uncalibrated_chip_misalignment_shows_outside_the_bound(cal_file):
     from vehest_can.systems.camber.api import Calibration
 
     ecu = Ecu()
-    ecu.set_camber_calibrations({w: Calibration.identity() for w in WHEELS})
+    load_into_ecu(ecu, {w: Calibration.identity() for w in WHEELS})
     res = inspection.ecu_results(run_inprocess(powertrain_car(SC), ecu).messages())
     assert max(abs(res[w]["camber_deg"] - TRUTH[w]) for w in WHEELS) > 1.0
     assert any(abs(res[w]["camber_deg"] - TRUTH[w]) > res[w]["bound_deg"] for w in WHEELS)

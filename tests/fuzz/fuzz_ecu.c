@@ -176,12 +176,12 @@ HARNESS_ONLY static void check_tx(const vh_frame_t *tx, size_t n, size_t cap)
         }
     }
     for (i = 0; i < VH_ECU_N_DKF; ++i) {
-        if (!isfinite(ecu.dkf[i].x[2])) {
+        if (!isfinite(ecu.app.drv.dkf[i].x[2])) {
             abort();
         }
     }
     for (i = 0; i < VH_ROLL_NX; ++i) {
-        if (!isfinite(ecu.roll.ukf.x[i]) || !isfinite(ecu.roll.ukf.P[i * (VH_ROLL_NX + 1u)])) {
+        if (!isfinite(ecu.app.roll.ukf.x[i]) || !isfinite(ecu.app.roll.ukf.P[i * (VH_ROLL_NX + 1u)])) {
             abort();
         }
     }
@@ -431,7 +431,7 @@ static void init_once(void)
     for (m = 0; m < N_XCP_VARIANTS; ++m) {
         memcpy(&ecu, &before, sizeof ecu);
         for (w = 0; w < VH_ECU_N_WHEELS; ++w) {
-            (void)vh_ecu_set_camber_calibration(&ecu, w, &cal);
+            (void)vh_camber_app_set_calibration(&ecu.app.camber, w, &cal);
         }
         memset(&xcfg, 0, sizeof xcfg);
         xcfg.cro_id = XCP_CRO;
@@ -577,9 +577,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
      * 2: behind an XCP calibration write committed (after seed & key); 3: behind a roll UKF step
      * on frames that passed SecOC; 4: behind seed & key locked out by wrong keys; 5: behind a
      * safety-relevant write refused outside the safe state. */
-    if ((VH_FUZZ_CANARY == 1 && ecu.chs.heard && ecu.chs.skf.steps > 0u) ||
+    if ((VH_FUZZ_CANARY == 1 && ecu.app.tf.heard && ecu.app.tf.skf.steps > 0u) ||
         (VH_FUZZ_CANARY == 2 && ecu.xcp.slave.n.cal_commits > 0u) ||
-        (VH_FUZZ_CANARY == 3 && secoc_on && sec.cnt.accepted > 0u && ecu.roll.stepped) ||
+        (VH_FUZZ_CANARY == 3 && secoc_on && sec.cnt.accepted > 0u && ecu.app.roll.stepped) ||
         (VH_FUZZ_CANARY == 4 && ecu.xcp.slave.locked_out) ||
         (VH_FUZZ_CANARY == 5 && ecu.xcp.slave.n.cal_unsafe > 0u)) {
         abort();

@@ -108,7 +108,8 @@ def _roll_frames(duration_s: float = 0.4) -> list[tuple[int, bytes]]:
 
 def _xcp_programs() -> dict[str, bytes]:
     """XCP sessions that reach the commands behind seed & key: a calibration write of the first
-    characteristic (its reference value, in range), uploads, page switching, a DAQ list started."""
+    tuning characteristic (its reference value, in range: written in any state), uploads, page
+    switching, a DAQ list started."""
     import struct
 
     from vehest_can.native import ffi
@@ -117,7 +118,7 @@ def _xcp_programs() -> dict[str, bytes]:
 
     ecu = Ecu()
     desc = xcp_ecu.enable(ecu, bytes(16))  # the layout and the reference page only: no key used here
-    item = desc.characteristics[0]
+    item = next(c for c in desc.characteristics if c.safety_class == "tuning")
     off = item.address - desc.calibration_address
     raw = bytes(ffi.buffer(ffi.addressof(ecu.c.xcp, "ref"), ffi.sizeof("vh_ecu_cal_t"))[off:off + item.size])
     meas = desc.measurements[0]

@@ -21,9 +21,9 @@ def test_a2l_is_written_and_items_listed(tmp_path, capsys):
     out = tmp_path / "ecu.a2l"
     assert main(["xcp", "a2l", "-o", str(out)]) == 0
     assert out.read_text() == ecu_desc.SHIPPED_A2L.read_text()
-    assert main(["xcp", "list", "cal.dkf[[]0].*"]) == 0
+    assert main(["xcp", "list", "cal.app.drv.dkf[[]0].*"]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert [ln.split()[1] for ln in lines] == ["cal.dkf[0].q", "cal.dkf[0].r", "cal.dkf[0].p_max"]
+    assert [ln.split()[1] for ln in lines] == ["cal.app.drv.dkf[0].q", "cal.app.drv.dkf[0].r", "cal.app.drv.dkf[0].p_max"]
 
 
 @pytest.fixture
@@ -46,18 +46,18 @@ def daemon_bus():
 def test_get_and_set_against_the_running_daemon(daemon_bus, capsys):
     ecu, flags = daemon_bus
     with pytest.raises(SystemExit):  # a write needs the key: argparse's error
-        main(["xcp", "set", "cal.dkf[0].r", "3000", "--index", "2", *flags])
+        main(["xcp", "set", "cal.app.drv.dkf[0].r", "3000", "--index", "2", *flags])
     capsys.readouterr()
-    assert main(["xcp", "set", "cal.dkf[0].r", "3000", "--index", "2", *flags, "--dev"]) == 0
-    assert capsys.readouterr().out.strip() == "cal.dkf[0].r = [415, 27, 3000]"
-    assert ecu.c.dkf[0].cfg.r[2] == 3000.0  # in the running filter
-    assert main(["xcp", "get", "tick", "dkf[0].health", *flags]) == 0
+    assert main(["xcp", "set", "cal.app.drv.dkf[0].r", "3000", "--index", "2", *flags, "--dev"]) == 0
+    assert capsys.readouterr().out.strip() == "cal.app.drv.dkf[0].r = [415, 27, 3000]"
+    assert ecu.c.app.drv.dkf[0].cfg.r[2] == 3000.0  # in the running filter
+    assert main(["xcp", "get", "tick", "app.drv.dkf[0].health", *flags]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith("tick = ") and int(out[0].split()[-1]) > 0
-    assert main(["xcp", "set", "cal.we_min", "500", *flags, "--dev"]) == 1
+    assert main(["xcp", "set", "cal.app.drv.we_min", "500", *flags, "--dev"]) == 1
     err = capsys.readouterr().err
     assert "ERR_OUT_OF_RANGE" in err and "[0, 200] rad/s" in err and "nothing written" in err
-    assert ecu.c.cfg.we_min == 40.0
+    assert ecu.c.app.drv.cfg.we_min == 40.0
 
 
 def test_bad_arguments_are_clear_errors(capsys):
@@ -66,9 +66,9 @@ def test_bad_arguments_are_clear_errors(capsys):
     assert "no XCP item named 'no_such'" in capsys.readouterr().err
     assert main(["xcp", "set", "tick", "1", *flags, "--dev"]) == 1
     assert "is a measurement" in capsys.readouterr().err
-    assert main(["xcp", "set", "cal.we_min", "fast", *flags, "--dev"]) == 1
+    assert main(["xcp", "set", "cal.app.drv.we_min", "fast", *flags, "--dev"]) == 1
     assert "values must be numbers" in capsys.readouterr().err
-    assert main(["xcp", "set", "cal.we_min", "1", "2", *flags, "--dev"]) == 1
+    assert main(["xcp", "set", "cal.app.drv.we_min", "1", "2", *flags, "--dev"]) == 1
     assert "do not fit" in capsys.readouterr().err
     assert main(["xcp", "get", "tick", "--cro-id", "0xZZ", *flags]) == 1
     assert "--cro-id" in capsys.readouterr().err
@@ -81,22 +81,22 @@ def test_save_and_load_a_calibration_file_of_the_running_daemon(daemon_bus, tmp_
     import json
 
     ecu, flags = daemon_bus
-    assert main(["xcp", "set", "cal.we_min", "55", *flags, "--dev"]) == 0
+    assert main(["xcp", "set", "cal.app.drv.we_min", "55", *flags, "--dev"]) == 0
     f = tmp_path / "ecu_cal.json"
     assert main(["xcp", "save", str(f), *flags]) == 0
     doc = json.loads(f.read_text())
-    assert doc["description"] == "VEHEST_ECU" and doc["values"]["cal.we_min"] == 55.0
-    assert doc["values"]["cal.skf.r"] == [v * 2.0 ** -24 for v in ecu.c.chs.skf.prm.r]  # Q7.24 -> physical
-    doc["values"]["cal.dkf[0].r"][2] = 12345.0
+    assert doc["description"] == "VEHEST_ECU" and doc["values"]["cal.app.drv.we_min"] == 55.0
+    assert doc["values"]["cal.app.tf.skf.r"] == [v * 2.0 ** -24 for v in ecu.c.app.tf.skf.prm.r]  # Q7.24 -> physical
+    doc["values"]["cal.app.drv.dkf[0].r"][2] = 12345.0
     f.write_text(json.dumps(doc))
     assert main(["xcp", "load", str(f), *flags, "--dev"]) == 0
-    assert ecu.c.dkf[0].cfg.r[2] == 12345.0 and ecu.c.cfg.we_min == 55.0
-    doc["values"]["cal.dkf[0].r"][2] = -1.0
+    assert ecu.c.app.drv.dkf[0].cfg.r[2] == 12345.0 and ecu.c.app.drv.cfg.we_min == 55.0
+    doc["values"]["cal.app.drv.dkf[0].r"][2] = -1.0
     f.write_text(json.dumps(doc))
     capsys.readouterr()
     assert main(["xcp", "load", str(f), *flags, "--dev"]) == 1  # checked whole before the bus: nothing written
-    assert "cal.dkf[0].r: -1.0 outside" in capsys.readouterr().err
-    assert ecu.c.dkf[0].cfg.r[2] == 12345.0
+    assert "cal.app.drv.dkf[0].r: -1.0 outside" in capsys.readouterr().err
+    assert ecu.c.app.drv.dkf[0].cfg.r[2] == 12345.0
 
 
 def test_the_daemon_starts_on_a_calibration_file(tmp_path):
@@ -108,13 +108,13 @@ def test_the_daemon_starts_on_a_calibration_file(tmp_path):
     f = tmp_path / "cal.json"
     xcp_ecu.save_calibration(ecu, f)
     doc = json.loads(f.read_text())
-    doc["values"]["cal.dkf[0].r"][2] = 999.0
+    doc["values"]["cal.app.drv.dkf[0].r"][2] = 999.0
     f.write_text(json.dumps(doc))
     parser = argparse.ArgumentParser()
     xcp_ecu.add_arguments(parser)
     fresh = Ecu()
     xcp_ecu.from_args(parser.parse_args(["--xcp", "on", "--xcp-dev", "--xcp-cal", str(f)]), fresh)
-    assert fresh.c.dkf[0].cfg.r[2] == 999.0 == xcp_ecu.read(fresh, "cal.dkf[0].r", "ref")[2]  # as if flashed
+    assert fresh.c.app.drv.dkf[0].cfg.r[2] == 999.0 == xcp_ecu.read(fresh, "cal.app.drv.dkf[0].r", "ref")[2]  # as if flashed
     f.write_text("{}")
     with pytest.raises(ConfigError, match="not an XCP calibration file"):
         xcp_ecu.from_args(parser.parse_args(["--xcp", "on", "--xcp-dev", "--xcp-cal", str(f)]), Ecu())

@@ -120,10 +120,11 @@ def test_pyxcp_measures_the_running_daemon_on_its_event_channels(rig):
     m.cond_unlock("daq")
     # the documented 1 ms list: 20 measurements in two 48-byte DTOs per sample, which is the whole
     # XCP budget of one frame per tick (docs/xcp.md); the 10 ms event: test_xcp_ecu.py
-    small = ["tick", "dkf[0].health", "dkf[1].health", *(f"cnt.{n}" for n in
+    small = ["tick", "app.drv.dkf[0].health", "app.drv.dkf[1].health", *(f"cnt.{n}" for n in
              ("crc_error", "counter_repeat", "counter_skip", "dlc_error", "timeout", "unknown_id",
               "signal_invalid", "input_invalid", "filter_reset", "deadline_miss", "rx_burst"))]
-    fast = small + ["dkf[0].x[2]", "dkf[0].x[0]", "dkf[0].innov[2]", "dkf[0].p[10]", "dkf[1].x[2]", "drv.dls.to"]
+    fast = small + ["app.drv.dkf[0].x[2]", "app.drv.dkf[0].x[0]", "app.drv.dkf[0].innov[2]", "app.drv.dkf[0].p[10]",
+                    "app.drv.dkf[1].x[2]", "app.drv.dls.to"]
     assert len(fast) == 20
     rows = [(n, desc.item(n).address, 0, C_TYPES[desc.item(n).ctype][3]) for n in fast]
     policy = Collect([DaqList(name="fast", event_num=1, stim=False, enable_timestamps=True, measurements=rows,
@@ -149,7 +150,7 @@ def test_pyxcp_measures_the_running_daemon_on_its_event_channels(rig):
     assert policy.daq_lists[0].odt_count == 2 if hasattr(policy.daq_lists[0], "odt_count") else True
     assert n["dto_overrun"] == 0
     assert r.ecu.counters()["unknown_id"] == 0  # its own XCP frames heard back are not unknown input
-    torque = [p[col["dkf[0].x[2]"]] for p in fast_s]
+    torque = [p[col["app.drv.dkf[0].x[2]"]] for p in fast_s]
     assert max(torque) > 10.0  # the car drives: the estimate moves
     assert r.stats.get("d") is None  # the daemon still serving
 
@@ -165,27 +166,27 @@ def test_a_calibration_through_pyxcp_changes_the_running_filter(rig):
         (a tick the daemon ran late predicts without a measurement and only raises P)."""
         seen = []
         for _ in range(20):
-            if r.read("dkf[0].health")[0] == 1:
-                seen.append(r.read("dkf[0].p[10]")[0])
+            if r.read("app.drv.dkf[0].health")[0] == 1:
+                seen.append(r.read("app.drv.dkf[0].p[10]")[0])
             time.sleep(0.05)
         assert seen, "the filter never reported OK"
         return min(seen)
     time.sleep(1.0)
     p_before = settled_p()
-    assert r.read("cal.dkf[0].r")[2] == r.ecu.c.cfg.dkf[0].r[2] == 22500.0
+    assert r.read("cal.app.drv.dkf[0].r")[2] == r.ecu.c.app.drv.cfg.dkf[0].r[2] == 22500.0
     m.cond_unlock("calpag")
-    r.download("cal.dkf[0].r", [1.0e6], index=2)  # trust the torque transducer far less (a tuning value)
+    r.download("cal.app.drv.dkf[0].r", [1.0e6], index=2)  # trust the torque transducer far less (a tuning value)
     time.sleep(0.5)
-    assert r.read("cal.dkf[0].r")[2] == 1.0e6
+    assert r.read("cal.app.drv.dkf[0].r")[2] == 1.0e6
     p_after = settled_p()
     assert "car" not in r.stats, "the drive ended before the filter was read again"
     # the variance follows R (in-process, lockstep: 4342 with R = 22500, 28323 with R = 1e6)
     assert p_after > 4 * p_before, (p_before, p_after)
     with pytest.raises(types.XcpResponseError) as e:
-        r.download("cal.dkf[0].r", [-5.0], index=2)
+        r.download("cal.app.drv.dkf[0].r", [-5.0], index=2)
     assert code(e) == ERR_OUT_OF_RANGE
     assert r.read("xcp.slave.n.err_range")[0] == 1
-    assert r.read("cal.dkf[0].r")[2] == 1.0e6
+    assert r.read("cal.app.drv.dkf[0].r")[2] == 1.0e6
     m.disconnect()
 
 
@@ -194,7 +195,7 @@ def test_without_seed_and_key_a_write_is_refused(rig):
     m = r.master
     m.connect()
     with pytest.raises(types.XcpResponseError) as e:
-        r.download("cal.we_min", [10.0])
+        r.download("cal.app.drv.we_min", [10.0])
     assert code(e) == ERR_ACCESS_LOCKED
     assert r.read("xcp.slave.n.err_locked")[0] == 1
     m.disconnect()
@@ -265,8 +266,8 @@ def test_while_driving_pyxcp_cannot_change_the_roll_controller_and_the_ecu_comma
 
     cmd = database("ch").get_message_by_name("VEHEST_RollCmd")
     sc = _roll_case(5.0)
-    hostile = {"cal.roll.smc.m_max_f": 1000.0, "cal.roll.smc.front_share": 1.0, "cal.roll.smc.ref_frac": 1.0,
-               "cal.roll.smc.k": 100.0}
+    hostile = {"cal.app.roll.smc.m_max_f": 1000.0, "cal.app.roll.smc.front_share": 1.0, "cal.app.roll.smc.ref_frac": 1.0,
+               "cal.app.roll.smc.k": 100.0}
     with lockstep_roll(pyxcp_master, sc) as (m, desc, read, out):
         while read("tick") < 6000:  # 3 s: the steer ramp ended at 2.5 s
             time.sleep(0.05)
@@ -277,7 +278,7 @@ def test_while_driving_pyxcp_cannot_change_the_roll_controller_and_the_ecu_comma
                 _write(m, desc, name, value)
             assert code(e) == ERR_WRITE_PROTECTED, name
         assert read("xcp.slave.n.cal_unsafe") == len(hostile)
-        assert read("roll.smc.m_max_f") == 4800.0 and read("cal.roll.smc.front_share") != 1.0
+        assert read("app.roll.smc.m_max_f") == 4800.0 and read("cal.app.roll.smc.front_share") != 1.0
     session = out["s"]
     f = session.frames
     ref = run_inprocess(RollCar(sc), Ecu())  # the same car and ECU without XCP
@@ -302,12 +303,12 @@ def test_pyxcp_calibrates_the_roll_controller_in_the_safe_state(pyxcp_master):
             time.sleep(0.05)
         assert read("xcp.safe") == 1
         m.cond_unlock("calpag")
-        for name, value in {"cal.roll.smc.m_max_f": 1000.0, "cal.roll.smc.front_share": 1.0,
-                            "cal.roll.smc.ref_frac": 1.0, "cal.roll.smc.k": 100.0}.items():
+        for name, value in {"cal.app.roll.smc.m_max_f": 1000.0, "cal.app.roll.smc.front_share": 1.0,
+                            "cal.app.roll.smc.ref_frac": 1.0, "cal.app.roll.smc.k": 100.0}.items():
             _write(m, desc, name, value)
             assert read(name) == value
         time.sleep(0.2)
-        assert read("roll.smc.m_max_f") == 1000.0 and read("roll.smc.k") == 100.0  # running
+        assert read("app.roll.smc.m_max_f") == 1000.0 and read("app.roll.smc.k") == 100.0  # running
         assert read("xcp.slave.n.cal_unsafe") == 0
     print("pyxcp in the safe state (standstill, roll passive): 4 safety-relevant writes accepted and running")
 
@@ -318,10 +319,10 @@ def test_roll_daq_over_the_daemon_equals_its_roll_estimate_frames(pyxcp_master):
     in that ECU tick (matched by tick and the frame's alive counter, roll.tx_counter[1] after the
     TX), within half the DBC's resolution, health exactly."""
     est = database("ch").get_message_by_name("VEHEST_RollEst")
-    names = ["tick", "roll.tx_counter[1]", "roll.ukf.x[4]", "roll.ukf.x[5]", "roll.ukf.ay_post", "roll.smc.fade",
-             "roll.ukf.health", "roll.smc.health"]
-    signals = {"roll.ukf.x[4]": ("RollEstAngle", 0.5e-5), "roll.ukf.x[5]": ("RollEstRate", 0.5e-4),
-               "roll.ukf.ay_post": ("RollEstLatAccel", 0.5e-3), "roll.smc.fade": ("RollFade", 0.5 * 0.005)}
+    names = ["tick", "app.roll.tx_counter[1]", "app.roll.ukf.x[4]", "app.roll.ukf.x[5]", "app.roll.ukf.ay_post",
+             "app.roll.smc.fade", "app.roll.ukf.health", "app.roll.smc.health"]
+    signals = {"app.roll.ukf.x[4]": ("RollEstAngle", 0.5e-5), "app.roll.ukf.x[5]": ("RollEstRate", 0.5e-4),
+               "app.roll.ukf.ay_post": ("RollEstLatAccel", 0.5e-3), "app.roll.smc.fade": ("RollFade", 0.5 * 0.005)}
     with lockstep_roll(pyxcp_master, _roll_case(6.0)) as (m, desc, read, out):
         m.cond_unlock("daq")
         rows = [(n, desc.item(n).address, 0, C_TYPES[desc.item(n).ctype][3]) for n in names]
@@ -345,14 +346,14 @@ def test_roll_daq_over_the_daemon_equals_its_roll_estimate_frames(pyxcp_master):
     is_est = f["id"] == est.frame_id
     frames = {int(k): est.decode(bytes(d), decode_choices=False) for k, d in zip(ft[is_est], f[is_est]["data"])}
     mid = daq[len(daq) // 2]
-    offsets = {mid["tick"] - k for k, e in frames.items() if e["RES_Counter"] == (mid["roll.tx_counter[1]"] - 1) % 15}
+    offsets = {mid["tick"] - k for k, e in frames.items() if e["RES_Counter"] == (mid["app.roll.tx_counter[1]"] - 1) % 15}
 
     def same(s: dict, e: dict) -> bool:
-        return (e["RES_Counter"] == (s["roll.tx_counter[1]"] - 1) % 15 and e["RollUkf_Health"] == s["roll.ukf.health"]
-                and e["RollSmc_Health"] == s["roll.smc.health"] & 0x7F
+        return (e["RES_Counter"] == (s["app.roll.tx_counter[1]"] - 1) % 15 and e["RollUkf_Health"] == s["app.roll.ukf.health"]
+                and e["RollSmc_Health"] == s["app.roll.smc.health"] & 0x7F
                 and all(abs(s[name] - e[sig]) <= tol + 1e-9 for name, (sig, tol) in signals.items()))
     off, n = one_offset(daq, frames, offsets, same)
-    roll = np.array([s["roll.ukf.x[4]"] for s in daq])
+    roll = np.array([s["app.roll.ukf.x[4]"] for s in daq])
     print(f"roll DAQ over the daemon: {len(daq)} samples on the 10 ms event (ECU ticks {ticks[0]}..{ticks[-1]}), "
           f"{n} equal to their VEHEST_RollEst (tick offset {off}); roll {np.degrees(roll.min()):.2f}.."
           f"{np.degrees(roll.max()):.2f} deg")

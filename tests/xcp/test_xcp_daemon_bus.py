@@ -33,8 +33,9 @@ from xcp_daq_policy import Collect, one_offset  # noqa: E402
 
 EST = database("pt").get_message_by_name("VEHEST_DrivelineEst")
 #: DAQ measurement -> its signal in VEHEST_DrivelineEst
-SIGNALS = {"dkf[0].x[2]": "DkfT_ShaftTorque", "dkf[0].x[3]": "DkfT_RoadLoadErr", "dkf[1].x[2]": "DkfS_ShaftTorque",
-           "dkf[1].x[3]": "DkfS_RoadLoadErr", "dkf[0].health": "DkfT_Health", "dkf[1].health": "DkfS_Health"}
+SIGNALS = {"app.drv.dkf[0].x[2]": "DkfT_ShaftTorque", "app.drv.dkf[0].x[3]": "DkfT_RoadLoadErr",
+           "app.drv.dkf[1].x[2]": "DkfS_ShaftTorque", "app.drv.dkf[1].x[3]": "DkfS_RoadLoadErr",
+           "app.drv.dkf[0].health": "DkfT_Health", "app.drv.dkf[1].health": "DkfS_Health"}
 N_COUNTER = 15  # E2E P01 alive counter 0..14
 
 
@@ -77,7 +78,7 @@ def test_daq_over_the_daemon_on_its_own_xcp_bus_equals_its_estimate_frames(pyxcp
         m.getCommModeInfo()
         assert m.identifier(1) == "VEHEST_ECU"  # the slave answers on the XCP bus
         m.cond_unlock("daq")
-        names = ["tick", "drv.tx_counter[0]", *SIGNALS]
+        names = ["tick", "app.drv.tx_counter[0]", *SIGNALS]
         rows = [(n, desc.item(n).address, 0, C_TYPES[desc.item(n).ctype][3]) for n in names]
         policy = Collect([DaqList(name="est", event_num=1, stim=False, enable_timestamps=True, measurements=rows,
                                   priority=0, prescaler=1)])
@@ -116,13 +117,14 @@ def test_daq_over_the_daemon_on_its_own_xcp_bus_equals_its_estimate_frames(pyxcp
     # The sample of ECU tick t read drv.tx_counter[0] after that tick's frame went out (the events run
     # after the systems' TX): the frame's counter is one less. Frame index = t - offset, one offset.
     mid = daq[len(daq) // 2]
-    candidates = {mid["tick"] - i for i, f in by_idx.items() if f["DLE_Counter"] == (mid["drv.tx_counter[0]"] - 1) % N_COUNTER}
+    candidates = {mid["tick"] - i for i, f in by_idx.items()
+                  if f["DLE_Counter"] == (mid["app.drv.tx_counter[0]"] - 1) % N_COUNTER}
 
     def same(s: dict, f: dict) -> bool:
-        return f["DLE_Counter"] == (s["drv.tx_counter[0]"] - 1) % N_COUNTER and all(
+        return f["DLE_Counter"] == (s["app.drv.tx_counter[0]"] - 1) % N_COUNTER and all(
             abs(s[name] - f[sig]) <= (0 if "health" in name else 0.125 + 1e-9) for name, sig in SIGNALS.items())
     _, n = one_offset(daq, by_idx, candidates, same)
-    torque = np.array([s["dkf[0].x[2]"] for s in daq])
+    torque = np.array([s["app.drv.dkf[0].x[2]"] for s in daq])
     print(f"DAQ over the daemon's XCP bus: {len(daq)} samples (ECU ticks {ticks[0]}..{ticks[-1]}), {n} matched to "
           f"VEHEST_DrivelineEst by tick and alive counter ({len(est)} frames heard, {idx[-1] + 1 - len(est)} "
           f"lost by their counters), all equal within 0.125 Nm, health exact; shaft torque "

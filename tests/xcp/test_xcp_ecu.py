@@ -22,6 +22,7 @@ from vehest_can.native import ffi
 from vehest_can.sim.powertrain import powertrain_car
 from vehest_can.sim.session import run_inprocess
 from vehest_can.systems.driveline.scenario import load_driveline_scenario
+from vehest_can.systems.driveline.system import EcuPart
 from vehest_can.systems.ecu import Ecu, EcuConfig
 from vehest_can.xcp import ecu as xcp_ecu
 from vehest_can.xcp import ecu_desc
@@ -81,7 +82,7 @@ class Cro:
 
 def torque_r(desc) -> int:
     """Address of dkf[0].r[2], the driveline filter's torque-sensor variance."""
-    return desc.item("cal.dkf[0].r").address + 2 * 8
+    return desc.item("cal.app.drv.dkf[0].r").address + 2 * 8
 
 
 # ---- the description, the A2L and the limit table: from the C structs, never stale --------
@@ -99,24 +100,26 @@ def test_addresses_are_the_c_offsets_and_names_the_c_members():
     desc = xcp_ecu.description()
     ecu = Ecu()
     base = int(ffi.cast("uintptr_t", ecu.c))
-    assert desc.item("dkf[0].x[2]").address - desc.measurement_address == \
-        int(ffi.cast("uintptr_t", ffi.addressof(ecu.c.dkf[0], "x"))) + 16 - base
-    assert desc.item("cal.skf.r").address - desc.calibration_address == ffi.offsetof("vh_ecu_cal_t", "skf", "r")
+    assert desc.item("app.drv.dkf[0].x[2]").address - desc.measurement_address == \
+        int(ffi.cast("uintptr_t", ffi.addressof(ecu.c.app.drv.dkf[0], "x"))) + 16 - base
+    assert desc.item("cal.app.tf.skf.r").address - desc.calibration_address == \
+        ffi.offsetof("vh_ecu_cal_t", "app", "tf", "skf", "r")
     names = {it.name for it in desc.measurements}
-    for system in ("dkf[0].x[3]", "dkf[1].p[15]", "dkf[0].innov[2]", "dkf[0].health",  # driveline
-                   "chs.skf.x[6]", "chs.skf.p[48]", "chs.skf.innov[3]", "chs.skf.health",  # tyre force
-                   "cis.last[3].theta_rad",                                              # camber
-                   "cnt.crc_error", "chs.cnt.saturation", "xcp.slave.n.err_range"):      # counters
+    for system in ("app.drv.dkf[0].x[3]", "app.drv.dkf[1].p[15]", "app.drv.dkf[0].innov[2]",  # driveline
+                   "app.drv.dkf[0].health",
+                   "app.tf.skf.x[6]", "app.tf.skf.p[48]", "app.tf.skf.innov[3]", "app.tf.skf.health",  # tyre force
+                   "app.camber.last[3].theta_rad",                                                  # camber
+                   "cnt.crc_error", "app.tf.cnt.saturation", "xcp.slave.n.err_range"):              # counters
         assert system in names
     assert {it.name for it in desc.characteristics} >= {
-        "cal.dkf[0].q", "cal.dkf[0].r", "cal.dkf[1].r", "cal.skf.q", "cal.skf.r", "cal.we_min",
-        "cal.camber_mag_tol_g", "cal.rx_burst_frames"}
+        "cal.app.drv.dkf[0].q", "cal.app.drv.dkf[0].r", "cal.app.drv.dkf[1].r", "cal.app.tf.skf.q", "cal.app.tf.skf.r",
+        "cal.app.drv.we_min", "cal.app.camber.mag_tol_g", "cal.rx_burst_frames"}
     assert len(desc.measurements) >= 20
 
 
 def test_a_member_that_is_not_in_the_structs_is_refused(tmp_path):
     bad = tmp_path / "bad.toml"
-    bad.write_text(ecu_desc.ECU_TOML.read_text().replace('c = "dkf[0].x"', 'c = "dkf[0].xx"'))
+    bad.write_text(ecu_desc.ECU_TOML.read_text().replace('c = "app.drv.dkf[0].x"', 'c = "app.drv.dkf[0].xx"'))
     with pytest.raises(ecu_desc.DescriptionError, match="no member"):
         ecu_desc.describe(ffi, bad)
 
@@ -149,7 +152,7 @@ def test_the_reference_page_is_the_configuration_and_within_the_limits():
         vals = np.atleast_1d(xcp_ecu.read(ecu, it.name, "ref"))
         assert np.all((vals >= lo) & (vals <= hi)), it.name
         assert list(np.atleast_1d(xcp_ecu.read(ecu, it.name, "page"))) == list(vals)
-    assert xcp_ecu.read(ecu, "cal.dkf[0].r", "ref") == list(ecu.c.cfg.dkf[0].r)
+    assert xcp_ecu.read(ecu, "cal.app.drv.dkf[0].r", "ref") == list(ecu.c.app.drv.cfg.dkf[0].r)
 
 
 # ---- measurement: the ECU's own memory ------------------------------------------------------
@@ -162,8 +165,9 @@ def test_upload_reads_the_running_filters():
     run_inprocess(drive, ecu)  # the filters have run: the states are not zero
     desc = cro.desc
     # the innovation first: the ticks of the commands have no sensor frame (prediction only)
-    for name, value in (("dkf[0].innov[0]", lambda: ecu.c.dkf[0].innov[0]), ("dkf[0].x[2]", lambda: ecu.c.dkf[0].x[2]),
-                        ("dkf[0].p[5]", lambda: ecu.c.dkf[0].p[5])):
+    for name, value in (("app.drv.dkf[0].innov[0]", lambda: ecu.c.app.drv.dkf[0].innov[0]),
+                        ("app.drv.dkf[0].x[2]", lambda: ecu.c.app.drv.dkf[0].x[2]),
+                        ("app.drv.dkf[0].p[5]", lambda: ecu.c.app.drv.dkf[0].p[5])):
         value = value()  # now: each command is a tick (the filters predict on)
         assert value != 0.0
         assert struct.unpack("<d", cro.upload(desc.item(name).address, 8))[0] == value
@@ -178,12 +182,12 @@ def test_a_write_reaches_the_filter_at_the_next_tick_boundary_and_survives_a_res
     cro.connect_unlocked()
     raw = struct.pack("<d", 1234.5)
     assert cro.download(torque_r(cro.desc) - 16 + 16, raw[:6])[0] == 0xFF
-    assert ecu.c.dkf[0].cfg.r[2] != 1234.5  # half a double written: nothing reaches the filter
+    assert ecu.c.app.drv.dkf[0].cfg.r[2] != 1234.5  # half a double written: nothing reaches the filter
     r = cro(0xF0, 2, *raw[6:])               # the last byte: due at the next tick boundary ...
-    assert r[0] == 0xFF and ecu.c.dkf[0].cfg.r[2] == 1234.5  # ... which this command's tick was
-    assert xcp_ecu.read(ecu, "cal.dkf[0].r", "ref")[2] != 1234.5  # the reference page never changes
+    assert r[0] == 0xFF and ecu.c.app.drv.dkf[0].cfg.r[2] == 1234.5  # ... which this command's tick was
+    assert xcp_ecu.read(ecu, "cal.app.drv.dkf[0].r", "ref")[2] != 1234.5  # the reference page never changes
     ecu.reset()
-    assert ecu.c.dkf[0].cfg.r[2] == 1234.5 and ecu.c.cfg.dkf[0].r[2] == 1234.5
+    assert ecu.c.app.drv.dkf[0].cfg.r[2] == 1234.5 and ecu.c.app.drv.cfg.dkf[0].r[2] == 1234.5
 
 
 def test_out_of_range_locked_and_reference_page_writes_are_refused_and_counted():
@@ -191,7 +195,7 @@ def test_out_of_range_locked_and_reference_page_writes_are_refused_and_counted()
     cro = Cro(ecu)
     assert cro(0xFF, 0)[0] == 0xFF
     a = torque_r(cro.desc)
-    before = ecu.c.dkf[0].cfg.r[2]
+    before = ecu.c.app.drv.dkf[0].cfg.r[2]
     assert cro.download(a, struct.pack("<d", 5.0)[:6])[:2] == bytes([ERR, ERR_ACCESS_LOCKED])
     cro.connect_unlocked()
     for bad in (-1.0, 2e9, float("nan")):  # below 1e-6, above 1e9, NaN: the A2L's limits
@@ -202,7 +206,7 @@ def test_out_of_range_locked_and_reference_page_writes_are_refused_and_counted()
         bytes([ERR, ERR_ACCESS_DENIED])
     for _ in range(3):
         ecu.step()
-    assert ecu.c.dkf[0].cfg.r[2] == before
+    assert ecu.c.app.drv.dkf[0].cfg.r[2] == before
     n = xcp_ecu.counters(ecu)
     assert n["err_locked"] == 1 and n["err_range"] == 3 and n["err_access"] == 2 and n["cal_commits"] == 0
 
@@ -219,7 +223,7 @@ def test_a_refused_value_written_in_two_downloads_leaves_no_byte_behind():
     assert cro.download(a, struct.pack("<d", -5.0))[:2] == bytes([ERR, ERR_OUT_OF_RANGE])
     for _ in range(250):  # past open_ticks: nothing is left open to commit
         ecu.step()
-    assert xcp_ecu.read(ecu, "cal.dkf[0].r", "work")[2] == 1.0e6 == ecu.c.dkf[0].cfg.r[2]
+    assert xcp_ecu.read(ecu, "cal.app.drv.dkf[0].r", "work")[2] == 1.0e6 == ecu.c.app.drv.dkf[0].cfg.r[2]
     assert xcp_ecu.counters(ecu)["cal_dropped"] == 0
 
 
@@ -229,10 +233,10 @@ def test_the_ecu_runs_on_the_reference_page_when_switched_to_it():
     cro.connect_unlocked()
     cro.download(torque_r(cro.desc), struct.pack("<d", 777.0))
     ecu.step()
-    assert ecu.c.dkf[0].cfg.r[2] == 777.0
+    assert ecu.c.app.drv.dkf[0].cfg.r[2] == 777.0
     assert cro(0xEB, 0x01, 0, 1)[0] == 0xFF   # SET_CAL_PAGE for the ECU: page 1
     ecu.step()
-    assert ecu.c.dkf[0].cfg.r[2] == xcp_ecu.read(ecu, "cal.dkf[0].r", "ref")[2]
+    assert ecu.c.app.drv.dkf[0].cfg.r[2] == xcp_ecu.read(ecu, "cal.app.drv.dkf[0].r", "ref")[2]
 
 
 def _estimates(session) -> np.ndarray:
@@ -246,10 +250,10 @@ def test_a_calibration_write_is_bit_exact_with_the_same_value_set_at_start():
     """Lockstep: the torque-sensor variance written through XCP before the drive gives the same
     estimate frames, bit for bit, as an ECU configured with that value; and not the default's."""
     drive = powertrain_car(load_driveline_scenario("launch_2nd"), 1.0)
-    value = 4.0 * Ecu().c.cfg.dkf[0].r[2]
-    cfg = EcuConfig.default()
-    started = Ecu(replace(cfg, dkf_t=replace(cfg.dkf_t, r=(cfg.dkf_t.r[0], cfg.dkf_t.r[1], value))))
-    assert started.c.cfg.dkf[0].r[2] == value
+    value = 4.0 * Ecu().c.app.drv.cfg.dkf[0].r[2]
+    part = EcuPart.default()
+    started = Ecu(EcuConfig(systems={"driveline": replace(part, dkf_t=replace(part.dkf_t, r=(*part.dkf_t.r[:2], value)))}))
+    assert started.c.app.drv.cfg.dkf[0].r[2] == value
     calibrated = Ecu()
     cro = Cro(calibrated)
     cro.connect_unlocked()
@@ -335,7 +339,8 @@ def test_daq_values_equal_what_the_ecu_publishes_on_its_estimate_frames():
     ecu = Ecu()
     cro = Cro(ecu)
     cro.connect_unlocked()
-    names = ["tick", "dkf[0].x[2]", "dkf[0].x[3]", "dkf[1].x[2]", "dkf[1].x[3]", "dkf[0].health", "dkf[1].health"]
+    names = ["tick", "app.drv.dkf[0].x[2]", "app.drv.dkf[0].x[3]", "app.drv.dkf[1].x[2]", "app.drv.dkf[1].x[3]",
+             "app.drv.dkf[0].health", "app.drv.dkf[1].health"]
     items = [cro.desc.item(n) for n in names]
     start_daq(cro, [items], event=0)
     first = ecu.tick  # the session runs on from here (the commands took ticks)
@@ -349,8 +354,9 @@ def test_daq_values_equal_what_the_ecu_publishes_on_its_estimate_frames():
     assert rows[0][0] == first - 1
     rows = rows[1:]
     assert len(rows) == len(session.truth) - 1  # one sample per tick, none lost
-    cols = {"dkf[0].x[2]": "DkfT_ShaftTorque", "dkf[0].x[3]": "DkfT_RoadLoadErr", "dkf[1].x[2]": "DkfS_ShaftTorque",
-            "dkf[1].x[3]": "DkfS_RoadLoadErr", "dkf[0].health": "DkfT_Health", "dkf[1].health": "DkfS_Health"}
+    cols = {"app.drv.dkf[0].x[2]": "DkfT_ShaftTorque", "app.drv.dkf[0].x[3]": "DkfT_RoadLoadErr",
+            "app.drv.dkf[1].x[2]": "DkfS_ShaftTorque", "app.drv.dkf[1].x[3]": "DkfS_RoadLoadErr",
+            "app.drv.dkf[0].health": "DkfT_Health", "app.drv.dkf[1].health": "DkfS_Health"}
     ticks = np.array([r[0] for r in rows]) - first  # the session's tick of each sample
     assert list(ticks) == list(range(len(rows)))
     moving = 0

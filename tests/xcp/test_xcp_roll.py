@@ -25,22 +25,24 @@ ACTIVE = "roll_paper_72kph_active"
 def test_roll_tuning_and_internals_are_described_by_their_c_names():
     desc = xcp_ecu.description()
     chars = {it.name for it in desc.characteristics}
-    assert {f"cal.roll.ukf.{m}" for m in ("q", "r", "p0", "reg_eps", "nis_max", "phi_max")} <= chars
-    assert {f"cal.roll.smc.{m}" for m in ("lambda", "k", "p", "ref_frac", "ref_tau", "ay_tau", "front_share",
+    assert {f"cal.app.roll.ukf.{m}" for m in ("q", "r", "p0", "reg_eps", "nis_max", "phi_max")} <= chars
+    assert {f"cal.app.roll.smc.{m}" for m in ("lambda", "k", "p", "ref_frac", "ref_tau", "ay_tau", "front_share",
                                           "m_max_f", "m_max_r", "rate_max_f", "rate_max_r", "fade_time",
                                           "recover_time", "not_ok_debounce")} <= chars
     meas = {it.name for it in desc.measurements}
-    assert {"roll.ukf.x[4]", "roll.ukf.x[5]", "roll.ukf.P[68]", "roll.ukf.P[255]", "roll.ukf.nu[13]",
-            "roll.ukf.health", "roll.ukf.resets", "roll.smc.m_f", "roll.smc.m_r", "roll.smc.s",
-            "roll.smc.fade", "roll.smc.health", "roll.cnt.crc_error", "roll.cnt.timeout"} <= meas
-    assert desc.item("cal.roll.smc.k").address - desc.calibration_address == ffi.offsetof("vh_ecu_cal_t", "roll", "smc", "k")
-    assert desc.item("roll.smc.m_f").address - desc.measurement_address == ffi.offsetof("vh_ecu_t", "roll", "smc", "m_f")
-    assert desc.item("cal.roll.ukf.r").shape == (lib.VH_ROLL_NZ,)
+    assert {"app.roll.ukf.x[4]", "app.roll.ukf.x[5]", "app.roll.ukf.P[68]", "app.roll.ukf.P[255]", "app.roll.ukf.nu[13]",
+            "app.roll.ukf.health", "app.roll.ukf.resets", "app.roll.smc.m_f", "app.roll.smc.m_r", "app.roll.smc.s",
+            "app.roll.smc.fade", "app.roll.smc.health", "app.roll.cnt.crc_error", "app.roll.cnt.timeout"} <= meas
+    assert desc.item("cal.app.roll.smc.k").address - desc.calibration_address == \
+        ffi.offsetof("vh_ecu_cal_t", "app", "roll", "smc", "k")
+    assert desc.item("app.roll.smc.m_f").address - desc.measurement_address == \
+        ffi.offsetof("vh_ecu_t", "app", "roll", "smc", "m_f")
+    assert desc.item("cal.app.roll.ukf.r").shape == (lib.VH_ROLL_NZ,)
     # the reference page is the configured tuning
     ecu = Ecu()
     xcp_ecu.enable(ecu, KEY)
-    assert xcp_ecu.read(ecu, "cal.roll.ukf.r", "ref") == list(ecu.c.cfg.roll.ukf.r)
-    assert xcp_ecu.read(ecu, "cal.roll.smc.k", "ref") == ecu.c.cfg.roll.smc.k == 5.0
+    assert xcp_ecu.read(ecu, "cal.app.roll.ukf.r", "ref") == list(ecu.c.app.roll.cfg.ukf.r)
+    assert xcp_ecu.read(ecu, "cal.app.roll.smc.k", "ref") == ecu.c.app.roll.cfg.smc.k == 5.0
 
 
 def _commands(session) -> np.ndarray:
@@ -56,9 +58,9 @@ def _started_with(**smc) -> Ecu:
     """An ECU configured (vh_ecu_init) with these controller values: the run to compare against."""
     ecu = Ecu()
     cfg = ffi.new("vh_ecu_config_t *")
-    cfg[0] = ecu.c.cfg
+    cfg[0] = ecu._c_config[0]
     for k, v in smc.items():
-        setattr(cfg.roll.smc, k, v)
+        setattr(cfg.app.roll.smc, k, v)
     check(lib.vh_ecu_init(ecu.c, cfg), "roll configuration")
     return ecu
 
@@ -66,13 +68,13 @@ def _started_with(**smc) -> Ecu:
 def test_a_roll_gain_written_over_xcp_commands_the_moment_a_start_with_it_would():
     """Lockstep: the switching gain k written through XCP gives the same VEHEST_RollCmd frames, bit
     for bit, as an ECU configured with it; and not the default's: the commanded moment changes."""
-    k = 4.0 * Ecu().c.cfg.roll.smc.k
+    k = 4.0 * Ecu().c.app.roll.cfg.smc.k
     started = _started_with(k=k)
     calibrated = Ecu()
     cro = Cro(calibrated)
     cro.connect_unlocked()
-    assert cro.download(cro.desc.item("cal.roll.smc.k").address, struct.pack("<d", k))[0] == 0xFF
-    assert calibrated.c.roll.smc.k == k == calibrated.c.cfg.roll.smc.k  # at the tick boundary, in both
+    assert cro.download(cro.desc.item("cal.app.roll.smc.k").address, struct.pack("<d", k))[0] == 0xFF
+    assert calibrated.c.app.roll.smc.k == k == calibrated.c.app.roll.cfg.smc.k  # at the tick boundary, in both
     calibrated.reset()  # the session's reset: the calibration stays
     a, b, default = (_commands(run_inprocess(RollCar(load_roll_scenario(ACTIVE)), e))
                      for e in (started, calibrated, Ecu()))
@@ -86,10 +88,10 @@ def test_a_roll_gain_written_over_xcp_commands_the_moment_a_start_with_it_would(
 
 
 @pytest.mark.parametrize("name, bad", [
-    ("cal.roll.smc.k", 0.0), ("cal.roll.smc.k", float("nan")), ("cal.roll.smc.lambda", -1.0),
-    ("cal.roll.smc.m_max_f", 5000.0),    # above the actuator's 4800 Nm
-    ("cal.roll.smc.rate_max_r", 15000.0),  # the fade could outrun the rate limit
-    ("cal.roll.smc.fade_time", 0.2), ("cal.roll.ukf.r", 0.0), ("cal.roll.ukf.q", float("inf")),
+    ("cal.app.roll.smc.k", 0.0), ("cal.app.roll.smc.k", float("nan")), ("cal.app.roll.smc.lambda", -1.0),
+    ("cal.app.roll.smc.m_max_f", 5000.0),    # above the actuator's 4800 Nm
+    ("cal.app.roll.smc.rate_max_r", 15000.0),  # the fade could outrun the rate limit
+    ("cal.app.roll.smc.fade_time", 0.2), ("cal.app.roll.ukf.r", 0.0), ("cal.app.roll.ukf.q", float("inf")),
 ])
 def test_out_of_range_roll_writes_are_refused_counted_and_never_reach_the_controller(name, bad):
     ecu = Ecu()
@@ -102,19 +104,19 @@ def test_out_of_range_roll_writes_are_refused_counted_and_never_reach_the_contro
         ecu.step()
     assert xcp_ecu.read(ecu, name) == before and xcp_ecu.read(ecu, name, "work") == before
     assert xcp_ecu.counters(ecu)["err_range"] == 1
-    assert lib.vh_roll_app_check(ffi.addressof(ecu.c.cfg, "roll")) == lib.VH_OK
+    assert lib.vh_roll_app_check(ffi.addressof(ecu.c.app.roll, "cfg")) == lib.VH_OK
 
 
 def test_a_stuck_check_cannot_be_switched_off_over_xcp():
     ecu = Ecu()
     cro = Cro(ecu)
     cro.connect_unlocked()
-    a = cro.desc.item("cal.roll.stuck_samples").address
+    a = cro.desc.item("cal.app.roll.stuck_samples").address
     for bad in (0, 1):
         assert cro.download(a, bytes([bad]))[:2] == bytes([ERR, ERR_OUT_OF_RANGE])
     assert cro.download(a, bytes([20]))[0] == 0xFF
     ecu.step()
-    assert ecu.c.cfg.roll.stuck_samples == 20
+    assert ecu.c.app.roll.cfg.stuck_samples == 20
 
 
 def test_every_roll_characteristic_at_its_limits_keeps_the_configuration_valid():
@@ -127,12 +129,12 @@ def test_every_roll_characteristic_at_its_limits_keeps_the_configuration_valid()
         cro.ecu, cro.desc, cro.other = ecu, xcp_ecu.description(), []
         cro.connect_unlocked()
         for it in cro.desc.characteristics:
-            if not it.name.startswith("cal.roll."):
+            if not it.name.startswith("cal.app.roll."):
                 continue
             raw = it.raw_limits()[corner]
             fmt = "<" + ("B" if it.ctype == "uint8_t" else "d") * it.count
             assert cro.download(it.address, struct.pack(fmt, *[int(raw) if it.ctype == "uint8_t" else raw] * it.count))[0] == 0xFF
         for _ in range(3):
             ecu.step()
-        assert ecu.c.cfg.roll.smc.m_max_f == (1.0, 4800.0)[corner]
-        assert lib.vh_roll_app_check(ffi.addressof(ecu.c.cfg, "roll")) == lib.VH_OK, corner
+        assert ecu.c.app.roll.cfg.smc.m_max_f == (1.0, 4800.0)[corner]
+        assert lib.vh_roll_app_check(ffi.addressof(ecu.c.app.roll, "cfg")) == lib.VH_OK, corner

@@ -13,7 +13,7 @@ from ..errors import ConfigError
 from ..service import sdnotify
 from ..service.daemon import EcuDaemon
 from ..service.hil import load_hil_config
-from ..systems.camber.api import load_calibrations
+from ..systems.camber.api import load_calibrations, load_into_ecu
 from ..systems.ecu import Ecu, EcuConfig
 from ..xcp import ecu as xcp_ecu
 from ._common import (
@@ -75,7 +75,7 @@ def run(args) -> int:
     sdnotify.apply_log_level(args.log_level)
     ecu = Ecu(replace(EcuConfig.default(), rx_burst_frames=args.rx_burst_limit))
     if args.camber_cal:
-        ecu.set_camber_calibrations(load_calibrations(args.camber_cal))
+        load_into_ecu(ecu, load_calibrations(args.camber_cal))
     xcp = xcp_ecu.from_args(args, ecu)
     xcp_config = xcp_ecu.bus_config(args, xcp)  # checked before any bus opens
     secoc = secoc_from_args(args, "VEHEST")

@@ -35,7 +35,7 @@ def add_subparser(subparsers) -> None:
     a.add_argument("-o", "--output", metavar="FILE", help="where (default: print it)")
     a.set_defaults(func=run_a2l)
     ls = sub.add_parser("list", help="list the measurements and characteristics")
-    ls.add_argument("pattern", nargs="?", default="*", help="shell pattern on the names, e.g. 'cal.dkf*'")
+    ls.add_argument("pattern", nargs="?", default="*", help="shell pattern on the names, e.g. 'cal.app.drv.dkf*'")
     ls.set_defaults(func=run_list)
     for name, hlp, func in (("get", "read items from the running ECU", run_get),
                             ("set", "write a characteristic of the running ECU and read it back", run_set),

@@ -52,6 +52,16 @@ class EcuEstimator(NamedTuple):
     heard: Callable[[Any], bool]
 
 
+class EcuCounters(NamedTuple):
+    """A set of fault counters a system's application keeps in the ECU beside the ECU's own
+    (VEHEST_Status): its name (e.g. the bus whose status frame carries them), the counter names
+    and how to read the C struct holding them from the ECU instance (``vh_ecu_t *``)."""
+
+    name: str
+    names: tuple[str, ...]
+    read: Callable[[Any], Any]
+
+
 class FaultStudy(Protocol):
     """How ``vehest-can faults`` reads a system's response: which node the faults hit, which frame holds
     its estimates and how to decode health, validity and the estimate from that frame's payload."""
@@ -95,6 +105,13 @@ class System(Protocol):
     nodes: tuple[str, ...]
     #: its estimators in the ECU (health, heard), for the daemon's summary and the session stats
     estimators: tuple[EcuEstimator, ...]
+    #: the counter sets its application keeps in the ECU (optional; none: it counts into the ECU's own)
+    ecu_counters: tuple[EcuCounters, ...]
+
+    def configure_ecu(self, app: Any, part: Any) -> None:
+        """(Optional.) Write its part of an :class:`~.ecu.EcuConfig` (``EcuConfig.systems[name]``; None: its
+        default) into its application's configuration in ``app`` (``vh_ecu_config_t.app``)."""
+        ...
 
     def scenario_dir(self) -> Path:
         """Where its shipped scenarios are (the demo runs every file there that it claims)."""
@@ -134,9 +151,13 @@ class Registration:
 
     kinds: tuple[str, ...] = ()
     estimators: tuple[EcuEstimator, ...] = ()
+    ecu_counters: tuple[EcuCounters, ...] = ()
 
     def claims(self, doc: dict) -> bool:
         return doc.get("kind") in self.kinds
+
+    def configure_ecu(self, app: Any, part: Any) -> None:
+        """By default its application keeps the C core's default configuration."""
 
     def setup(self, scenarios: list, out: Path) -> Setup:
         return Setup()

@@ -4,7 +4,7 @@ It holds every system's app, so it sits with the systems and takes their configu
 sessions below it (``sim.session.run_inprocess``) are handed an ECU rather than making one."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import can
@@ -12,18 +12,10 @@ import can
 from ..bus.frames import to_frame, to_message
 from ..errors import ConfigError
 from ..native import check, ffi, lib
-from .camber.api import WHEELS
-from .driveline.api import DkfConfig
-from .tireforce.api import SkfConfig
 
 COUNTERS = (
     "crc_error", "counter_repeat", "counter_skip", "dlc_error", "timeout", "unknown_id",
     "signal_invalid", "input_invalid", "filter_reset", "deadline_miss", "rx_burst", "secoc_reject",
-)
-#: the chassis side's own counters (VEHEST_ChassisStatus)
-CHASSIS_COUNTERS = (
-    "crc_error", "counter_repeat", "counter_skip", "dlc_error", "timeout", "signal_invalid",
-    "filter_reset", "rx_burst", "saturation",
 )
 HEALTH = {0: "INIT", 1: "OK", 2: "DEGRADED", 3: "FAULT"}
 #: a C counter read at least this often (steps, frames) cannot move 65536 between two reads
@@ -54,30 +46,33 @@ class WideCounters:
         return dict(self.totals)
 
 
+def _systems():
+    from . import registered
+
+    return registered()
+
+
 @dataclass
 class EcuConfig:
-    dkf_t: DkfConfig
-    dkf_s: DkfConfig
     #: more good frames of one message in a tick than this is a burst (stale samples of a draining
     #: queue), not used until the message is regular again; 0 switches the check off
     rx_burst_frames: int = 2
-    #: the tyre-force SKFMEC (seed 000) the ECU runs in fixed point; None: the C core's default
-    skf: SkfConfig | None = None
+    #: each system's part by its name, as its ``configure_ecu`` takes it; absent: its default
+    systems: dict[str, Any] = field(default_factory=dict)
 
     @classmethod
     def default(cls) -> EcuConfig:
-        return cls(DkfConfig.default("speeds+torque"), DkfConfig.default("speeds"))
+        return cls()
 
     def to_c(self):
         c = ffi.new("vh_ecu_config_t *")
         lib.vh_ecu_config_default(c)
-        self.dkf_t.to_c(ffi.addressof(c.dkf[lib.VH_ECU_DKF_T]))
-        self.dkf_s.to_c(ffi.addressof(c.dkf[lib.VH_ECU_DKF_S]))
         if not 0 <= self.rx_burst_frames <= 255:
             raise ConfigError(f"rx_burst_frames must be 0..255 (0 = off), got {self.rx_burst_frames}")
         c.rx_burst_frames = self.rx_burst_frames
-        if self.skf is not None:
-            self.skf.to_c(ffi.addressof(c, "skf"))
+        for s in _systems():
+            if hasattr(s, "configure_ecu"):  # optional: without it, the C core's default
+                s.configure_ecu(c.app, self.systems.get(s.name))
         return c
 
 
@@ -91,7 +86,11 @@ class Ecu:
         check(lib.vh_ecu_init(self.c, self._c_config), "ECU configuration")
         self._rx = ffi.new("vh_frame_t *")
         self._tx = ffi.new("vh_frame_t[]", lib.VH_ECU_MAX_TX)
-        self._wide = (WideCounters(lambda: self.c.cnt, COUNTERS), WideCounters(lambda: self.c.chs.cnt, CHASSIS_COUNTERS))
+        self._own = WideCounters(lambda: self.c.cnt, COUNTERS)
+        #: the counter sets the systems' applications keep (System.ecu_counters), by name
+        self._sets = {s.name: WideCounters(lambda read=s.read: read(self.c), s.names)
+                      for system in _systems() for s in getattr(system, "ecu_counters", ())}
+        self._wide = (self._own, *self._sets.values())
         self._steps = self._frames = 0
         self.secoc: Any = None  # SecOC off until enable_secoc (a vehest_can.bus.secoc.BusSecoc)
 
@@ -146,13 +145,6 @@ class Ecu:
     def step(self, timestamp: float = 0.0) -> list[can.Message]:
         return [to_message(f, timestamp) for f in self.step_frames()]
 
-    def set_camber_calibrations(self, calibrations: dict) -> None:
-        """Load inspection-device calibrations ({wheel: camber.Calibration}, e.g. from
-        camber.load_calibrations); they persist across ECU resets."""
-        for wheel, cal in calibrations.items():
-            check(lib.vh_ecu_set_camber_calibration(self.c, WHEELS.index(wheel), cal._to_c()),
-                  f"camber calibration of {wheel}")
-
     def note_deadline_miss(self, n: int = 1) -> None:
         while n > 0:  # a stall of more than 65535 ticks in pieces the wide total can follow
             lib.vh_ecu_note_deadline_miss(self.c, min(n, 0x7FFF))
@@ -165,7 +157,7 @@ class Ecu:
 
     def counters(self) -> dict[str, int]:
         """The powertrain side's fault counters since reset: true totals (the 16-bit C counters wrap)."""
-        return self._wide[0].poll()
+        return self._own.poll()
 
     def c_counters(self) -> dict[str, int]:
         """The 16-bit C counters as the bus carries them (VEHEST_Status): the totals modulo 65536."""
@@ -174,9 +166,7 @@ class Ecu:
     @staticmethod
     def estimators():
         """Every registered system's estimators (:class:`~vehest_can.systems.EcuEstimator`)."""
-        from . import registered
-
-        return [e for s in registered() for e in s.estimators]
+        return [e for s in _systems() for e in s.estimators]
 
     def heard(self) -> dict[str, bool]:
         """Whether each estimator's sensor frame has been received (a good CRC) since reset."""
@@ -189,6 +179,10 @@ class Ecu:
     def health(self) -> dict[str, str]:
         return {e.name: HEALTH[int(e.health(self.c))] for e in self.estimators()}
 
+    def system_counters(self, name: str) -> dict[str, int]:
+        """A system's counter set (:class:`~vehest_can.systems.EcuCounters`) since reset: true totals."""
+        return self._sets[name].poll()
+
     def chassis_counters(self) -> dict[str, int]:
-        """The chassis side's fault counters since reset: true totals."""
-        return self._wide[1].poll()
+        """The chassis bus's own counter set (VEHEST_ChassisStatus) since reset: true totals."""
+        return self.system_counters("chassis")

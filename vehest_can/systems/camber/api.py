@@ -569,3 +569,11 @@ __all__ = [
     "MeasureConfig", "Calibration", "Result", "calibrate", "measure", "measure_windows",
     "worst_case_error", "save_calibrations", "load_calibrations", "CamberNode",
 ]
+
+
+def load_into_ecu(ecu, calibrations: Mapping) -> None:
+    """Load inspection-device calibrations ({wheel: Calibration}, e.g. from load_calibrations) into an
+    ECU (:class:`~vehest_can.systems.ecu.Ecu`); they persist across ECU resets."""
+    for wheel, cal in calibrations.items():
+        check(lib.vh_camber_app_set_calibration(ffi.addressof(ecu.c.app, "camber"), WHEELS.index(wheel), cal._to_c()),
+              f"camber calibration of {wheel}")

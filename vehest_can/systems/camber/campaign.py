@@ -11,7 +11,7 @@ from ...sim.session import run_inprocess
 from .. import CampaignRunner
 from ..ecu import Ecu
 from . import inspection
-from .api import WHEELS
+from .api import WHEELS, load_into_ecu
 from .scenario import camber_scenario_from_dict
 
 FIXTURE_S = 6.0  # each calibration capture, as the demo's
@@ -23,7 +23,7 @@ def _run(scenario) -> dict:
         drive = powertrain_car(replace(scenario, camber=replace(scenario.camber, pose=pose)), FIXTURE_S)
         captures.append(inspection.capture_messages(run_inprocess(drive, Ecu()).messages()))
     ecu = Ecu()
-    ecu.set_camber_calibrations(inspection.calibrate_wheels(*captures))
+    load_into_ecu(ecu, inspection.calibrate_wheels(*captures))
     results = inspection.ecu_results(run_inprocess(powertrain_car(scenario), ecu).messages()) or {}
     nan = float("nan")
     out: dict = {}

@@ -10,7 +10,7 @@ from ...sim.session import run_inprocess
 from .. import Registration, Setup
 from ..ecu import Ecu
 from . import inspection
-from .api import WHEELS, Calibration, load_calibrations, save_calibrations
+from .api import WHEELS, Calibration, load_calibrations, load_into_ecu, save_calibrations
 from .campaign import CAMPAIGN
 from .scenario import KINDS, camber_scenario_dir, load_camber_scenario
 
@@ -34,7 +34,7 @@ class Camber(Registration):
             return Setup()
         cal_file = _calibrate_devices(scenarios[0], out)
         cals = load_calibrations(cal_file)
-        return Setup(["--camber-cal", str(cal_file)], lambda ecu: ecu.set_camber_calibrations(cals))
+        return Setup(["--camber-cal", str(cal_file)], lambda ecu: load_into_ecu(ecu, cals))
 
     def metrics(self, scenario, session, out_dir: Path, setup: Setup) -> dict:
         """The ECU's published camber beside the truth, and what it would be without calibration."""
@@ -42,7 +42,7 @@ class Camber(Registration):
         truth = {w: (sc.camber.theta_deg[i], sc.camber.psi_deg[i]) for i, w in enumerate(WHEELS)}
         results = inspection.ecu_results(session.messages())
         uncal_ecu = Ecu()
-        uncal_ecu.set_camber_calibrations({w: Calibration.identity(sc.camber.lsb_mg * 1e-3) for w in WHEELS})
+        load_into_ecu(uncal_ecu, {w: Calibration.identity(sc.camber.lsb_mg * 1e-3) for w in WHEELS})
         uncal = inspection.ecu_results(run_inprocess(powertrain_car(sc), uncal_ecu).messages())
         assert results is not None and uncal is not None, "the ECU published no camber"
         print(inspection.results_table(results, truth))

@@ -34,7 +34,7 @@ class RollFaults:
 
     def counters_of(self, ecu):
         """The roll application's own counters (the ECU's roll side)."""
-        return ecu.c.roll.cnt
+        return ecu.c.app.roll.cnt
 
     def _decoded(self, est: np.ndarray) -> dict[str, np.ndarray]:
         """VEHEST_RollEst's signals per tick (the payload held between frames; zeros before the first)."""

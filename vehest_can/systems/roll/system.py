@@ -22,7 +22,7 @@ class Roll(Registration):
     load = staticmethod(load_roll_scenario)
     car = staticmethod(RollCar)
     # the UKF's health is on the same scale (VH_ROLL_H_RESET is FAULT)
-    estimators = (EcuEstimator("roll_ukf", "ROLL_Sensors", lambda c: c.roll.ukf.health, lambda c: bool(c.roll.heard)),)
+    estimators = (EcuEstimator("roll_ukf", "ROLL_Sensors", lambda c: c.app.roll.ukf.health, lambda c: bool(c.app.roll.heard)),)
 
     def metrics(self, scenario, session, out_dir: Path, setup: Setup) -> dict:
         """Against the plant, from the bus: the ECU's float32 UKF estimates (VEHEST_RollEst), the

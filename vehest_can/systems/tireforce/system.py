@@ -5,14 +5,21 @@ from pathlib import Path
 
 import numpy as np
 
+from ...native import ffi
 from ...sim.report import decode
 from ...sim.veh14 import Veh14Car
-from .. import EcuEstimator, Registration, Setup
+from .. import EcuCounters, EcuEstimator, Registration, Setup
 from . import api as tf
 from . import report
 from .adaptive import AdaptiveFixed
 from .campaign import CAMPAIGN
 from .scenario import KINDS, load_tireforce_scenario, tireforce_scenario_dir
+
+#: the tyre-force application's own counters (VEHEST_ChassisStatus)
+CHASSIS_COUNTERS = (
+    "crc_error", "counter_repeat", "counter_skip", "dlc_error", "timeout", "signal_invalid",
+    "filter_reset", "rx_burst", "saturation",
+)
 
 
 class TireForce(Registration):
@@ -25,8 +32,14 @@ class TireForce(Registration):
     scenario_dir = staticmethod(tireforce_scenario_dir)
     load = staticmethod(load_tireforce_scenario)
     car = staticmethod(Veh14Car)
-    estimators = (EcuEstimator("skfmec_q", "CHS_Sensors", lambda c: c.chs.skf.health, lambda c: bool(c.chs.heard)),
-                  EcuEstimator("skfmec_a", "CHS_Sensors", lambda c: c.chs.tfa.health, lambda c: bool(c.chs.heard)))
+    estimators = (EcuEstimator("skfmec_q", "CHS_Sensors", lambda c: c.app.tf.skf.health, lambda c: bool(c.app.tf.heard)),
+                  EcuEstimator("skfmec_a", "CHS_Sensors", lambda c: c.app.tf.tfa.health, lambda c: bool(c.app.tf.heard)))
+    ecu_counters = (EcuCounters("chassis", CHASSIS_COUNTERS, lambda c: c.app.tf.cnt),)
+
+    def configure_ecu(self, app, part: tf.SkfConfig | None) -> None:
+        """Its part (``systems["tireforce"]``): the SKFMEC the ECU runs in fixed point; None: the C core's default."""
+        if part is not None:
+            part.to_c(ffi.addressof(app.tf, "skf"))
 
     def metrics(self, scenario, session, out_dir: Path, setup: Setup) -> dict:
         """Against the plant: the ECU's fixed-point estimates from the bus, and the double SKFMEC and
