@@ -37,6 +37,9 @@ size_t vh_car_tick(const vh_car_t *car, size_t k, vh_frame_t *out, size_t cap);
 void vh_car_rx(const vh_car_t *car, const vh_frame_t *f);
 const void *vh_car_truth(const vh_car_t *car);
 
+/* Ticks k0 .. k0+n-1 of the car alone, its frames dropped (what the car costs); returns their number. */
+size_t vh_car_run(const vh_car_t *car, size_t k0, size_t n);
+
 /* Ticks k0 .. k0+n-1 of car and ECU in lockstep. Per tick: car frames -> vh_ecu_rx -> vh_ecu_step
  * -> the ECU's frames to the car. truth (n * truth_size bytes) receives the car's truth of each
  * tick (NULL: not kept). Every frame on the bus, the car's then the ECU's, goes to frames[] with

@@ -20,6 +20,18 @@ const void *vh_car_truth(const vh_car_t *car)
     return car->truth(car->self);
 }
 
+size_t vh_car_run(const vh_car_t *car, size_t k0, size_t n)
+{
+    vh_frame_t buf[VH_CAR_MAX_TX];
+    const size_t max_car = car->max_tx < VH_CAR_MAX_TX ? car->max_tx : VH_CAR_MAX_TX;
+    size_t t, total = 0u;
+    for (t = 0; t < n; ++t) {
+        total += car->tick(car->self, k0 + t, buf, max_car);
+        (void)car->truth(car->self);
+    }
+    return total;
+}
+
 size_t vh_lockstep_run(const vh_car_t *car, vh_ecu_t *ecu, size_t k0, size_t n, void *truth, vh_frame_t *frames,
                        uint32_t *frame_tick, size_t cap)
 {

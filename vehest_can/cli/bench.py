@@ -3,8 +3,7 @@ from __future__ import annotations
 
 import json
 
-from ..sim.powertrain import powertrain_car
-from ..systems.driveline.scenario import driveline_scenario_dir, load_driveline_scenario
+from ..systems import load_any_scenario, shipped_scenarios
 from ..tools import bench, replay_bench
 from ._common import check_range
 
@@ -32,10 +31,11 @@ def run(args) -> int:
                 print(json.dumps({"replay": rep}, indent=2))
         return 0
     res = bench.run(quick=args.quick)
-    factors = {}
-    for path in sorted(driveline_scenario_dir().glob("*.toml")):
-        sc = load_driveline_scenario(path)
-        factors[sc.name] = bench.lockstep_factor(lambda sc=sc: powertrain_car(sc), repeats=1 if args.quick else 3)
+    factors = {}  # every shipped scenario of every system: (car alone, car + ECU in lockstep)
+    for path in shipped_scenarios():
+        system, sc = load_any_scenario(path)
+        factors[f"{system.name} {sc.name}"] = bench.lockstep_factors(lambda s=system, sc=sc: s.car(sc),
+                                                                     repeats=1 if args.quick else 3)
     print(bench.table(res, factors))
     if rep:
         print(replay_bench.table(rep))
