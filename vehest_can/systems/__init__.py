@@ -92,7 +92,7 @@ class CampaignRunner:
 class System(Protocol):
     #: the one name: folder, docs page, tests folder, plot folder
     name: str
-    #: scenario ``kind`` values it reads; the first is its own, the rest old names kept as aliases
+    #: the scenario ``kind`` values it reads
     kinds: tuple[str, ...]
     #: its car runs on the wall clock (``demo --realtime``)
     realtime: bool
@@ -127,8 +127,7 @@ class System(Protocol):
 
     def car(self, scenario: Any, duration_s: float | None = None) -> Any:
         """A fresh car for the scenario, its whole duration unless `duration_s` is given: a
-        :class:`~vehest_can.sim.session.Drive` or any object with the car interface, for
-        :func:`~vehest_can.sim.session.run_inprocess` and ``SimMaster``."""
+        :class:`~vehest_can.sim.car.Car`, for :func:`~vehest_can.sim.session.run_inprocess` and ``SimMaster``."""
         ...
 
     def setup(self, scenarios: list, out: Path) -> Setup:

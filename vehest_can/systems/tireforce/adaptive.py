@@ -638,7 +638,7 @@ class AdaptiveSkfmec:
                            mu=mu, road_mu=road)
 
 
-STRESS_DIR = "stress"  # firmware_sim/scenarios/chassis/stress/: scenarios of SKFMEC-A, not in any tuning
+STRESS_DIR = "stress"  # firmware_sim/scenarios/tireforce/stress/: scenarios of SKFMEC-A, not in any tuning
 
 
 def _ride(ride, n: int) -> np.ndarray | None:
