@@ -33,6 +33,9 @@ typedef struct {
     size_t max_tx; /* <= VH_CAR_MAX_TX */
 } vh_car_t;
 
+/* A car's interface filled in (what each car's own vh_*_car calls). */
+void vh_car_init(vh_car_t *car, void *self, size_t (*tick)(void *, size_t, vh_frame_t *, size_t),
+                 void (*rx)(void *, const vh_frame_t *), const void *(*truth)(void *), size_t truth_size, size_t max_tx);
 size_t vh_car_tick(const vh_car_t *car, size_t k, vh_frame_t *out, size_t cap);
 void vh_car_rx(const vh_car_t *car, const vh_frame_t *f);
 const void *vh_car_truth(const vh_car_t *car);

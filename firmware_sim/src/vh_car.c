@@ -3,6 +3,17 @@
 
 #include "vh_car.h"
 
+void vh_car_init(vh_car_t *car, void *self, size_t (*tick)(void *, size_t, vh_frame_t *, size_t),
+                 void (*rx)(void *, const vh_frame_t *), const void *(*truth)(void *), size_t truth_size, size_t max_tx)
+{
+    car->self = self;
+    car->tick = tick;
+    car->rx = rx;
+    car->truth = truth;
+    car->truth_size = truth_size;
+    car->max_tx = max_tx;
+}
+
 size_t vh_car_tick(const vh_car_t *car, size_t k, vh_frame_t *out, size_t cap)
 {
     return car->tick(car->self, k, out, cap);

@@ -118,10 +118,5 @@ void vh_dlsim_car(vh_dlsim_t *sim, const double *throttle, const uint8_t *gear, 
     sim->throttle = throttle;
     sim->gear = gear;
     sim->n = n;
-    memset(car, 0, sizeof *car);
-    car->self = sim;
-    car->tick = car_tick;
-    car->truth = car_truth;
-    car->truth_size = sizeof sim->plant.truth;
-    car->max_tx = VH_DLSIM_MAX_TX;
+    vh_car_init(car, sim, car_tick, NULL, car_truth, sizeof sim->plant.truth, VH_DLSIM_MAX_TX);
 }

@@ -89,11 +89,5 @@ void vh_v14car_car(vh_v14car_t *car, const vh_v14_input_t *in, const uint8_t *mo
     car->in = in;
     car->mode_active = mode_active;
     car->n = n;
-    memset(out, 0, sizeof *out);
-    out->self = car;
-    out->tick = car_tick;
-    out->rx = car->roll_on ? car_rx : NULL;
-    out->truth = car_truth;
-    out->truth_size = sizeof car->truth;
-    out->max_tx = VH_V14CAR_MAX_TX;
+    vh_car_init(out, car, car_tick, car->roll_on ? car_rx : NULL, car_truth, sizeof car->truth, VH_V14CAR_MAX_TX);
 }

@@ -157,6 +157,27 @@ def load_shipped(shipped: ShippedSet, name_or_path: str | Path, from_dict: Calla
     return from_dict(read_toml(path), path)
 
 
+@dataclass(frozen=True)
+class Kind:
+    """A system's scenario kind: its shipped folder (``firmware_sim/scenarios/<kind>/``, or the
+    package's ``scenarios/<kind>/``) and the reader of its documents, ``read(doc, path, kind)``."""
+
+    kind: str
+    read: Callable[[dict, Path, str], Any]
+
+    @property
+    def shipped(self) -> ShippedSet:
+        return ShippedSet(f"scenarios/{self.kind}", f"firmware_sim/scenarios/{self.kind}")
+
+    def from_dict(self, doc: dict, path: str | Path = "<scenario>") -> Any:
+        """Validate an already parsed TOML document (``path`` only names it in errors)."""
+        return self.read(doc, Path(path), self.kind)
+
+    def load(self, path: str | Path) -> Any:
+        """Load and validate one scenario of this kind (a path, or the name of a shipped one)."""
+        return load_shipped(self.shipped, path, self.from_dict)
+
+
 def set_channels(cfg, values, table: dict[str, tuple]) -> None:
     """A sensor node's per-channel settings: each (key, value) of `values` into the channels of the
     cfg array that ``table[key]`` names, ``(array, channels, range)``."""
@@ -179,5 +200,5 @@ def kind_checker(doc, path: str | Path, kinds: tuple[str, ...], expected: str, m
     return c
 
 
-__all__ = ["DT", "SCENARIO_TOP", "ScenarioBase", "derived_seed", "scenario_top", "load_shipped", "set_channels",
+__all__ = ["DT", "SCENARIO_TOP", "ScenarioBase", "Kind", "derived_seed", "scenario_top", "load_shipped", "set_channels",
            "kind_checker"]

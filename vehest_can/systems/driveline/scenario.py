@@ -3,27 +3,14 @@
 ``docs/scenarios.md``. Shipped ones live in ``firmware_sim/scenarios/driveline/``."""
 from __future__ import annotations
 
-from pathlib import Path
+from ...sim.powertrain import powertrain_scenario_from_dict
+from ...sim.scenario import Kind
 
-from ...paths import ShippedSet
-from ...sim.powertrain import PowertrainScenario, powertrain_scenario_from_dict
-from ...sim.scenario import load_shipped
+KIND = Kind("driveline", powertrain_scenario_from_dict)
+KINDS = (KIND.kind,)
+_SHIPPED = KIND.shipped
+driveline_scenario_dir, list_driveline_scenarios, driveline_scenario_path = _SHIPPED.dir, _SHIPPED.names, _SHIPPED.path
+driveline_scenario_from_dict, load_driveline_scenario = KIND.from_dict, KIND.load
 
-KINDS = ("driveline",)
-
-SCENARIOS = ShippedSet("scenarios/driveline", "firmware_sim/scenarios/driveline")
-driveline_scenario_dir, list_driveline_scenarios, driveline_scenario_path = SCENARIOS.dir, SCENARIOS.names, SCENARIOS.path
-
-
-def driveline_scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> PowertrainScenario:
-    """Validate an already parsed TOML document (``path`` only names it in errors)."""
-    return powertrain_scenario_from_dict(doc, path, KINDS[0])
-
-
-def load_driveline_scenario(path: str | Path) -> PowertrainScenario:
-    """Load and validate one driveline scenario (a path, or the name of a shipped one)."""
-    return load_shipped(SCENARIOS, path, driveline_scenario_from_dict)
-
-
-__all__ = ["KINDS", "load_driveline_scenario", "driveline_scenario_from_dict", "driveline_scenario_dir",
+__all__ = ["KIND", "KINDS", "load_driveline_scenario", "driveline_scenario_from_dict", "driveline_scenario_dir",
            "driveline_scenario_path", "list_driveline_scenarios"]
