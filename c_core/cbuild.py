@@ -1,5 +1,5 @@
-"""The one owner of how C is built here (``vehest_build.py``, the tests and tools that compile the
-firmware): the C compiler, the strict flags and the optimisation level, compiling sources with
+"""The one owner of how C is built here (``vehest_build.py``; the tests and tools that compile the
+firmware take its flags through it): the C compiler, the strict flags and the optimisation level, compiling sources with
 them apart from cffi's glue (which -pedantic rejects), a public header as cffi declarations, and
 how to link OpenSSL's libcrypto (the host's AES backend, vh_aes128_host.c). Importing it compiles
 nothing."""
@@ -12,7 +12,6 @@ import shlex
 import subprocess
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
 STRICT_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
 # -O3: lets the compiler vectorise the 4x4 products of the filter step (~25% faster than -O2); no
 # -ffast-math and no FMA contraction on plain x86-64, so every build gives the same numbers
