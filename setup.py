@@ -1,16 +1,14 @@
-"""Only what pyproject.toml cannot say yet: the cffi modules and shipping the DBC files."""
+"""Only what pyproject.toml cannot say yet: the C extension and shipping the DBC files."""
+import atexit
 import importlib.util
 import shutil
+import sys
+import tempfile
 from pathlib import Path
 
-from setuptools import setup
+from setuptools import Extension, setup
 from setuptools.command.build_ext import build_ext
 from setuptools.command.build_py import build_py
-
-#: the cffi build scripts: each names its builder (make_ffi, which compiles nothing) and compiles its
-#: objects (compile_objects) when build_ext runs, so a pip install compiles the C once
-BUILD_SCRIPTS = ["c_core/vehest_build.py", "c_core/roll/roll_build.py", "c_core/xcp/xcp_build.py",
-                 "c_core/secoc/secoc_build.py"]
 
 DATA = {"dbc": ("dbc", "*.dbc"),
         **{f"scenarios/{s}": (f"firmware_sim/scenarios/{s}", "*.toml") for s in ("driveline", "camber", "tireforce", "roll")},
@@ -31,21 +29,32 @@ class BuildPyWithData(build_py):
 
 
 class BuildExtCompilingC(build_ext):
-    """Compile the build scripts' objects (with the strict flags, apart from cffi's glue), then the
-    extensions that link them."""
+    """vehest_can._native: c_core/vehest_build.py generates the codec and compiles every source once
+    with the strict flags, all in build_temp; then cffi's glue is written there and build_ext
+    compiles it and links. Nothing is written into the source tree."""
 
     def run(self):
-        for i, path in enumerate(BUILD_SCRIPTS):
-            spec = importlib.util.spec_from_file_location(f"_vehest_build_script_{i}", path)
-            module = importlib.util.module_from_spec(spec)
-            spec.loader.exec_module(module)
-            module.compile_objects()
+        sys.dont_write_bytecode = True  # no __pycache__ of the build scripts in c_core/
+        spec = importlib.util.spec_from_file_location("vehest_build", "c_core/vehest_build.py")
+        vehest_build = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(vehest_build)
+        built = vehest_build.make_ffi(Path(self.build_temp).resolve()).distutils_extension(self.build_temp)
+        (ext,) = self.extensions
+        for attr in ("sources", "include_dirs", "extra_objects", "libraries", "extra_link_args"):
+            setattr(ext, attr, getattr(built, attr))
         super().run()
 
 
+#: pip builds in the checkout: setuptools' working folders (build/, the .egg-info) go to a temporary
+#: directory instead, removed when the build ends, so an install writes nothing into the source tree
+WORK = tempfile.mkdtemp(prefix="vehest-can-build-")
+atexit.register(shutil.rmtree, WORK, ignore_errors=True)
+
 setup(
-    cffi_modules=[f"{path}:make_ffi" for path in BUILD_SCRIPTS],
+    # sources and link arguments filled in by BuildExtCompilingC; only the stable ABI (cffi's default):
+    # one wheel for CPython 3.11 and later
+    ext_modules=[Extension("vehest_can._native", sources=[], py_limited_api=True)],
     cmdclass={"build_py": BuildPyWithData, "build_ext": BuildExtCompilingC},
-    # The extension uses only the stable ABI (cffi's default): one wheel for CPython 3.11 and later.
-    options={"bdist_wheel": {"py_limited_api": "cp311"}},
+    options={"build": {"build_base": f"{WORK}/build"}, "egg_info": {"egg_base": WORK},
+             "bdist_wheel": {"py_limited_api": "cp311"}},
 )

@@ -1,9 +1,8 @@
-"""What the cffi build scripts share (``vehest_build.py`` and the standalone extensions in
-``xcp/``, ``secoc/``, ``roll/``), each in one place: the C compiler, the strict flags and the
-optimisation level, compiling sources with them apart from cffi's glue (which -pedantic rejects),
-a public header as cffi declarations, the builder of a standalone extension, and how to link
-OpenSSL's libcrypto (the host's AES backend, vh_aes128_host.c). Importing a build script compiles
-nothing: setup.py calls its ``make_ffi``."""
+"""The one owner of how C is built here (``vehest_build.py``; the tests and tools that compile the
+firmware take its flags through it): the C compiler, the strict flags and the optimisation level, compiling sources with
+them apart from cffi's glue (which -pedantic rejects), a public header as cffi declarations, and
+how to link OpenSSL's libcrypto (the host's AES backend, vh_aes128_host.c). Importing it compiles
+nothing."""
 from __future__ import annotations
 
 import ctypes.util
@@ -12,9 +11,7 @@ import re
 import shlex
 import subprocess
 from pathlib import Path
-from typing import Any
 
-ROOT = Path(__file__).resolve().parent.parent
 STRICT_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
 # -O3: lets the compiler vectorise the 4x4 products of the filter step (~25% faster than -O2); no
 # -ffast-math and no FMA contraction on plain x86-64, so every build gives the same numbers
@@ -97,33 +94,16 @@ def headers_cdef(headers: list[Path]) -> str:
 
 
 def compile_strict(sources: list[Path], include_dirs: list[Path], out_dir: Path,
-                   flags: list[str] | None = None, extra_flags: list[str] | None = None, *,
-                   dry: bool = False) -> list[str]:
-    """Object files of ``sources`` built with ``flags`` (default: the strict flags and OPT_FLAGS);
-    ``dry``: their names only, nothing compiled (a build script's ``make_ffi`` names the objects,
-    setup.py's build_ext compiles them once)."""
+                   extra_flags: list[str] | None = None) -> list[str]:
+    """Object files of ``sources`` built with the strict flags and OPT_FLAGS (and ``extra_flags``)
+    by the compiler Python's extensions are built with (``$CC`` honoured)."""
     from setuptools._distutils.ccompiler import new_compiler
     from setuptools._distutils.sysconfig import customize_compiler
 
     compiler = new_compiler()
     customize_compiler(compiler)
-    if dry:
-        return compiler.object_filenames([str(s) for s in sources], output_dir=str(out_dir))
     return compiler.compile([str(s) for s in sources], output_dir=str(out_dir), include_dirs=[str(d) for d in include_dirs],
-                            extra_postargs=(flags or STRICT_FLAGS + OPT_FLAGS) + ["-fPIC"] + (extra_flags or []))
-
-
-def extension(module: str, header: Path, cdef: str, objects: list[str], **link: Any) -> Any:
-    """The cffi builder of a standalone extension: ``cdef`` declared, its glue including ``header``
-    (from the header's folder), linked with ``objects`` (built by compile_strict) and ``link``
-    (``set_source``'s link arguments)."""
-    from cffi import FFI
-
-    ffi = FFI()
-    ffi.cdef(cdef)
-    ffi.set_source(module, f'#include "{header.name}"', include_dirs=[str(header.parent)],
-                   extra_objects=objects, **link)
-    return ffi
+                            extra_postargs=STRICT_FLAGS + OPT_FLAGS + ["-fPIC"] + (extra_flags or []))
 
 
 def libcrypto() -> str:

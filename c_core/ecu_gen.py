@@ -29,6 +29,7 @@ import importlib.util
 import json
 import re
 import sys
+import tempfile
 import tomllib
 import types
 from pathlib import Path
@@ -155,7 +156,8 @@ def xcp_outputs(toml: Path = TOML) -> dict[Path, str]:
 
     ecu_desc = _ecu_desc()
     ffi = FFI()
-    ffi.cdef(vehest_build.cdef_text())
+    with tempfile.TemporaryDirectory() as gen:  # the codec's headers, generated for this only
+        ffi.cdef(vehest_build.cdef_text(Path(gen)))
     desc = ecu_desc.describe(ffi, toml)
     return ecu_desc.outputs(desc, toml)
 

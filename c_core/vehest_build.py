@@ -1,14 +1,18 @@
 """cffi build script (out-of-line API mode) for ``vehest_can._native``.
 
 One extension holds the ECU firmware (``c_core/<folder>/``: ``common``, one folder per system,
-``ecu``), the simulated car and sensor nodes (``firmware_sim/src``) and the codec generated from
-``dbc/`` at build time. Two include paths keep the boundary: the firmware and the codec compile
-with the firmware folders only, so a firmware source that includes a simulator header does not
-build; the simulator compiles with both. Sharing one extension lets the C lockstep harness pass
-instances between plant and ECU without copies.
+``xcp``, ``secoc``, ``ecu``), the simulated car and sensor nodes (``firmware_sim/src``) and the
+codec generated from ``dbc/`` at build time; the XCP slave, SecOC and the roll filter (float32 and
+double) are used from Python through it too, so every source is compiled once. Two include paths
+keep the boundary: the firmware and the codec compile with the firmware folders only, so a firmware
+source that includes a simulator header does not build; the simulator compiles with both. Sharing
+one extension lets the C lockstep harness pass instances between plant and ECU without copies.
 
 The cdef is generated from the public headers themselves (``cbuild.cdef_of``). Nothing is written
-twice.
+twice. Importing this compiles and generates nothing; setup.py's build_ext calls ``make_ffi`` with
+its temporary directory, the only place the build writes to. The build does not import
+``vehest_can``: the app list and XCP limit table it compiles (``c_core/ecu/``) are the committed
+copies that ``c_core/ecu_gen.py`` writes from the systems' descriptors (a test holds them current).
 """
 from __future__ import annotations
 
@@ -26,7 +30,6 @@ from cbuild import OPT_FLAGS, STRICT_FLAGS, cdef_of, compile_strict, header_cdef
 
 _INCLUDE = re.compile(r'^#include\s+"([^"]+)"', re.M)
 
-GEN_DIR = ROOT / "build" / "generated"
 #: the systems of the firmware, one folder each (sources, headers, the system's ECU application)
 SYSTEMS = ("driveline", "tireforce", "camber", "roll")
 #: every folder of the firmware: what it shares, the systems, the XCP slave, SecOC, the scheduler
@@ -40,12 +43,12 @@ SIM_INCLUDE_DIR = ROOT / "firmware_sim" / "include"
 HOST_ONLY_GLOB = "*_host.c"
 
 
-def firmware_include_dirs(gen_dir: Path = GEN_DIR) -> list[Path]:
+def firmware_include_dirs(gen_dir: Path) -> list[Path]:
     """The include path of a firmware build: the firmware folders and the generated codec."""
     return [*FIRMWARE_DIRS, gen_dir]
 
 
-def sim_include_dirs(gen_dir: Path = GEN_DIR) -> list[Path]:
+def sim_include_dirs(gen_dir: Path) -> list[Path]:
     """The include path of the simulator, and of the benches and test drivers that run it (the
     one declared way from ``c_core/bench`` and ``tests/c`` into ``firmware_sim``)."""
     return [*FIRMWARE_DIRS, SIM_INCLUDE_DIR, gen_dir]
@@ -63,19 +66,19 @@ def firmware_path(name: str) -> Path:
     raise FileNotFoundError(name)
 
 
-def ecu_sources(gen_dir: Path = GEN_DIR, host: bool = True) -> list[Path]:
+def ecu_sources(gen_dir: Path, host: bool = True) -> list[Path]:
     """The firmware's C sources (host-only helpers unless host=False), without the codec."""
     srcs = [p for d in FIRMWARE_DIRS for p in sorted(d.glob("*.c"))]
     return srcs if host else [p for p in srcs if not p.match(HOST_ONLY_GLOB)]
 
 
-def firmware_sources(gen_dir: Path = GEN_DIR) -> list[Path]:
+def firmware_sources(gen_dir: Path) -> list[Path]:
     """Every C source of the extension, generated codec included (after generating it)."""
     names = dbcgen.generate_all(gen_dir)
     return ecu_sources(gen_dir) + sorted(SIM_SRC_DIR.glob("*.c")) + [gen_dir / f"{n}.c" for n in names]
 
 
-def public_headers(gen_dir: Path = GEN_DIR) -> list[Path]:
+def public_headers(gen_dir: Path) -> list[Path]:
     """Every public header of the extension, each after the headers it includes."""
     by_name = {p.name: p for d in (*FIRMWARE_DIRS, SIM_INCLUDE_DIR) for p in sorted(d.glob("*.h"))}
     by_name.update({p.name: p for p in sorted(gen_dir.glob("vh_*_enc.h")) + sorted(gen_dir.glob("vh_*_q.h"))
@@ -96,68 +99,49 @@ def public_headers(gen_dir: Path = GEN_DIR) -> list[Path]:
     return order
 
 
-def cdef_text(gen_dir: Path = GEN_DIR) -> str:
+def cdef_text(gen_dir: Path) -> str:
     dbcgen.generate_all(gen_dir)
     parts = [p.read_text() for p in sorted(gen_dir.glob("*.cdef"))]  # the generated codec
     parts += [f"/* {p.name} */\n" + cdef_of(p) for p in public_headers(gen_dir)]
     return "\n".join(parts)
 
 
-def include_text(gen_dir: Path = GEN_DIR) -> str:
+def include_text(gen_dir: Path) -> str:
     headers = [p.name for p in public_headers(gen_dir)]
     headers += [p.name for p in sorted(gen_dir.glob("vh_*.h"))
                 if p.name not in headers and "_meta" not in p.name and p.name != "vh_secoc_table.h"]
     return "\n".join(f'#include "{h}"' for h in headers)
 
 
-def xcp_generate(gen_dir: Path = GEN_DIR):
-    """The ECU's XCP limit table (c_core/ecu/vh_ecu_xcp_table.inc), A2L and XCP-bus DBC
-    (vehest_can/xcp/) from vehest_can/xcp/ecu.toml, laid out by the structs of the headers
-    (cffi's layout, which the compiled extension is checked against). Written into the source
-    tree only when they change; tests/xcp/test_xcp_ecu.py regenerates them and compares."""
-    sys.path.insert(0, str(ROOT))
-    from vehest_can.xcp import ecu_desc
-
-    ffi = FFI()
-    ffi.cdef(cdef_text(gen_dir))
-    return ecu_desc.generate(ffi)
-
-
-def compile_objects(out_dir: Path = ROOT / "build" / "obj", extra_flags: list[str] | None = None,
-                    gen_dir: Path = GEN_DIR, *, dry: bool = False) -> list[str]:
-    """Compile every source with the strict flags; returns the object files (``dry``: their names,
-    nothing compiled or generated).
+def compile_objects(out_dir: Path, gen_dir: Path, extra_flags: list[str] | None = None) -> list[str]:
+    """Compile every source with the strict flags (the codec generated into ``gen_dir``); returns
+    the object files.
 
     The firmware and the codec see only the firmware's include path; the simulator sees both.
     The firmware is compiled here, apart from cffi's own glue: the glue casts object pointers
     to function pointers, which ``-pedantic`` rejects, and it is not our code to hold to C99.
     """
-    if not dry:
-        xcp_generate(gen_dir)  # vh_ecu_xcp.c includes the limit table
     srcs = firmware_sources(gen_dir)
     sim = [s for s in srcs if s.parent == SIM_SRC_DIR]
     fw = [s for s in srcs if s.parent != SIM_SRC_DIR]
-    return (compile_strict(fw, firmware_include_dirs(gen_dir), out_dir / "firmware", extra_flags=extra_flags, dry=dry)
-            + compile_strict(sim, sim_include_dirs(gen_dir), out_dir / "sim", extra_flags=extra_flags, dry=dry))
+    return (compile_strict(fw, firmware_include_dirs(gen_dir), out_dir / "firmware", extra_flags)
+            + compile_strict(sim, sim_include_dirs(gen_dir), out_dir / "sim", extra_flags))
 
 
-def make_ffi() -> FFI:
-    """The builder of ``vehest_can._native``; its objects are compile_objects' (setup.py's build_ext
-    compiles them first; this compiles nothing)."""
-    objects = compile_objects(dry=True)
+def make_ffi(build_dir: Path) -> FFI:
+    """The builder of ``vehest_can._native``, everything it needs made under ``build_dir`` (the
+    build's temporary directory): the codec in ``generated/``, every source compiled once into
+    ``obj/``; cffi's glue, compiled by the caller, links those objects."""
+    gen_dir = build_dir / "generated"
+    objects = compile_objects(build_dir / "obj", gen_dir)
     ffi = FFI()
-    ffi.cdef(cdef_text())
+    ffi.cdef(cdef_text(gen_dir))
     ffi.set_source(
         "vehest_can._native",
-        include_text(),
-        include_dirs=[str(d) for d in sim_include_dirs()],
+        include_text(gen_dir),
+        include_dirs=[str(d) for d in sim_include_dirs(gen_dir)],
         extra_objects=objects,
         libraries=["m"],
         extra_link_args=LINK_FLAGS[1:],
     )
     return ffi
-
-
-if __name__ == "__main__":
-    compile_objects()
-    make_ffi().compile(tmpdir=str(ROOT / "build" / "cffi"), verbose=True)

@@ -90,8 +90,8 @@ def test_strict_flags_reject_a_warning(tmp_path):
 
 @pytest.mark.rebuild
 def test_firmware_compiles_with_the_strict_flags(tmp_path):
-    objs = vehest_build.compile_objects(tmp_path / "obj")
-    assert len(objs) == len(vehest_build.firmware_sources())
+    objs = vehest_build.compile_objects(tmp_path / "obj", tmp_path / "generated")
+    assert len(objs) == len(vehest_build.firmware_sources(tmp_path / "generated"))
     assert all(Path(o).exists() for o in objs)
 
 

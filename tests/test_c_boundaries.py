@@ -105,13 +105,13 @@ def test_the_check_catches_a_hand_written_scale():
     assert not HAND_ENCODER.search("mm = floor(ldexp(fr, 31) + 0.5);")
 
 
-def test_firmware_folders_include_no_simulator_header():
+def test_firmware_folders_include_no_simulator_header(tmp_path):
     """Every firmware folder, not only one: no #include of a firmware_sim header."""
     pat = re.compile(r'#include\s+"(' + "|".join(map(re.escape, SIM_HEADERS)) + ')"')
     for d in vehest_build.FIRMWARE_DIRS:
         for src in sorted(d.glob("*.[ch]")):
             assert not pat.search(src.read_text()), src
-    assert set(vehest_build.firmware_include_dirs()).isdisjoint({vehest_build.SIM_INCLUDE_DIR})
+    assert set(vehest_build.firmware_include_dirs(tmp_path)).isdisjoint({vehest_build.SIM_INCLUDE_DIR})
 
 
 @pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
@@ -135,10 +135,10 @@ def test_the_firmware_build_cannot_see_simulator_headers(tmp_path):
     assert cc(bad, vehest_build.sim_include_dirs(gen)).returncode == 0
 
 
-def test_bench_reaches_the_simulator_only_through_its_declared_path():
+def test_bench_reaches_the_simulator_only_through_its_declared_path(tmp_path):
     """c_core/bench includes simulator headers by name (never a relative path into firmware_sim),
     so it builds only with vehest_build.bench_include_dirs; the firmware folders never do."""
-    assert vehest_build.SIM_INCLUDE_DIR in vehest_build.bench_include_dirs()
+    assert vehest_build.SIM_INCLUDE_DIR in vehest_build.bench_include_dirs(tmp_path)
     for src in sorted((ROOT / "c_core" / "bench").glob("*.[ch]")):
         code = src.read_text()
         assert "firmware_sim" not in re.sub(r"/\*.*?\*/", "", code, flags=re.S), src

@@ -4,6 +4,9 @@
 #include <stddef.h>
 #include <stdint.h>
 
+/* single precision only, whichever build compiles this file (the extension, a target, the tests) */
+#pragma GCC diagnostic error "-Wdouble-promotion"
+
 #include "vh_roll.h"
 
 #define VH_ROLL_REAL float

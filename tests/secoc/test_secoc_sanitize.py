@@ -1,5 +1,5 @@
 """The SecOC C under AddressSanitizer + UndefinedBehaviorSanitizer (float-cast-overflow included),
-and its cffi build script."""
+and its cffi declarations."""
 import shutil
 import subprocess
 import sys
@@ -10,8 +10,10 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 SECOC = ROOT / "c_core" / "secoc"
-sys.path.insert(0, str(SECOC))
-import secoc_build  # noqa: E402
+sys.path.insert(0, str(ROOT / "c_core"))
+from cbuild import STRICT_FLAGS, headers_cdef, libcrypto  # noqa: E402
+
+SOURCES = [SECOC / "vh_cmac.c", SECOC / "vh_secoc.c", SECOC / "vh_aes128_host.c"]
 
 pytestmark = pytest.mark.rebuild
 
@@ -22,10 +24,10 @@ SAN = ["-fsanitize=address,undefined,float-cast-overflow", "-fno-sanitize-recove
 @pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
 def test_secoc_under_asan_ubsan_with_hostile_frames(tmp_path):
     exe = tmp_path / "sanitize_secoc"
-    build = subprocess.run(["cc", *secoc_build.STRICT_FLAGS, *SAN, f"-I{SECOC}",
-                            *[str(s) for s in secoc_build.SOURCES],
+    build = subprocess.run(["cc", *STRICT_FLAGS, *SAN, f"-I{SECOC}",
+                            *[str(s) for s in SOURCES],
                             str(Path(__file__).with_name("c") / "sanitize_secoc.c"),
-                            secoc_build.libcrypto(), "-o", str(exe)], capture_output=True, text=True)
+                            libcrypto(), "-o", str(exe)], capture_output=True, text=True)
     assert build.returncode == 0, build.stderr
     run = subprocess.run([str(exe), "100000"], capture_output=True, text=True, timeout=600,
                          env={"ASAN_OPTIONS": "detect_leaks=1", "UBSAN_OPTIONS": "print_stacktrace=1"})
@@ -36,14 +38,14 @@ def test_secoc_under_asan_ubsan_with_hostile_frames(tmp_path):
 
 
 def test_cdef_is_the_headers_without_their_preprocessor_lines():
-    text = secoc_build.cdef_text()
+    text = headers_cdef([SECOC / "vh_aes128.h", SECOC / "vh_cmac.h", SECOC / "vh_secoc.h"])
     cffi.FFI().cdef(text)
     assert "#include" not in text and "#define VH_SECOC_TAIL_BYTES 4" in text
 
 
 def test_no_heap_and_no_aes_of_our_own():
     """The SecOC C allocates nothing, and AES is the backend's, not code of ours."""
-    for src in secoc_build.SOURCES:
+    for src in SOURCES:
         text = src.read_text()
         for banned in ("malloc", "calloc", "realloc", "free("):
             assert banned not in text, (src.name, banned)
@@ -57,9 +59,9 @@ def test_bench_runs_and_counts_its_verdicts(tmp_path):
     see every genuine frame accepted and every forged/replayed one rejected (it checks that itself)."""
     exe = tmp_path / "bench_secoc"
     bench = ROOT / "c_core" / "bench"
-    build = subprocess.run(["cc", *secoc_build.STRICT_FLAGS, "-O2", f"-I{SECOC}", f"-I{bench}",
-                            *[str(s) for s in secoc_build.SOURCES], str(bench / "bench_secoc.c"),
-                            secoc_build.libcrypto(), "-o", str(exe)], capture_output=True, text=True)
+    build = subprocess.run(["cc", *STRICT_FLAGS, "-O2", f"-I{SECOC}", f"-I{bench}",
+                            *[str(s) for s in SOURCES], str(bench / "bench_secoc.c"),
+                            libcrypto(), "-o", str(exe)], capture_output=True, text=True)
     assert build.returncode == 0, build.stderr
     run = subprocess.run([str(exe), "20"], capture_output=True, text=True, timeout=60)
     assert run.returncode == 0, run.stdout

@@ -64,7 +64,7 @@ def _headers(gen: Path, ecu: Path) -> list[Path]:
 
 def _ffi(gen: Path, ecu: Path):
     """The declarations of the firmware built with the toy (its app list in `ecu`), parsed only: the
-    layout the XCP description is laid out by, as the build does (vehest_build.xcp_generate)."""
+    layout the XCP description is laid out by, as c_core/ecu_gen.py does."""
     from cffi import FFI
 
     ffi = FFI()
@@ -130,7 +130,7 @@ def test_a_toy_system_is_configured_and_reported_by_the_python_ecu(tmp_path, mon
     from vehest_can.systems import ecu as ecu_mod
 
     gen, ecu, sources, includes, _ = _toy_firmware(tmp_path)
-    objects = vehest_build.compile_strict(sources, includes, tmp_path / "obj", flags=[*vehest_build.STRICT_FLAGS, "-O1"])
+    objects = vehest_build.compile_strict(sources, includes, tmp_path / "obj", ["-O1"])
     ffi = FFI()
     ffi.cdef("\n".join([p.read_text() for p in sorted(gen.glob("*.cdef"))] + [cdef_of(h) for h in _headers(gen, ecu)]))
     glue = [h.name for h in _headers(gen, ecu)] + [p.name for p in sorted(gen.glob("vh_*.h"))

@@ -75,7 +75,7 @@ def test_pya2l_parses_it():
 
 
 def test_the_generator_does_not_need_the_c_extension():
-    code = ("import sys; sys.modules['vehest_can._xcp'] = None\n"  # importing it would fail
+    code = ("import sys; sys.modules['vehest_can._native'] = None\n"  # importing it would fail
             "from vehest_can.xcp import a2l, load, DEMO\n"
             "assert 'CHARACTERISTIC' in a2l.generate(load(DEMO))\n")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

@@ -93,7 +93,7 @@ def test_the_limit_table_a2l_and_dbc_are_the_build_output_of_these_structs():
     outputs = ecu_desc.outputs(xcp_ecu.description())
     assert ecu_desc.TABLE in outputs and ecu_desc.SHIPPED_A2L in outputs
     for target, text in outputs.items():
-        assert target.read_text() == text, f"{target} is stale: rebuild (make install) and commit it"
+        assert target.read_text() == text, f"{target} is stale: regenerate it (python c_core/ecu_gen.py) and commit it"
 
 
 def test_addresses_are_the_c_offsets_and_names_the_c_members():

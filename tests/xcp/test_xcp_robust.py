@@ -46,7 +46,7 @@ def unlocked(desc=DESC, **kw) -> Slave:
 
 
 def memory(s: Slave) -> tuple[bytes, bytes, bytes]:
-    from vehest_can._xcp import ffi
+    from vehest_can.native import ffi
     return (bytes(ffi.buffer(s.measurements)), bytes(ffi.buffer(s.cal_ref)), bytes(ffi.buffer(s.cal_work)))
 
 

@@ -1,4 +1,4 @@
-"""The slave under AddressSanitizer + UndefinedBehaviorSanitizer, and its cffi build script."""
+"""The slave under AddressSanitizer + UndefinedBehaviorSanitizer, and its cffi declarations."""
 import shutil
 import subprocess
 import sys
@@ -10,13 +10,14 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 XCP = ROOT / "c_core" / "xcp"
 SECOC = ROOT / "c_core" / "secoc"
-sys.path.insert(0, str(XCP))
-import xcp_build  # noqa: E402
+sys.path.insert(0, str(ROOT / "c_core"))
+from cbuild import STRICT_FLAGS, compile_strict, headers_cdef, libcrypto  # noqa: E402
 
 pytestmark = pytest.mark.rebuild
 
 #: the slave with the CMAC it keys seed & key with (c_core/secoc), AES from libcrypto
-SLAVE = [f"-I{XCP}", f"-I{SECOC}", str(XCP / "vh_xcp.c"), str(SECOC / "vh_cmac.c"), str(SECOC / "vh_aes128_host.c")]
+SOURCES = [XCP / "vh_xcp.c", SECOC / "vh_cmac.c", SECOC / "vh_aes128_host.c"]
+SLAVE = [f"-I{XCP}", f"-I{SECOC}", *map(str, SOURCES)]
 
 SAN = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer", "-g", "-O1"]
 
@@ -24,8 +25,8 @@ SAN = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-f
 @pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
 def test_slave_under_asan_ubsan_with_random_cros(tmp_path):
     exe = tmp_path / "sanitize_xcp"
-    build = subprocess.run(["cc", *xcp_build.STRICT_FLAGS, *SAN, *SLAVE,
-                            str(Path(__file__).with_name("c") / "sanitize_xcp.c"), "-lm", xcp_build.libcrypto(), "-o", str(exe)],
+    build = subprocess.run(["cc", *STRICT_FLAGS, *SAN, *SLAVE,
+                            str(Path(__file__).with_name("c") / "sanitize_xcp.c"), "-lm", libcrypto(), "-o", str(exe)],
                            capture_output=True, text=True)
     assert build.returncode == 0, build.stderr
     run = subprocess.run([str(exe), "200000"], capture_output=True, text=True, timeout=600,
@@ -36,7 +37,7 @@ def test_slave_under_asan_ubsan_with_random_cros(tmp_path):
 
 
 def test_cdef_is_the_header_without_its_preprocessor_lines():
-    text = xcp_build.cdef_text()
+    text = headers_cdef([SECOC / "vh_aes128.h", SECOC / "vh_cmac.h", XCP / "vh_xcp.h"])
     ffi = cffi.FFI()
     ffi.cdef(text)  # raises on anything cffi cannot parse
     assert "#include" not in text and "#ifndef" not in text
@@ -53,7 +54,7 @@ def test_slave_includes_only_the_c_library_headers():
 
 
 def test_slave_compiles_with_the_strict_flags(tmp_path):
-    objs = xcp_build.compile_objects(tmp_path)
+    objs = compile_strict(SOURCES, [XCP, SECOC], tmp_path)
     assert all(Path(o).exists() for o in objs)
 
 
@@ -61,8 +62,8 @@ def test_slave_compiles_with_the_strict_flags(tmp_path):
 def test_bench_runs_on_a_tiny_size(tmp_path):
     """c_core/bench/bench_xcp.c: the figures are measured, not asserted; here it only has to run."""
     exe = tmp_path / "bench_xcp"
-    build = subprocess.run(["cc", *xcp_build.STRICT_FLAGS, "-O2", *SLAVE, str(XCP.parent / "bench" / "bench_xcp.c"),
-                            xcp_build.libcrypto(), "-o", str(exe)], capture_output=True, text=True)
+    build = subprocess.run(["cc", *STRICT_FLAGS, "-O2", *SLAVE, str(XCP.parent / "bench" / "bench_xcp.c"),
+                            libcrypto(), "-o", str(exe)], capture_output=True, text=True)
     assert build.returncode == 0, build.stderr
     run = subprocess.run([str(exe), "2000"], capture_output=True, text=True, timeout=60)
     assert run.returncode == 0, run.stdout

@@ -1,5 +1,5 @@
 """SecOC-style authenticated frames on the host: key files, persisted freshness, and the C
-protector/verifier (``vehest_can._secoc``, ``c_core/secoc/``) over python-can messages.
+protector/verifier (``c_core/secoc/``, in ``vehest_can._native``) over python-can messages.
 
 A secured frame is its authentic part followed by a 4-byte tail: the freshness value's 8 least
 significant bits and the 24 most significant bits of CMAC-AES-128(key, data ID | authentic part |
@@ -39,11 +39,9 @@ RESULTS = {0: "ok", 1: "bad_mac", 2: "replayed", 3: "unsynced", 4: "length", 5: 
 
 
 def _lib():
-    try:
-        from .. import _secoc
-    except ImportError as e:  # an install without the extension: say so, never a traceback
-        raise ConfigError(f"SecOC is not built into this install ({e})") from None
-    return _secoc.ffi, _secoc.lib
+    from ..native import ffi, lib  # on first use: key files need no C
+
+    return ffi, lib
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""XCP on CAN: the C slave (``vehest_can._xcp``), its python-can bridge and the A2L generator.
+"""XCP on CAN: the C slave (in ``vehest_can._native``), its python-can bridge and the A2L generator.
 
 ``description`` says what the master may see and change; ``slave.Slave`` is the C slave over a
 memory image laid out by it; ``bridge.XcpBridge`` runs it on a python-can bus; ``a2l`` writes

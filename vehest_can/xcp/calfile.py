@@ -18,7 +18,7 @@ import struct
 import tempfile
 from pathlib import Path
 
-from vehest_can._xcp import ffi
+from vehest_can.native import ffi
 
 from .description import C_TYPES, Description, DescriptionError, Item
 from .slave import Slave, raw_limits_for_c

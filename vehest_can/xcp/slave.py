@@ -1,4 +1,4 @@
-"""The C XCP slave (``vehest_can._xcp``) over a memory image laid out by a description.
+"""The C XCP slave (in ``vehest_can._native``) over a memory image laid out by a description.
 
 Until the slave is wired into the ECU's tick, the memory it serves is an image owned here: one
 buffer of measurements (``measurements``, written by whoever simulates the ECU) and the three
@@ -10,7 +10,7 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass
 
-from vehest_can._xcp import ffi, lib
+from vehest_can.native import ffi, lib
 
 from .description import C_TYPES, Description, Item
 

@@ -1,10 +1,10 @@
-"""The roll system's C (``vehest_can._roll``) over numpy arrays: the UKF and the sliding-mode
+"""The roll system's C (in ``vehest_can._native``) over numpy arrays: the UKF and the sliding-mode
 controller in the float32 (ECU) and double (reference) builds of one source."""
 from __future__ import annotations
 
 import numpy as np
 
-from vehest_can._roll import ffi, lib
+from vehest_can.native import ffi, lib
 
 NX, NZ, NU, NS = lib.VH_ROLL_NX_, lib.VH_ROLL_NZ_, lib.VH_ROLL_NU_, lib.VH_ROLL_NS_
 ALL_VALID = (1 << NZ) - 1

@@ -190,7 +190,7 @@ def _by_tick(session, name: str, n: int, scaling: bool = True) -> dict[str, np.n
 
 
 def rerun(session) -> dict[str, Any]:
-    """The ECU's float32 UKF once more, through the array API (``vehest_can._roll``) on the samples
+    """The ECU's float32 UKF once more, through the array API (in ``vehest_can._native``) on the samples
     decoded from the bus, and the double build on the same: whether the published estimates equal the
     array API's at the DBC's resolution (bit for bit), and how far float32 is from double. Assumes a
     clean run (every measurement valid at every step), as the shipped cases are."""
