@@ -112,13 +112,6 @@ class PowertrainScenario(ScenarioBase, node="vh_dls", truth="vh_dlp_truth_t", se
         lib.vh_dlp_run(plant, n, ffi.cast("double *", ffi.from_buffer(thr)), self.gear, out)
 
 
-def truth_dtype(ffi) -> np.dtype:
-    """numpy dtype laid out like ``vh_dlp_truth_t`` (offsets from the compiler, via cffi)."""
-    from ..native import struct_dtype
-
-    return struct_dtype("vh_dlp_truth_t")
-
-
 def truth_to_numpy(ffi, truth_array, n: int) -> np.ndarray:
     """Copy n ``vh_dlp_truth_t`` from a cffi array into a numpy record array."""
     from ..native import struct_array
