@@ -222,7 +222,10 @@ def load_any_scenario(name_or_path: str | Path, systems: list[System] | None = N
     path = Path(name_or_path)
     if not path.is_file() and path.suffix != ".toml" and len(path.parts) == 1:
         path = next((d / f"{path}.toml" for d in _dirs(systems) if (d / f"{path}.toml").is_file()), path)
-    doc = read_toml(path) if path.suffix == ".toml" and path.is_file() else {}
+    if not path.is_file():
+        names = sorted(p.stem for d in _dirs(systems) for p in d.glob("*.toml"))
+        raise ScenarioError(f"{path}: no such scenario file, nor a shipped scenario's name (shipped: {', '.join(names)})")
+    doc = read_toml(path)
     system = claiming(doc, systems)
     if system is None:
         raise ScenarioError(f"{path}: {unclaimed(doc, systems)}")
