@@ -29,6 +29,14 @@ typedef struct {
     uint8_t mode_active;  /* the driver's roll-mode switch at this tick */
 } vh_v14car_truth_t;
 
+/* A plant in place of vh_veh14 (another vehicle model behind the same nodes): advances its own state
+ * (in ctx) by one tick with `in` and the actuators' applied roll moments m (front, rear: on the body,
+ * the reaction on that axle), and writes what vh_v14_step leaves for the nodes: *truth (the state at
+ * the tick's start with the forces of `in`) and the unsprung heave rates after the tick in
+ * x[VH_V14_X_VZU + i] (the roll node's wheel accelerometers). */
+typedef void (*vh_v14car_plant_fn)(void *ctx, const vh_v14_input_t *in, const double m[2], vh_v14_truth_t *truth,
+                                   double *x);
+
 typedef struct {
     vh_v14_params_t prm;
     double v0;                     /* initial speed [m/s] */
@@ -43,6 +51,8 @@ typedef struct {
     const uint8_t *mode_active;    /* the driver's switch per tick (roll_on only), caller-owned */
     size_t n;                      /* ticks of the drive (>= 1): its last input holds after */
     vh_v14car_truth_t truth;
+    vh_v14car_plant_fn ext;        /* another plant, or NULL: vh_veh14 with prm */
+    void *ext_ctx;
 } vh_v14car_t;
 
 /* VH_OK, or VH_EINVAL (nothing usable) when the plant refuses prm or v0, a node its config or the
@@ -52,6 +62,9 @@ int vh_v14car_init(vh_v14car_t *car, const vh_v14_params_t *prm, double v0, cons
 /* As after init: plant, nodes and actuators at their start; the nodes' SecOC hooks (vh_chs_set_secoc,
  * vh_rln_set_secoc on car->chs / car->rln) are kept. */
 void vh_v14car_reset(vh_v14car_t *car);
+/* Another plant in place of vh_veh14 from the next tick on (NULL: back to vh_veh14); prm still gives the
+ * nodes the corner geometry and the actuators their limits. The caller resets its state with the car's. */
+void vh_v14car_set_plant(vh_v14car_t *car, vh_v14car_plant_fn fn, void *ctx);
 /* The car interface of car, driven by in[k] (and mode_active[k]) for k < n. */
 void vh_v14car_car(vh_v14car_t *car, const vh_v14_input_t *in, const uint8_t *mode_active, size_t n,
                    vh_car_t *out);

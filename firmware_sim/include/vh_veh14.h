@@ -218,5 +218,8 @@ void vh_v14_set_roll_moment(vh_v14_t *p, double m_front, double m_rear);
 /* Fail safe: both commands and limited commands to zero at once, past the rate limit (the
  * stabiliser's motor is shorted, the bar goes passive); the applied moments decay with the lag. */
 void vh_v14_roll_fail_safe(vh_v14_t *p);
+/* One tick of the actuators alone (rate limit, torque limit, lag), as vh_v14_step does before it
+ * integrates: for a car whose plant is another model (vh_v14car_set_plant). */
+void vh_v14_arc_step(vh_v14_t *p);
 
 #endif /* VH_VEH14_H */

@@ -46,6 +46,12 @@ void vh_v14car_reset(vh_v14car_t *car)
     (void)start(car); /* init checked the same configuration */
 }
 
+void vh_v14car_set_plant(vh_v14car_t *car, vh_v14car_plant_fn fn, void *ctx)
+{
+    car->ext = fn;
+    car->ext_ctx = ctx;
+}
+
 static size_t car_tick(void *self, size_t k, vh_frame_t *out, size_t cap)
 {
     vh_v14car_t *car = self;
@@ -55,7 +61,12 @@ static size_t car_tick(void *self, size_t k, vh_frame_t *out, size_t cap)
         car->rln.cfg.mode_active = car->mode_active[i];
         vh_rln_actuate(&car->rln, &car->plant);
     }
-    vh_v14_step(&car->plant, &car->in[i]);
+    if (car->ext != NULL) {
+        vh_v14_arc_step(&car->plant);
+        car->ext(car->ext_ctx, &car->in[i], car->plant.arc.m, &car->plant.truth, car->plant.x);
+    } else {
+        vh_v14_step(&car->plant, &car->in[i]);
+    }
     n = vh_chs_step(&car->chs, &car->plant.truth, out, cap < 3u ? cap : 3u);
     if (car->roll_on) {
         n += vh_rln_step(&car->rln, &car->plant, out + n, cap - n);

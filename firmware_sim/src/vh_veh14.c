@@ -519,6 +519,11 @@ static void arc_advance(vh_v14_arc_t *a)
     }
 }
 
+void vh_v14_arc_step(vh_v14_t *p)
+{
+    arc_advance(&p->arc);
+}
+
 void vh_v14_reset(vh_v14_t *p)
 {
     int i;

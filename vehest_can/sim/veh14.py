@@ -27,7 +27,9 @@ WHEELS = ("FL", "FR", "RL", "RR")
 
 # ---- schema --------------------------------------------------------------------------------
 
-_TOP: dict[str, Any] = {"kind": "string", **SCENARIO_TOP}
+_TOP: dict[str, Any] = {"kind": "string", "plant": "string", **SCENARIO_TOP}
+#: the plants a scenario can drive: ours, and CommonRoad's multi-body model (vehest_can.sim.mbplant)
+PLANTS = ("veh14", "commonroad_mb")
 _TABLES = ("driver", "road", "vehicle", "tyre", "sensors")
 
 _STEER_DEG = Num(-30.0, 30.0)     # road-wheel angle; the plant clamps at 0.6 rad (34 deg)
@@ -108,6 +110,7 @@ class Veh14Scenario(ScenarioBase, node="vh_chs", truth="vh_v14_truth_t", seed_sa
     sensors: tuple[tuple[str, float], ...] = ()  # only the keys written
     accel_gravity: bool = False
     ride_height: bool = True                     # the car's ride-height sensors (CHS_RideHeight) fitted
+    plant: str = "veh14"                         # one of PLANTS
     path: Path | None = None
 
     # ---- time and inputs ----
@@ -228,14 +231,22 @@ class Veh14Car(Car):
         if actuators is not None:
             chs.ride_period = 0  # a car with the ROLL node sends no ride heights
             self._active = np.ascontiguousarray(active, dtype=np.uint8)
-        if lib.vh_v14car_init(self.car, sc.plant_params(ffi, lib), sc.initial_speed_kmh / 3.6, chs, rln_cfg,
-                              arc) != lib.VH_OK:
+        prm = sc.plant_params(ffi, lib)
+        if lib.vh_v14car_init(self.car, prm, sc.initial_speed_kmh / 3.6, chs, rln_cfg, arc) != lib.VH_OK:
             raise ScenarioError(f"{sc._where()}: the plant, its sensor nodes or its actuators refuse this scenario")
+        self.mb = None
+        if sc.plant == "commonroad_mb":
+            from .mbplant import MbPlant, mb_parameters
+
+            self.mb = MbPlant(mb_parameters(prm), sc.initial_speed_kmh / 3.6, drag=0.5 * prm.rho * prm.cda)
+            self.mb.attach(self.car)
         self.reset()
 
     def _start(self) -> None:
         from ..native import ffi, lib
 
+        if self.mb is not None:
+            self.mb.reset()
         lib.vh_v14car_reset(self.car)
         active = ffi.NULL if self._active is None else ffi.from_buffer("uint8_t[]", self._active)
         lib.vh_v14car_car(self.car, self._inputs, active, self.n, self.c)
@@ -329,7 +340,16 @@ def veh14_scenario_from_dict(doc: dict, path: str | Path, kind: str) -> Veh14Sce
         else:
             sensors.append((k, c.number(v, f"sensors.{k}", _SENSORS[k][2])))
 
-    sc = Veh14Scenario(**top, steer_deg=steer, drive_nm=drive, brake_nm=brake,
+    plant = c.string(doc.get("plant", "veh14"), "plant")
+    if plant not in PLANTS:
+        c.fail("plant", f"unknown plant {plant!r}: one of {', '.join(PLANTS)}")
+    if plant == "commonroad_mb":
+        if split and mu_l != mu_r:
+            c.fail("road.mu_left", "split friction: the commonroad_mb plant's tyre has one friction for all wheels")
+        if tyre_doc:
+            c.fail("tyre", "is the veh14 plant's tyre; the commonroad_mb plant keeps its own (remove the table)")
+        _require_mb(c)
+    sc = Veh14Scenario(**top, plant=plant, steer_deg=steer, drive_nm=drive, brake_nm=brake,
                          mu_left=mu_l, mu_right=mu_r, mass_delta_kg=mass_delta, vehicle=tuple(sorted(vehicle)),
                          tyre=tuple(sorted(tyre)), sensors=tuple(sorted(sensors)),
                          accel_gravity=flags["accel_gravity"], ride_height=flags["ride_height"], path=Path(path))
@@ -345,6 +365,16 @@ def veh14_scenario_from_dict(doc: dict, path: str | Path, kind: str) -> Veh14Sce
     if lib.vh_chs_init(ffi.new("vh_chs_t *"), sc.node_config(ffi, lib)) != lib.VH_OK:
         c.fail("sensors", "the sensor node refuses this configuration")
     return sc
+
+
+def _require_mb(c: Checker) -> None:
+    """The commonroad_mb plant needs its package and numba: a clear error where they are missing."""
+    import importlib.util
+
+    missing = [m for m in ("vehiclemodels", "numba") if importlib.util.find_spec(m) is None]
+    if missing:
+        c.fail("plant", f"commonroad_mb needs the Python packages {', '.join(missing)} "
+                        "(pip install commonroad-vehicle-models numba)")
 
 
 # ---- speed ----------------------------------------------------------------------------------
