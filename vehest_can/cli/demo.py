@@ -21,6 +21,7 @@ from ..progress import Progress
 from ..service.daemon import stop_process
 from ..sim.report import FAIL, checks_of, checks_text, realtime_summary, write_junit, write_metrics
 from ..sim.session import SimMaster, run_inprocess
+from ..sim.veh14 import PLANTS, on_plants
 from ..systems import Setup, System, load_any_scenario, registered, shipped_scenarios
 from ..systems.ecu import Ecu
 from ._common import check_seconds
@@ -44,6 +45,9 @@ def add_subparser(subparsers) -> None:
     p.add_argument("--secoc", choices=("on", "off"), default="on",
                    help="SecOC-authenticated frames (default on: development keys are made for the run in a "
                         "private temporary folder and deleted after it; docs/secoc.md)")
+    p.add_argument("--plant", choices=(*PLANTS, "both"), default="both",
+                   help="the plant of the 14-DOF scenarios that name none (default both: our 14-DOF plant and "
+                        "CommonRoad's multi-body model side by side; docs/chassis_plant.md)")
     p.add_argument("--log-per-bus", action="store_true",
                    help="one session log per bus (session-pt.log, session-ch.log) instead of one with a channel per bus")
     busmod.add_arguments(p)
@@ -58,7 +62,8 @@ def run(args, systems: list[System] | None = None) -> int:
     check_seconds(args.realtime, "--realtime", zero=True)
     systems = registered() if systems is None else systems
     paths = [Path(p) for p in args.scenarios] or shipped_scenarios(systems)
-    runs = [load_any_scenario(p, systems) for p in paths]
+    plants = PLANTS if args.plant == "both" else (args.plant,)
+    runs = [(s, v) for s, sc in (load_any_scenario(p, systems) for p in paths) for v in on_plants(sc, plants)]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     config = busmod.bus_config(args)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -111,7 +111,13 @@ class Veh14Scenario(ScenarioBase, node="vh_chs", truth="vh_v14_truth_t", seed_sa
     accel_gravity: bool = False
     ride_height: bool = True                     # the car's ride-height sensors (CHS_RideHeight) fitted
     plant: str = "veh14"                         # one of PLANTS
+    plant_fixed: bool = False                    # the file names its plant (the demo runs it on that one only)
     path: Path | None = None
+
+    def with_plant(self, plant: str) -> Veh14Scenario:
+        """The same run on another plant, named ``<name>@<plant>`` unless it is ours."""
+        name = self.name.split("@")[0] + ("" if plant == "veh14" else f"@{plant}")
+        return replace(self, plant=plant, plant_fixed=True, name=name)
 
     # ---- time and inputs ----
 
@@ -349,7 +355,7 @@ def veh14_scenario_from_dict(doc: dict, path: str | Path, kind: str) -> Veh14Sce
         if tyre_doc:
             c.fail("tyre", "is the veh14 plant's tyre; the commonroad_mb plant keeps its own (remove the table)")
         _require_mb(c)
-    sc = Veh14Scenario(**top, plant=plant, steer_deg=steer, drive_nm=drive, brake_nm=brake,
+    sc = Veh14Scenario(**top, plant=plant, plant_fixed="plant" in doc, steer_deg=steer, drive_nm=drive, brake_nm=brake,
                          mu_left=mu_l, mu_right=mu_r, mass_delta_kg=mass_delta, vehicle=tuple(sorted(vehicle)),
                          tyre=tuple(sorted(tyre)), sensors=tuple(sorted(sensors)),
                          accel_gravity=flags["accel_gravity"], ride_height=flags["ride_height"], path=Path(path))
@@ -365,6 +371,14 @@ def veh14_scenario_from_dict(doc: dict, path: str | Path, kind: str) -> Veh14Sce
     if lib.vh_chs_init(ffi.new("vh_chs_t *"), sc.node_config(ffi, lib)) != lib.VH_OK:
         c.fail("sensors", "the sensor node refuses this configuration")
     return sc
+
+
+def on_plants(sc: Any, plants: tuple[str, ...]) -> list:
+    """A scenario on each of `plants` (a scenario of the 14-DOF car whose file names no plant), or
+    as it is (one that names its plant, or another car's)."""
+    if not hasattr(sc, "with_plant") or sc.plant_fixed:
+        return [sc]
+    return [sc if p == sc.plant else sc.with_plant(p) for p in plants]
 
 
 def _require_mb(c: Checker) -> None:
@@ -405,5 +419,5 @@ def bench(sc: Veh14Scenario, seconds: float = 10.0, repeats: int = 9) -> dict[st
             "us_per_step_cpu_best": min(cpu) / n * 1e6}
 
 
-__all__ = ["DT", "WHEELS", "Veh14Scenario", "Veh14Car", "veh14_scenario_from_dict", "truth_dtype", "truth_to_numpy",
-           "bench"]
+__all__ = ["DT", "WHEELS", "PLANTS", "on_plants", "Veh14Scenario", "Veh14Car", "veh14_scenario_from_dict",
+           "truth_dtype", "truth_to_numpy", "bench"]

@@ -135,7 +135,19 @@ def table(m: dict) -> str:
     return "\n".join(lines)
 
 
-def plots(session, out_dir: Path, title: str, passive=None) -> list[Path]:
+def plants_table(metrics: list[dict]) -> str:
+    """The runs on both plants side by side: one row per scenario and plant."""
+    head = f"{'scenario':<28}{'plant':<15}{'UKF roll %':>11}{'rate %':>8}{'peak roll deg':>15}{'vs passive':>12}"
+    lines = ["== roll on both plants: UKF RMS in % of peak, peak roll reduction by the SMC", head, "-" * len(head)]
+    for m in sorted(metrics, key=lambda m: (m["scenario"].split("@")[0], m.get("plant", ""))):
+        red = m.get("vs_passive", {}).get("peak_roll_reduction_pct")
+        lines.append(f"{m['scenario'].split('@')[0]:<28}{m.get('plant', ''):<15}{m['ukf_roll_rms_pct_of_peak']:>11.2f}"
+                     f"{m['ukf_roll_rate_rms_pct_of_peak']:>8.2f}{m['peak_roll_deg']:>15.3f}"
+                     + (f"{-red:>+11.1f}%" if red is not None else f"{'-':>12}"))
+    return "\n".join(lines)
+
+
+def plots(session, out_dir: Path, title: str, passive=None, plant: str = "veh14") -> list[Path]:
     """Fig. 3-6: estimated against true roll angle and rate; with a passive twin, Fig. 8-15: control
     moments, yaw rate, roll angle and rate, passive against active."""
     plt = pyplot()
@@ -155,7 +167,7 @@ def plots(session, out_dir: Path, title: str, passive=None) -> list[Path]:
         figs.save(fig, f"{title}_{name}.png")
 
     fig, ax = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
-    ax[0].plot(t, np.degrees(tr["phi"]), label="truth (14-DOF plant)")
+    ax[0].plot(t, np.degrees(tr["phi"]), label=f"truth ({plant} plant)")
     ax[0].plot(te, np.degrees(e["RollEstAngle"]), "--", label="UKF (ECU, from the bus)")
     ax[0].set_ylabel("roll angle [deg]")
     ax[1].plot(t, np.degrees(tr["p"]), label="truth")

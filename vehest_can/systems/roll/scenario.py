@@ -65,26 +65,28 @@ SCENARIOS = ShippedSet("scenarios/roll", "firmware_sim/scenarios/roll")
 roll_scenario_dir, list_roll_scenarios, roll_scenario_path = SCENARIOS.dir, SCENARIOS.names, SCENARIOS.path
 
 
-def _plant_attr(name: str) -> Any:
-    """A read-only attribute of a RollScenario that is its plant's."""
-    return property(lambda self: getattr(self.plant, name), doc=f"The plant's {name}.")
+def _chassis_attr(name: str) -> Any:
+    """A read-only attribute of a RollScenario that is its 14-DOF scenario's."""
+    return property(lambda self: getattr(self.chassis, name), doc=f"The 14-DOF scenario's {name}.")
 
 
 @dataclass(frozen=True)
 class RollScenario:
-    """A validated roll scenario: the plant's part (a 14-DOF scenario) and the roll node's."""
+    """A validated roll scenario: the car's part (a 14-DOF scenario) and the roll node's."""
 
-    plant: Veh14Scenario
+    chassis: Veh14Scenario
     mode: tuple[tuple[float, str], ...]            # (t, "passive" | "active")
     actuators: tuple[tuple[str, float], ...] = ()  # only the keys written
     roll_sensors: tuple[tuple[str, float], ...] = ()
 
-    # name, description, length and file: the plant scenario's
-    name = _plant_attr("name")
-    description = _plant_attr("description")
-    duration_s = _plant_attr("duration_s")
-    n_steps = _plant_attr("n_steps")
-    path = _plant_attr("path")
+    # name, description, length, file and plant: the 14-DOF scenario's
+    name = _chassis_attr("name")
+    description = _chassis_attr("description")
+    duration_s = _chassis_attr("duration_s")
+    n_steps = _chassis_attr("n_steps")
+    path = _chassis_attr("path")
+    plant = _chassis_attr("plant")
+    plant_fixed = _chassis_attr("plant_fixed")
 
     def active_at(self, t) -> np.ndarray:
         """The driver's switch at times t: True where active."""
@@ -97,6 +99,10 @@ class RollScenario:
     def active(self) -> bool:
         """Active at any time of the run."""
         return any(m == "active" for _, m in self.mode)
+
+    def with_plant(self, plant: str) -> RollScenario:
+        """The same run on another plant (Veh14Scenario.with_plant)."""
+        return replace(self, chassis=self.chassis.with_plant(plant))
 
     def with_mode(self, mode: str) -> RollScenario:
         """The same run in one mode throughout (e.g. the passive twin of an active case)."""
@@ -114,7 +120,7 @@ class RollScenario:
     @property
     def node_seed(self) -> int:
         """The roll node's random stream, derived from the scenario's seed (apart from the CHS node's)."""
-        return derived_seed(self.plant.seed, 0x524F4C4C)
+        return derived_seed(self.chassis.seed, 0x524F4C4C)
 
     def node_config(self, ffi, lib):
         cfg = ffi.new("vh_rln_config_t *")
@@ -150,7 +156,7 @@ class RollCar(Veh14Car):
         ffi, lib = _native()
         self.roll_scenario = sc
         active = sc.active_at(np.arange(sc.n_steps) * DT)
-        super().__init__(sc.plant, duration_s, actuators=(sc.node_config(ffi, lib), sc.arc_params(ffi, lib), active))
+        super().__init__(sc.chassis, duration_s, actuators=(sc.node_config(ffi, lib), sc.arc_params(ffi, lib), active))
         self.truth_dtype = roll_truth_dtype()
         self.node = ffi.addressof(self.car, "rln")  # its cfg (fail and stuck masks, bias) may change between ticks
 
@@ -177,7 +183,7 @@ def roll_scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> RollS
     """Validate a parsed roll scenario (``path`` names it in errors)."""
     ffi, lib = _native()
     c = kind_checker(doc, path, KINDS, '"roll"')
-    plant = veh14_scenario_from_dict({k: v for k, v in doc.items() if k not in _ROLL_TABLES}, path, KINDS[0])
+    chassis = veh14_scenario_from_dict({k: v for k, v in doc.items() if k not in _ROLL_TABLES}, path, KINDS[0])
 
     control = c.table(doc.get("control", {}), "control", {"mode"})
     mode = c.profile(control.get("mode", [[0.0, "passive"]]), "control.mode", MODES, columns=("mode",))
@@ -186,9 +192,9 @@ def roll_scenario_from_dict(doc: dict, path: str | Path = "<scenario>") -> RollS
     actuators = tuple(sorted((k, c.number(v, f"actuators.{k}", _ACTUATORS[k][2])) for k, v in act_doc.items()))
     rs_doc = c.table(doc.get("roll_sensors", {}), "roll_sensors", set(_ROLL_SENSORS))
     roll_sensors = tuple(sorted((k, c.number(v, f"roll_sensors.{k}", _ROLL_SENSORS[k][2])) for k, v in rs_doc.items()))
-    sc = RollScenario(plant=plant, mode=tuple(mode), actuators=actuators, roll_sensors=roll_sensors)
+    sc = RollScenario(chassis=chassis, mode=tuple(mode), actuators=actuators, roll_sensors=roll_sensors)
     arc = sc.arc_params(ffi, lib)
-    if lib.vh_v14_arc_config(plant.make_plant(ffi, lib), ffi.addressof(arc[0]), ffi.addressof(arc[1])) != lib.VH_OK:
+    if lib.vh_v14_arc_config(chassis.make_plant(ffi, lib), ffi.addressof(arc[0]), ffi.addressof(arc[1])) != lib.VH_OK:
         c.fail("actuators", "the plant refuses these actuator limits")
     if lib.vh_rln_init(ffi.new("vh_rln_t *"), sc.node_config(ffi, lib)) != lib.VH_OK:
         c.fail("roll_sensors", "the roll node refuses this configuration")

@@ -33,8 +33,8 @@ class Roll(Registration):
         sc = scenario
         arc = sc.arc_params(*_native())
         limits = tuple((float(arc[i].m_max), float(arc[i].rate_max)) for i in range(2))
-        m = {"scenario": sc.name, "description": sc.description, "mode": session.mode,
-             "control": "active" if sc.active else "passive", "speed_kmh": sc.plant.initial_speed_kmh,
+        m = {"scenario": sc.name, "plant": sc.plant, "description": sc.description, "mode": session.mode,
+             "control": "active" if sc.active else "passive", "speed_kmh": sc.chassis.initial_speed_kmh,
              **report.evaluate(session, limits), **report.rerun(session)}
         print(f"  ECU's float32 UKF on the bus == array API on the decoded samples: "
               f"{'identical' if m['ecu_equals_array_api'] else 'DIFFERENT'} ({m['steps']} steps)")
@@ -44,11 +44,12 @@ class Roll(Registration):
             passive = run_inprocess(RollCar(twin, len(session.truth) * 0.0005), Ecu())
             m["vs_passive"] = report.compare(m, report.evaluate(passive))
         m["acceptance"] = report.acceptance_entries(m)
-        m["plots"] = [str(p) for p in report.plots(session, out_dir, sc.name, passive)]
+        m["plots"] = [str(p) for p in report.plots(session, out_dir, sc.name, passive, plant=sc.plant)]
         return m
 
     def tables(self, metrics: list[dict]) -> list[str]:
-        return [report.table(m) for m in metrics]
+        side = [report.plants_table(metrics)] if len({m.get("plant") for m in metrics}) > 1 else []
+        return [report.table(m) for m in metrics] + side
 
 
 def _native():

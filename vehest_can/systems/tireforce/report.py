@@ -516,6 +516,26 @@ def relations(truth, config: tf.SkfConfig | None = None, band_g=AY_BAND_G) -> di
 
 # ---- table -----------------------------------------------------------------------------------
 
+def plants_table(metrics: list[dict]) -> str:
+    """The runs on both plants side by side: per scenario and plant, each variant's worst tyre and
+    worst axle (RMS, % of peak |Fy|) and SKFMEC-A's mass against the truth."""
+    names = [v for v in (tf.SKFMEC, tf.FIXED, ADAPTIVE) if any(v in m["variants"] for m in metrics)]
+    head = f"{'scenario':<28}{'plant':<15}" + "".join(f"{v + ' tyre':>20}{'axle':>7}" for v in names) + f"{'mass':>9}"
+    lines = ["== tyre force on both plants: worst tyre / worst axle RMS, % of peak |Fy|; SKFMEC-A mass error",
+             head, "-" * len(head)]
+    for m in sorted(metrics, key=lambda m: (m["scenario"].split("@")[0], m.get("plant", ""))):
+        cells = ""
+        for v in names:
+            pct = m["variants"].get(v, {}).get("rms_pct")
+            cells += (f"{max(pct[w] for w in WHEELS):>19.2f}{'!' if max(pct[w] for w in WHEELS) > TARGET_TIRE_PCT else ' '}"
+                      f"{max(pct[a] for a in AXLES):>7.2f}") if pct else f"{'-':>20}{'-':>7}"
+        mm, true = m["variants"].get(ADAPTIVE, {}).get("mass"), m.get("true_mass_kg")
+        mass = f"{100 * (mm['final_kg'] / true - 1):>+8.1f}%" if mm and true else f"{'-':>9}"
+        lines.append(f"{m['scenario'].split('@')[0]:<28}{m.get('plant', ''):<15}{cells}{mass}")
+    lines.append(f"(!: over the {TARGET_TIRE_PCT:g} % target)")
+    return "\n".join(lines)
+
+
 def table(metrics: dict, name: str | None = None) -> str:
     """Terminal table: per tire and axle, each variant, RMS error in % of peak |Fy|; '!' marks a
     tire over the 10 % target; then the decomposition and the acceptance lines."""

@@ -64,7 +64,7 @@ class TireForce(Registration):
         print(f"  ECU's SKFMEC-A Fy and mass on the bus == array API on the decoded samples: "
               f"{'identical' if same_a else 'DIFFERENT'} ({int(on_a.sum())} frames)")
         true_mass = report.true_mass(sc)
-        metrics = {"scenario": sc.name, "description": sc.description, "mass_delta_kg": sc.mass_delta_kg,
+        metrics = {"scenario": sc.name, "plant": sc.plant, "description": sc.description, "mass_delta_kg": sc.mass_delta_kg,
                    "mode": session.mode, "ecu_equals_array_api": same, "ecu_adaptive_equals_array_api": same_a,
                    **report.evaluate(session.truth, runs, true_mass_kg=true_mass), "relations": report.relations(session.truth)}
         files = report.plots("relations", session.truth, None, out_dir, title=sc.name)
@@ -73,7 +73,8 @@ class TireForce(Registration):
         return metrics
 
     def tables(self, metrics: list[dict]) -> list[str]:
-        return [report.table(m, m["scenario"]) for m in metrics]
+        side = [report.plants_table(metrics)] if len({m.get("plant") for m in metrics}) > 1 else []
+        return [report.table(m, m["scenario"]) for m in metrics] + side
 
 
 SYSTEM = TireForce()
