@@ -392,3 +392,53 @@ def test_two_local_dask_clusters_at_once_take_free_loopback_ports():
             assert {s.address for s in servers} == {"127.0.0.1"}  # nothing listens beyond loopback
             assert len({s.port for s in servers}) == 2 and 8787 not in {s.port for s in servers}
     assert not [w for w in seen if "already in use" in str(w.message)]
+
+
+PLANTS_CAMPAIGN = """
+[campaign]
+name = "plants"
+base = "chassis_relation_70kph"
+runs = 8
+seed = 5
+metrics = ["variants.skfmec-a.rms_pct.*", "variants.skfmec-a.mass.final_kg"]
+
+[[vary]]
+key = "duration_s"
+dist = "list"
+values = [1.0]
+
+[[vary]]
+key = "plant"
+dist = "grid"
+values = ["veh14", "commonroad_mb"]
+
+[[vary]]
+key = "vehicle.mass_delta_kg"
+dist = "grid"
+values = [0, 200]
+
+[[vary]]
+key = "road.mu[0][1]"
+dist = "grid"
+values = [0.8, 1.1]
+"""
+
+
+@pytest.mark.slow
+def test_plant_payload_friction_campaign_is_identical_on_the_pool_and_dask(tmp_path):
+    """plant x payload x mu on the local pool and a Dask LocalCluster: the same rows; the plant really
+    changes the runs (a run on MB differs from its twin on ours)."""
+    pytest.importorskip("distributed")
+    pytest.importorskip("vehiclemodels")
+    c = load_campaign(spec(tmp_path, PLANTS_CAMPAIGN))
+    tables = {}
+    for label, kw in (("pool", {"workers": 2}), ("dask", {"workers": 2, "scheduler": "local-dask"})):
+        store = Store(tmp_path / label, c)
+        counts = execute(c, store, batch_size=2, **kw)
+        assert counts["ran"] == 8 and counts["failed"] == 0
+        tables[label] = frame(store)
+    assert tables["pool"] == tables["dask"]
+    t = tables["pool"]
+    assert t["param.plant"] == ["veh14"] * 4 + ["commonroad_mb"] * 4
+    fl = t["metric.variants.skfmec-a.rms_pct.FL"]
+    assert all(a != b for a, b in zip(fl[:4], fl[4:]))

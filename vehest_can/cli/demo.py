@@ -19,9 +19,9 @@ from ..bus.log import FORMATS, SessionLog
 from ..errors import VehestError
 from ..progress import Progress
 from ..service.daemon import stop_process
+from ..sim.car import PLANTS, on_plants
 from ..sim.report import FAIL, checks_of, checks_text, realtime_summary, write_junit, write_metrics
 from ..sim.session import SimMaster, run_inprocess
-from ..sim.veh14 import PLANTS, on_plants
 from ..systems import Setup, System, load_any_scenario, registered, shipped_scenarios
 from ..systems.ecu import Ecu
 from ._common import check_seconds
@@ -46,8 +46,8 @@ def add_subparser(subparsers) -> None:
                    help="SecOC-authenticated frames (default on: development keys are made for the run in a "
                         "private temporary folder and deleted after it; docs/secoc.md)")
     p.add_argument("--plant", choices=(*PLANTS, "both"), default="both",
-                   help="the plant of the 14-DOF scenarios that name none (default both: our 14-DOF plant and "
-                        "CommonRoad's multi-body model side by side; docs/chassis_plant.md)")
+                   help="the plant of the scenarios that can choose one and name none (default both: each such "
+                        "scenario on every plant, side by side)")
     p.add_argument("--log-per-bus", action="store_true",
                    help="one session log per bus (session-pt.log, session-ch.log) instead of one with a channel per bus")
     busmod.add_arguments(p)

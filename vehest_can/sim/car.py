@@ -15,6 +15,18 @@ import numpy as np
 
 from ..native import ffi, lib, struct_dtype
 
+#: the plants a car with a choice can be played by (a scenario's ``plant`` key): ours, and CommonRoad's
+#: multi-body model (vehest_can.sim.mbplant)
+PLANTS = ("veh14", "commonroad_mb")
+
+
+def on_plants(sc: Any, plants: tuple[str, ...]) -> list:
+    """A scenario on each of `plants` (a scenario with a choice of plant whose file names none), or
+    as it is (one that names its plant, or another car's)."""
+    if not hasattr(sc, "with_plant") or sc.plant_fixed:
+        return [sc]
+    return [sc if p == sc.plant else sc.with_plant(p) for p in plants]
+
 
 class Car:
     """One simulated car. ``name``, ``n`` (ticks of its drive), ``truth_dtype`` (one record per tick),
@@ -101,4 +113,4 @@ class Car:
         return self.truths(raw)[0]
 
 
-__all__ = ["Car"]
+__all__ = ["Car", "PLANTS", "on_plants"]

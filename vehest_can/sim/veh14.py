@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import ScenarioError
 from ..schema import Checker, Num, type_name
-from .car import Car
+from .car import PLANTS, Car
 from .scenario import DT, SCENARIO_TOP, ScenarioBase, _native, kind_checker, scenario_top
 
 #: Wheels in the order of every per-wheel quantity: the paper's 1..4 in a left turn.
@@ -28,8 +28,6 @@ WHEELS = ("FL", "FR", "RL", "RR")
 # ---- schema --------------------------------------------------------------------------------
 
 _TOP: dict[str, Any] = {"kind": "string", "plant": "string", **SCENARIO_TOP}
-#: the plants a scenario can drive: ours, and CommonRoad's multi-body model (vehest_can.sim.mbplant)
-PLANTS = ("veh14", "commonroad_mb")
 _TABLES = ("driver", "road", "vehicle", "tyre", "sensors")
 
 _STEER_DEG = Num(-30.0, 30.0)     # road-wheel angle; the plant clamps at 0.6 rad (34 deg)
@@ -198,21 +196,21 @@ class Veh14Scenario(ScenarioBase, node="vh_chs", truth="vh_v14_truth_t", seed_sa
     def _run(self, ffi, lib, plant, n: int, out) -> None:
         lib.vh_v14_run(plant, n, self.inputs(ffi), out)
 
+    def run_truth(self, ffi, lib) -> np.ndarray:
+        """The plant alone over the whole scenario (another plant than ours: through the car)."""
+        return super().run_truth(ffi, lib) if self.plant == "veh14" else self.run_with_frames(ffi, lib)[0]
+
     def run_with_frames(self, ffi, lib):
-        """Plant and sensor node tick by tick: (truth record array, the node's frames in the order sent
-        as (frame ID, payload): CHS_Sensors every tick, CHS_RideHeight every 10 ms where fitted)."""
-        p, node = self.make_plant(ffi, lib), self.make_node(ffi, lib)
-        n = self.n_steps
-        inputs = self.inputs(ffi)
-        out = ffi.new("vh_v14_truth_t[]", n)
-        frame = ffi.new("vh_frame_t[2]")
+        """The car (plant and sensor node, on this scenario's plant) tick by tick without an ECU:
+        (truth record array, the node's frames in the order sent as (frame ID, payload): CHS_Sensors
+        every tick, CHS_RideHeight every 10 ms where fitted)."""
+        car = Veh14Car(self)
+        truth = np.empty(car.n, dtype=car.truth_dtype)
         frames = []
-        for k in range(n):
-            lib.vh_v14_step(p, inputs + k)
-            out[k] = p.truth
-            for i in range(lib.vh_chs_step(node, ffi.addressof(p, "truth"), frame, 2)):
-                frames.append((int(frame[i].id), bytes(ffi.buffer(frame[i].data, frame[i].len))))
-        return truth_to_numpy(ffi, out, n), frames
+        for k in range(car.n):
+            frames += [(int(f.id), bytes(ffi.buffer(f.data, f.len))) for f in car.tick(k)]
+            truth[k] = car.truth()
+        return truth, frames
 
 
 class Veh14Car(Car):
@@ -373,14 +371,6 @@ def veh14_scenario_from_dict(doc: dict, path: str | Path, kind: str) -> Veh14Sce
     return sc
 
 
-def on_plants(sc: Any, plants: tuple[str, ...]) -> list:
-    """A scenario on each of `plants` (a scenario of the 14-DOF car whose file names no plant), or
-    as it is (one that names its plant, or another car's)."""
-    if not hasattr(sc, "with_plant") or sc.plant_fixed:
-        return [sc]
-    return [sc if p == sc.plant else sc.with_plant(p) for p in plants]
-
-
 def _require_mb(c: Checker) -> None:
     """The commonroad_mb plant needs its package and numba: a clear error where they are missing."""
     import importlib.util
@@ -419,5 +409,5 @@ def bench(sc: Veh14Scenario, seconds: float = 10.0, repeats: int = 9) -> dict[st
             "us_per_step_cpu_best": min(cpu) / n * 1e6}
 
 
-__all__ = ["DT", "WHEELS", "PLANTS", "on_plants", "Veh14Scenario", "Veh14Car", "veh14_scenario_from_dict",
+__all__ = ["DT", "WHEELS", "Veh14Scenario", "Veh14Car", "veh14_scenario_from_dict",
            "truth_dtype", "truth_to_numpy", "bench"]

@@ -309,8 +309,11 @@ def table(res: dict, lockstep: dict[str, tuple[float, float]] | None = None) -> 
         lines.append(f"{'ECU tick, every system (+ roll UKF + SMC)':<44}{c['ecu_tick_all'][0] / 1000:>9.2f} µs/tick"
                      f"   p99 {c['ecu_tick_all'][1] / 1000:.2f} µs{mx} (target median <= 15 µs)")
     for name, (alone, factor) in (lockstep or {}).items():
-        lines.append(f"{'in-process lockstep ' + name:<44}{factor:>9.0f}x real time (target >= 100x); "
-                     f"the car alone {alone:.0f}x")
+        # CommonRoad's multi-body plant is a Python package compiled at run time: its target is the car's
+        mb = name.endswith("@commonroad_mb")
+        lines.append(f"{'in-process lockstep ' + name:<44}{factor:>9.0f}x real time"
+                     + ("" if mb else " (target >= 100x)") + f"; the car alone {alone:.0f}x"
+                     + (" (target >= 10x)" if mb else ""))
     if fp:
         lines.append(f"array API vs filterpy: {fp / res['array_api_ns']:.0f}x faster (target >= 100x)")
     if ref and "skfmec_fixed_step" in tc and "skfmec_double_step" in tc:
