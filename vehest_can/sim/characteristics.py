@@ -122,6 +122,16 @@ def scenario_doc(plant: str, mass_delta_kg: float, vehicle: dict[str, Any] | Non
             "sensors": {"ride_height": False}}
 
 
+def scenario(plant: str, mass_delta_kg: float = 0.0, vehicle: dict[str, Any] | None = None,
+             manoeuvre: Manoeuvre = Manoeuvre(), source: str | Path = "<characterise>"):
+    """The validated ``Veh14Scenario`` of one run (errors name `source` and the key)."""
+    from .veh14 import veh14_scenario_from_dict
+
+    if plant not in PLANTS:
+        raise ConfigError(f"unknown plant {plant!r}: one of {', '.join(PLANTS)}")
+    return veh14_scenario_from_dict(scenario_doc(plant, mass_delta_kg, vehicle, manoeuvre), Path(source), "tireforce")
+
+
 def _run(car, v_ref: float, prm) -> dict[str, np.ndarray]:
     """The car alone (no ECU) in chunks of CHUNK ticks, a PI speed controller setting the front
     wheels' drive torque for the next chunk (the car reads its inputs tick by tick, so the inputs
@@ -202,11 +212,9 @@ def characterise(plant: str, mass_delta_kg: float = 0.0, vehicle: dict[str, Any]
     """One plant's figures for the paper car with the `vehicle` overrides (keys of a scenario's
     ``[vehicle]`` table) and `mass_delta_kg` of payload. `source` names the overrides in errors."""
     from ..native import ffi, lib
-    from .veh14 import Veh14Car, veh14_scenario_from_dict
+    from .veh14 import Veh14Car
 
-    if plant not in PLANTS:
-        raise ConfigError(f"unknown plant {plant!r}: one of {', '.join(PLANTS)}")
-    sc = veh14_scenario_from_dict(scenario_doc(plant, mass_delta_kg, vehicle, manoeuvre), Path(source), "tireforce")
+    sc = scenario(plant, mass_delta_kg, vehicle, manoeuvre, source)
     prm = sc.plant_params(ffi, lib)
     run = _run(Veh14Car(sc), manoeuvre.speed_kmh / 3.6, prm)
     return figures(run, prm, plant, mass_delta_kg, manoeuvre)
@@ -246,5 +254,5 @@ def to_json(rows: list[Figures], manoeuvre: Manoeuvre, vehicle: dict[str, Any] |
     return {"manoeuvre": asdict(manoeuvre), "vehicle": dict(vehicle or {}), "figures": [asdict(f) for f in rows]}
 
 
-__all__ = ["Manoeuvre", "Figures", "Fit", "PLANTS", "fit_line", "vehicle_from_toml", "scenario_doc", "characterise",
+__all__ = ["Manoeuvre", "Figures", "Fit", "PLANTS", "fit_line", "vehicle_from_toml", "scenario_doc", "scenario", "characterise",
            "characterise_all", "car_geometry", "figures", "table", "to_json"]
