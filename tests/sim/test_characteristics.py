@@ -105,7 +105,7 @@ def test_our_roll_and_load_transfer_match_the_hand_calculation(ours, dm):
     assert f.load_transfer_front_n_per_g == pytest.approx(hand["dfz_f"], rel=5e-3)
     assert f.load_transfer_rear_n_per_g == pytest.approx(hand["dfz_r"], rel=5e-3)
     assert f.load_transfer_front_share == pytest.approx(hand["dfz_f"] / (hand["dfz_f"] + hand["dfz_r"]), abs=2e-3)
-    # the roll centres matter: the brief's formula without them is some 10 % off the plant's roll
+    # the roll centres matter: the formula without them is 5 % below the plant's roll
     no_rc = prm.ms * G * hand["e"] / (hand["kphi"] - prm.ms * G * hand["e"])
     assert abs(math.radians(f.roll_gradient_deg_per_g) / no_rc - 1) > 0.02
 
