@@ -136,7 +136,9 @@ int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t 
     z.k_hi = vh_skfq_qconst(c->mass_hi, VH_TFA_FK, &ok);
     z.m_num = 0;
     z.m_den = 0;
-    {   /* the model mass as an exact fraction m_num / m_den (the TX of the mass estimate, integer only) */
+    {   /* the model mass as a fraction m_num / m_den (the TX of the mass estimate, integer only): the
+         * shortest exact decimal fraction, else the nearest with the finest power-of-ten denominator
+         * (<= 10^6) whose numerator fits, i.e. within 0.5 / m_den kg (5e-7 kg below 2147 kg) */
         int32_t d;
         for (d = 1; d <= 1000000; d *= 10) {
             const double n = skf->m * d;
@@ -144,6 +146,13 @@ int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t 
                 z.m_num = (int32_t)n;
                 z.m_den = d;
                 break;
+            }
+        }
+        for (d = 1000000; z.m_num == 0 && d >= 1; d /= 10) {
+            const double n = floor(skf->m * d + 0.5);
+            if (n <= 2147483647.0) {
+                z.m_num = (int32_t)n;
+                z.m_den = d;
             }
         }
         ok = ok && z.m_num > 0;
