@@ -382,20 +382,25 @@ def blame(car: CarFile, what: str, accepts) -> str:
 
 
 def car_spec(car: CarFile) -> str:
-    """What :func:`load_car` takes to load `car` again (its file's absolute path, or its shipped name)."""
-    return str(car.path.resolve()) if car.path is not None else car.name
+    """What :func:`load_car` takes to load `car` again: a shipped car's name, else its file's absolute path."""
+    if car.path is None or (car.path.stem == car.name and car.path.parent.resolve() == CARS.dir().resolve()):
+        return car.name
+    return str(car.path.resolve())
 
 
 def has_car(scenario) -> bool:
     """Whether a scenario drives the 14-DOF plant (itself, or as its ``plant``): the car a car file describes."""
-    plant = scenario if hasattr(scenario, "plant_params") else getattr(scenario, "plant", None)
-    return plant is not None and hasattr(plant, "plant_params")
+    from .sim.veh14 import Veh14Scenario
+
+    return isinstance(scenario, Veh14Scenario) or isinstance(getattr(scenario, "plant", None), Veh14Scenario)
 
 
 def with_car(scenario, car: CarFile):
     """The scenario with its 14-DOF plant on `car` (its [vehicle] overrides kept): a 14-DOF scenario, or
     one holding one as ``plant``; another scenario's car has no such plant (ConfigError)."""
-    if hasattr(scenario, "plant_params"):
+    from .sim.veh14 import Veh14Scenario
+
+    if isinstance(scenario, Veh14Scenario):
         return dataclasses.replace(scenario, car=car)
     if has_car(scenario):
         return dataclasses.replace(scenario, plant=dataclasses.replace(scenario.plant, car=car))
