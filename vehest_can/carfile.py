@@ -388,26 +388,6 @@ def car_spec(car: CarFile) -> str:
     return str(car.path.resolve())
 
 
-def has_car(scenario) -> bool:
-    """Whether a scenario drives the 14-DOF plant (itself, or as its ``plant``): the car a car file describes."""
-    from .sim.veh14 import Veh14Scenario
-
-    return isinstance(scenario, Veh14Scenario) or isinstance(getattr(scenario, "plant", None), Veh14Scenario)
-
-
-def with_car(scenario, car: CarFile):
-    """The scenario with its 14-DOF plant on `car` (its [vehicle] overrides kept): a 14-DOF scenario, or
-    one holding one as ``plant``; another scenario's car has no such plant (ConfigError)."""
-    from .sim.veh14 import Veh14Scenario
-
-    if isinstance(scenario, Veh14Scenario):
-        return dataclasses.replace(scenario, car=car)
-    if has_car(scenario):
-        return dataclasses.replace(scenario, plant=dataclasses.replace(scenario.plant, car=car))
-    raise ConfigError(f"{scenario.name}: a car file is the 14-DOF car's (tyre-force and roll scenarios); this "
-                      f"scenario's car is another plant")
-
-
 def car_of(scenario) -> CarFile | None:
     """The car a scenario names (a 14-DOF scenario, or one holding one as ``plant``), or None."""
     car = getattr(scenario, "car", None)
@@ -417,4 +397,4 @@ def car_of(scenario) -> CarFile | None:
 
 
 __all__ = ["CARS", "AXLES", "CarFile", "COMMONROAD", "car_from_dict", "commonroad_doc", "cars", "load_car",
-           "paper_car", "car_of", "car_spec", "has_car", "with_car", "blame"]
+           "paper_car", "car_of", "car_spec", "blame"]

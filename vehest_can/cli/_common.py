@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
 from pathlib import Path
@@ -149,7 +150,7 @@ def ecu_car(car, scenarios) -> Any:
     paper's); scenarios naming different cars need --car (one ECU serves them all)."""
     if car is not None:
         return car
-    from ..carfile import car_of, has_car, paper_car
+    from ..carfile import car_of, paper_car
 
     by_name: dict = {}
     for sc in scenarios:
@@ -160,5 +161,25 @@ def ecu_car(car, scenarios) -> Any:
     if len(by_name) > 1:
         raise ConfigError(f"the scenarios name different cars ({', '.join(sorted(by_name))}) and one ECU serves "
                           f"them all: run them separately, or give --car")
-    return next(iter(by_name.values()), None)
+    car = next(iter(by_name.values()), None)
+    return None if car is paper_car() else car  # the paper's car is the ECU's default
 
+
+def has_car(scenario) -> bool:
+    """Whether a scenario drives the 14-DOF plant (itself, or as its ``plant``): the car a car file describes."""
+    from ..sim.veh14 import Veh14Scenario
+
+    return isinstance(scenario, Veh14Scenario) or isinstance(getattr(scenario, "plant", None), Veh14Scenario)
+
+
+def with_car(scenario, car):
+    """The scenario with its 14-DOF plant on `car` (its [vehicle] overrides kept): a 14-DOF scenario, or
+    one holding one as ``plant``; another scenario's car has no such plant (ConfigError)."""
+    from ..sim.veh14 import Veh14Scenario
+
+    if isinstance(scenario, Veh14Scenario):
+        return dataclasses.replace(scenario, car=car)
+    if has_car(scenario):
+        return dataclasses.replace(scenario, plant=dataclasses.replace(scenario.plant, car=car))
+    raise ConfigError(f"{scenario.name}: a car file is the 14-DOF car's (tyre-force and roll scenarios); this "
+                      f"scenario's car is another plant")

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..bus import bus as busmod
 from ..bus.log import FORMATS, SessionLog
-from ..carfile import car_spec, has_car, with_car
+from ..carfile import car_spec
 from ..errors import VehestError
 from ..progress import Progress
 from ..service.daemon import stop_process
@@ -24,7 +24,7 @@ from ..sim.report import FAIL, checks_of, checks_text, realtime_summary, write_j
 from ..sim.session import SimMaster, run_inprocess
 from ..systems import Setup, System, load_any_scenario, registered, shipped_scenarios
 from ..systems.ecu import Ecu, EcuConfig
-from ._common import CAR_HELP, add_car_argument, car_from_args, check_seconds, ecu_car
+from ._common import CAR_HELP, add_car_argument, car_from_args, check_seconds, ecu_car, has_car, with_car
 
 
 def add_subparser(subparsers) -> None:

@@ -9,13 +9,12 @@ from pathlib import Path
 
 from ..bus import bus as busmod
 from ..bus.frames import BUSES, TICK_S, database, sent_by
-from ..carfile import has_car, with_car
 from ..errors import VehestError
 from ..progress import Progress
 from ..service import sdnotify
 from ..service.hil import ResidualBus, load_hil_config
 from ..systems import Setup, registered
-from ._common import add_car_argument, car_from_args, check_seconds, ecu_car
+from ._common import add_car_argument, car_from_args, check_seconds, ecu_car, has_car, with_car
 
 
 def add_subparser(subparsers) -> None:

@@ -4,7 +4,6 @@ from __future__ import annotations
 import sys
 
 from ..bus import bus as busmod
-from ..carfile import with_car
 from ..errors import ConfigError
 from ..progress import Progress
 from ..sim.session import CAR_NODES, SimMaster
@@ -18,6 +17,7 @@ from ._common import (
     check_seconds,
     open_session_log,
     secoc_from_args,
+    with_car,
 )
 
 
