@@ -12,7 +12,7 @@ from setuptools.command.build_py import build_py
 
 DATA = {"dbc": ("dbc", "*.dbc"),
         **{f"scenarios/{s}": (f"firmware_sim/scenarios/{s}", "*.toml") for s in ("driveline", "camber", "tireforce", "roll")},
-        "campaigns": ("firmware_sim/campaigns", "*.toml"),
+        "campaigns": ("firmware_sim/campaigns", "*.toml"), "cars": ("firmware_sim/cars", "*.toml"),
         "examples/hil": ("examples/hil", "*.toml"), "examples/systemd": ("examples/systemd", "*")}
 
 

@@ -129,12 +129,11 @@ int vh_roll_params_check(const vh_roll_params_t *prm)
          prm->reg_eps > 0.0 && prm->reg_eps < 1.0 && prm->nis_max >= 0.0 && prm->phi_max > 0.0 &&
          prm->conv_sd_phi > 0.0 && prm->conv_sd_phi < 1e3 && prm->conv_sd_p > 0.0 && prm->conv_sd_p < 1e3;
     if (ok) {
-        /* suspension roll stiffness with the tyres in series removed, the bar is what the springs
-         * leave (as the plant, docs/chassis_plant.md): both must be physical */
+        /* suspension roll stiffness with the tyres in series removed (as the plant,
+         * docs/chassis_plant.md): positive. The bar, what the springs leave of it, may be negative */
         const double ksf = 1.0 / (1.0 / prm->kphi_f - 1.0 / (2.0 * prm->kt * prm->tf * prm->tf));
         const double ksr = 1.0 / (1.0 / prm->kphi_r - 1.0 / (2.0 * prm->kt * prm->tr * prm->tr));
-        ok = ksf > 0.0 && ksr > 0.0 && ksf - 2.0 * prm->k_f * prm->tf * prm->tf >= 0.0 &&
-             ksr - 2.0 * prm->k_r * prm->tr * prm->tr >= 0.0;
+        ok = ksf > 0.0 && ksr > 0.0;
     }
     return ok ? 0 : -1;
 }

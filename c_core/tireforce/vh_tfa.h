@@ -58,7 +58,8 @@ typedef struct {
     int32_t inv_forget;         /* 1 / lambda, Q30 */
     int32_t p0, p_floor, p_ok;  /* Q30: prior (= ceiling), floor, converged below */
     int32_t k_lo, k_hi;         /* Q29: the ratio's clamp */
-    int32_t m_num, m_den;       /* the model mass m = m_num / m_den [kg], exactly: m^ = k m to raw, integer only */
+    int32_t m_num, m_den;       /* the model mass m = m_num / m_den [kg] (exact, or rounded within 0.5 / m_den:
+                                 * vh_tfa_params_from_config): m^ = k m to raw, integer only */
     /* per-side friction and the friction ellipse (0: off) */
     int32_t friction, combined;
     int32_t compliance[VH_TFA_NZ];  /* 1 / C_kappa per load knot, FC */

@@ -136,14 +136,26 @@ int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t 
     z.k_hi = vh_skfq_qconst(c->mass_hi, VH_TFA_FK, &ok);
     z.m_num = 0;
     z.m_den = 0;
-    {   /* the model mass as an exact fraction m_num / m_den (the TX of the mass estimate, integer only) */
+    {   /* the model mass as a fraction m_num / m_den (the TX of the mass estimate and its std, integer
+         * only: vh_tf_app_check wants m_num times the DBC scale's denominator, 10 for the std, within
+         * 2^30, so m_num <= 2^26): the shortest exact decimal fraction that fits, else the nearest with
+         * the finest power-of-ten denominator (<= 10^6) that fits, within 0.5 / m_den kg (5e-5 kg for
+         * 671..6710 kg) */
+        const double n_max = 67108864.0;
         int32_t d;
         for (d = 1; d <= 1000000; d *= 10) {
             const double n = skf->m * d;
-            if (n == floor(n) && n <= 2147483647.0) {
+            if (n == floor(n) && n <= n_max) {
                 z.m_num = (int32_t)n;
                 z.m_den = d;
                 break;
+            }
+        }
+        for (d = 1000000; z.m_num == 0 && d >= 1; d /= 10) {
+            const double n = floor(skf->m * d + 0.5);
+            if (n <= n_max) {
+                z.m_num = (int32_t)n;
+                z.m_den = d;
             }
         }
         ok = ok && z.m_num > 0;

@@ -185,8 +185,8 @@ typedef struct {
 /* The paper's parameters plus the documented plausible rest. */
 void vh_v14_params_default(vh_v14_params_t *prm);
 /* VH_OK, or VH_EINVAL (nothing changed) for missing pointers, non-finite or non-physical
- * parameters, a roll stiffness the tyres alone cannot give, springs stiffer in roll than k_phi,
- * or tyre coefficients vh_mft_check refuses. Starts at rest (vh_v14_reset). */
+ * parameters, a roll stiffness the tyres alone cannot give (the bar k_susp - 2 k t^2 may be
+ * negative; within 1e-9 of k_susp it is taken as no bar), or tyre coefficients vh_mft_check refuses. Starts at rest (vh_v14_reset). */
 int vh_v14_init(vh_v14_t *p, const vh_v14_params_t *prm);
 /* At rest in static equilibrium, time 0. */
 void vh_v14_reset(vh_v14_t *p);

@@ -351,15 +351,25 @@ static int params_ok(const vh_v14_params_t *prm)
         prm->min_substeps > VH_V14_MAX_SUBSTEPS) {
         return 0;
     }
+    /* the tyres must be stiffer in roll than k_phi (a positive suspension roll stiffness); the bar,
+     * what the springs leave of it, may be negative (CommonRoad's auxiliary torsion stiffness is) */
     ks = susp_roll_stiffness(prm->kphi_f, prm->kt, prm->tf);
-    if (!(ks >= 2.0 * prm->k_f * prm->tf * prm->tf)) {
-        return 0; /* tyres too soft for k_phi, or springs alone stiffer than the suspension */
+    if (!(ks > 0.0)) {
+        return 0;
     }
     ks = susp_roll_stiffness(prm->kphi_r, prm->kt, prm->tr);
-    if (!(ks >= 2.0 * prm->k_r * prm->tr * prm->tr)) {
+    if (!(ks > 0.0)) {
         return 0;
     }
     return vh_mft_check(&prm->tyre);
+}
+
+/* The anti-roll bar of an axle, k_susp - 2 k t^2. A car without a bar whose k_phi was computed from
+ * the springs alone comes back as a rounding residue (~1e-12 of k_susp): that is no bar. */
+static double bar_rate(double ks, double k, double t)
+{
+    const double bar = ks - 2.0 * k * t * t;
+    return fabs(bar) <= 1e-9 * ks ? 0.0 : bar;
 }
 
 /* ---- public -------------------------------------------------------------------------------- */
@@ -392,8 +402,8 @@ int vh_v14_init(vh_v14_t *p, const vh_v14_params_t *prm)
         p->fs0[i] = prm->ms * G * (i < 2 ? prm->lr : prm->lf) / (2.0 * l);
         p->fz0[i] = p->fs0[i] + (i < 2 ? prm->m_uf : prm->m_ur) * G;
     }
-    p->k_arb_f = susp_roll_stiffness(prm->kphi_f, prm->kt, prm->tf) - 2.0 * prm->k_f * prm->tf * prm->tf;
-    p->k_arb_r = susp_roll_stiffness(prm->kphi_r, prm->kt, prm->tr) - 2.0 * prm->k_r * prm->tr * prm->tr;
+    p->k_arb_f = bar_rate(susp_roll_stiffness(prm->kphi_f, prm->kt, prm->tf), prm->k_f, prm->tf);
+    p->k_arb_r = bar_rate(susp_roll_stiffness(prm->kphi_r, prm->kt, prm->tr), prm->k_r, prm->tr);
     p->c_f = prm->cphi_f / (2.0 * prm->tf * prm->tf); /* c_phi = 2 c t^2 */
     p->c_r = prm->cphi_r / (2.0 * prm->tr * prm->tr);
     /* fastest non-tyre rates: wheel hop (spring, bar and tyre on the unsprung mass) and its

@@ -532,7 +532,6 @@ def test_bad_inputs_are_sanitised_and_counted():
 
 @pytest.mark.parametrize("field, value", [
     ("ms", -1.0), ("ix", math.nan), ("kt", 0.0), ("kphi_f", 5e5),     # tyres alone softer than k_phi
-    ("kphi_r", 1e4),                                                     # springs alone stiffer
     ("hf", 0.6), ("relax_y", 0.001), ("min_substeps", 0), ("min_substeps", 99), ("v_low", 0.0)])
 def test_init_rejects_unphysical_parameters(field, value):
     p = ffi.new("vh_v14_t *")
@@ -541,6 +540,21 @@ def test_init_rejects_unphysical_parameters(field, value):
     prm.tyre.a[0] = 2.5
     assert lib.vh_v14_init(p, prm) == lib.VH_EINVAL
     assert lib.vh_v14_init(ffi.NULL, params()) == lib.VH_EINVAL
+
+
+def test_init_takes_a_negative_bar_and_a_bar_residue_as_none():
+    """Springs stiffer in roll than the suspension leave a negative bar (CommonRoad's auxiliary torsion
+    stiffness is one): accepted while the suspension's roll stiffness is positive. A k_phi made from the
+    springs alone with the tyres in series comes back as a bar of rounding size: no bar."""
+    p = ffi.new("vh_v14_t *")
+    assert lib.vh_v14_init(p, params(kphi_r=1e4)) == lib.VH_OK
+    assert p.k_arb_r < 0 and 2 * p.prm.k_r * p.prm.tr ** 2 + p.k_arb_r > 0
+    prm = params()
+    ks = 2 * prm.k_r * prm.tr ** 2
+    kphi = 1 / (1 / ks + 1 / (2 * prm.kt * prm.tr ** 2))
+    assert 1 / (1 / kphi - 1 / (2 * prm.kt * prm.tr ** 2)) != ks  # the residue this is about
+    assert lib.vh_v14_init(p, params(kphi_r=kphi)) == lib.VH_OK
+    assert p.k_arb_r == 0.0
 
 
 # ---- the paper's scenarios -------------------------------------------------------------------

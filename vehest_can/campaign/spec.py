@@ -44,6 +44,7 @@ from ..schema import Checker, read_toml
 CAMPAIGNS = ShippedSet("campaigns", "firmware_sim/campaigns")
 
 FAULT = "fault"  # a vary key that is not a scenario key: fault specs, ";"-separated
+CAR = "car"  # the scenario key of the 14-DOF car's car file: its values resolved against the campaign file
 DISTS = {"uniform": ("low", "high"), "normal": ("mean", "sd"), "list": ("values",), "grid": ("values",)}
 
 
@@ -224,6 +225,20 @@ def load_campaign(path: str | Path) -> Campaign:
                         parse_fault(f)
                     except ConfigError as exc:  # the faults module's own clear message
                         chk.fail(f"vary[{i}].values[{j}]", str(exc))
+        if v.key == CAR:  # a car axis: names, or paths relative to this file (the runs' documents are the base's)
+            if v.dist not in ("list", "grid"):
+                chk.fail(f"vary[{i}].dist", f"the {CAR} key takes list or grid (of car names or files)")
+            from ..carfile import car_spec, load_car
+
+            specs = []
+            for j, text in enumerate(v.args[0]):
+                if not isinstance(text, str):
+                    chk.fail(f"vary[{i}].values[{j}]", f"must be a car file or a shipped car's name, not {text!r}")
+                try:
+                    specs.append(car_spec(load_car(text, relative_to=path.parent)))
+                except ConfigError as exc:
+                    chk.fail(f"vary[{i}].values[{j}]", str(exc))
+            vary[i] = Vary(v.key, v.dist, (tuple(specs),))
     keys = [v.key for v in vary]
     if len(set(keys)) != len(keys):
         chk.fail("vary", f"key {next(k for k in keys if keys.count(k) > 1)!r} is varied twice")

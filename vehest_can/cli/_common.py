@@ -2,9 +2,11 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
 from pathlib import Path
+from typing import Any
 
 from ..bus.log import FORMATS, SessionLog, check_log_path
 from ..errors import ConfigError
@@ -118,3 +120,66 @@ def check_plot_path(path: str) -> Path:
     if not p.parent.is_dir():
         raise ConfigError(f"{path}: folder {p.parent} does not exist")
     return p
+
+
+CAR_HELP = ("the car (a car file, docs/car.md, or a shipped car's name: paper, commonroad_vehicle1 .. 3): "
+            "the ECU is calibrated for it and the 14-DOF plant runs it (a scenario's [vehicle] keys still "
+            "override it). Default: the scenario's own car (its `car` key), else the paper's")
+
+
+def add_car_argument(parser: argparse.ArgumentParser, help: str = CAR_HELP) -> None:
+    parser.add_argument("--car", metavar="FILE_OR_NAME", help=help)
+
+
+def car_from_args(args, *, plant: bool = True):
+    """--car loaded and checked before anything starts (its keys against their ranges, then the C of the
+    ECU and, with `plant`, of the 14-DOF plant: a refusal names the key), or None when not given."""
+    spec = getattr(args, "car", None)
+    if not spec:
+        return None
+    from ..carfile import load_car
+    from ..systems.ecu import check_car
+
+    car = load_car(spec)
+    check_car(car, plant=plant)
+    return car
+
+
+def ecu_car(car, scenarios) -> Any:
+    """The car the ECU is calibrated for: --car (`car`), else the one car the scenarios name (None: the
+    paper's); scenarios naming different cars need --car (one ECU serves them all)."""
+    if car is not None:
+        return car
+    from ..carfile import car_of, paper_car
+
+    by_name: dict = {}
+    for sc in scenarios:
+        if not has_car(sc):
+            continue  # not the 14-DOF car: a car file is not its model
+        c = car_of(sc) or paper_car()
+        by_name.setdefault(str(c.path.resolve() if c.path else c.name), c)
+    if len(by_name) > 1:
+        raise ConfigError(f"the scenarios name different cars ({', '.join(sorted(by_name))}) and one ECU serves "
+                          f"them all: run them separately, or give --car")
+    car = next(iter(by_name.values()), None)
+    return None if car is paper_car() else car  # the paper's car is the ECU's default
+
+
+def has_car(scenario) -> bool:
+    """Whether a scenario drives the 14-DOF plant (itself, or as its ``plant``): the car a car file describes."""
+    from ..sim.veh14 import Veh14Scenario
+
+    return isinstance(scenario, Veh14Scenario) or isinstance(getattr(scenario, "chassis", None), Veh14Scenario)
+
+
+def with_car(scenario, car):
+    """The scenario with its 14-DOF plant on `car` (its [vehicle] overrides kept): a 14-DOF scenario, or
+    one holding one as ``chassis``; another scenario's car has no such plant (ConfigError)."""
+    from ..sim.veh14 import Veh14Scenario
+
+    if isinstance(scenario, Veh14Scenario):
+        return dataclasses.replace(scenario, car=car)
+    if has_car(scenario):
+        return dataclasses.replace(scenario, chassis=dataclasses.replace(scenario.chassis, car=car))
+    raise ConfigError(f"{scenario.name}: a car file is the 14-DOF car's (tyre-force and roll scenarios); this "
+                      f"scenario's car is another plant")

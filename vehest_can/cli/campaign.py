@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ConfigError
+from ._common import add_car_argument, car_from_args
 
 
 def add_subparser(subparsers) -> None:
@@ -26,6 +27,9 @@ def add_subparser(subparsers) -> None:
     p.add_argument("--batch-size", type=int, metavar="N", help="runs per task (default: a few tasks per worker, <= 16)")
     p.add_argument("--fresh", action="store_true", help="discard results already in the output folder")
     p.add_argument("--no-plots", action="store_true", help="skip the plots")
+    add_car_argument(p, "every run's car (a car file, docs/car.md, or a shipped car's name: paper, "
+                        "commonroad_vehicle1 .. 3): the base scenario's `car` key, so the 14-DOF plant runs it and "
+                        "the ECU is calibrated for it; a `car` axis in the file overrides it")
     p.set_defaults(func=run)
 
 
@@ -75,6 +79,16 @@ def run(args) -> int:
             raise ConfigError("--scheduler needs Dask: pip install 'vehest-can[dask]'") from None
 
     campaign = load_campaign(spec.CAMPAIGNS.path(args.spec))
+    car = car_from_args(args)
+    if car is not None:
+        from dataclasses import replace
+
+        from ..carfile import car_spec
+
+        if campaign.base.get("kind") not in ("tireforce", "chassis", "roll"):
+            raise ConfigError(f"--car: {campaign.base_path.name} is a {campaign.base.get('kind')} scenario; a car "
+                              f"file is the 14-DOF car's (tireforce and roll scenarios)")
+        campaign = replace(campaign, base={**campaign.base, "car": car_spec(car)})
     out = Path(args.out or Path("out") / "campaign" / campaign.name)
     workers = args.workers or os.cpu_count() or 1
     store = Store(out, campaign)

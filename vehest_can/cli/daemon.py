@@ -17,8 +17,10 @@ from ..systems.camber.api import load_calibrations, load_into_ecu
 from ..systems.ecu import Ecu, EcuConfig
 from ..xcp import ecu as xcp_ecu
 from ._common import (
+    add_car_argument,
     add_log_arguments,
     add_secoc_arguments,
+    car_from_args,
     check_log_arguments,
     check_range,
     check_seconds,
@@ -50,6 +52,8 @@ def add_subparser(subparsers) -> None:
     p.add_argument("--hil", metavar="CONFIG",
                    help="open every bus the ECU (VEHEST) is on in this HIL configuration (docs/hil.md), one adapter "
                         "each, each frame sent on its DBC's bus; instead of the python-can bus flags")
+    add_car_argument(p, "the car the ECU is calibrated for (a car file, docs/car.md, or a shipped car's name: "
+                        "paper, commonroad_vehicle1 .. 3); default: the paper's")
     sdnotify.add_log_level(p)
     xcp_ecu.add_arguments(p)  # the XCP slave in the ECU (its own flags, docs/xcp.md)
     add_secoc_arguments(p)
@@ -73,7 +77,7 @@ def run(args) -> int:
         raise ConfigError("--report applies to --mode realtime (a lockstep daemon's time is the simulator's)")
     check_log_arguments(args)
     sdnotify.apply_log_level(args.log_level)
-    ecu = Ecu(replace(EcuConfig.default(), rx_burst_frames=args.rx_burst_limit))
+    ecu = Ecu(replace(EcuConfig.default(), rx_burst_frames=args.rx_burst_limit, car=car_from_args(args, plant=False)))
     if args.camber_cal:
         load_into_ecu(ecu, load_calibrations(args.camber_cal))
     xcp = xcp_ecu.from_args(args, ecu)

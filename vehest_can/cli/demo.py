@@ -16,6 +16,7 @@ import numpy as np
 
 from ..bus import bus as busmod
 from ..bus.log import FORMATS, SessionLog
+from ..carfile import car_spec
 from ..errors import VehestError
 from ..progress import Progress
 from ..service.daemon import stop_process
@@ -23,8 +24,8 @@ from ..sim.car import PLANTS, on_plants
 from ..sim.report import FAIL, checks_of, checks_text, realtime_summary, write_junit, write_metrics
 from ..sim.session import SimMaster, run_inprocess
 from ..systems import Setup, System, load_any_scenario, registered, shipped_scenarios
-from ..systems.ecu import Ecu
-from ._common import check_seconds
+from ..systems.ecu import Ecu, EcuConfig
+from ._common import CAR_HELP, add_car_argument, car_from_args, check_seconds, ecu_car, has_car, with_car
 
 
 def add_subparser(subparsers) -> None:
@@ -50,6 +51,8 @@ def add_subparser(subparsers) -> None:
                         "scenario on every plant, side by side)")
     p.add_argument("--log-per-bus", action="store_true",
                    help="one session log per bus (session-pt.log, session-ch.log) instead of one with a channel per bus")
+    add_car_argument(p, CAR_HELP + "; the ECU daemon and the references of the metrics are calibrated for the "
+                                   "same car (scenarios naming different cars need --car)")
     busmod.add_arguments(p)
     p.set_defaults(func=run)
 
@@ -62,8 +65,13 @@ def run(args, systems: list[System] | None = None) -> int:
     check_seconds(args.realtime, "--realtime", zero=True)
     systems = registered() if systems is None else systems
     paths = [Path(p) for p in args.scenarios] or shipped_scenarios(systems)
+    runs = [load_any_scenario(p, systems) for p in paths]
+    car = car_from_args(args)
+    if car is not None:  # the 14-DOF cars run it; the other plants are not what a car file describes
+        runs = [(s, with_car(sc, car) if has_car(sc) else sc) for s, sc in runs]
     plants = PLANTS if args.plant == "both" else (args.plant,)
-    runs = [(s, v) for s, sc in (load_any_scenario(p, systems) for p in paths) for v in on_plants(sc, plants)]
+    runs = [(s, v) for s, sc in runs for v in on_plants(sc, plants)]
+    car = ecu_car(car, [sc for _, sc in runs])
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     config = busmod.bus_config(args)
@@ -74,7 +82,9 @@ def run(args, systems: list[System] | None = None) -> int:
     print(f"bus: {config['interface']} {config.get('channel')}{port}; ECU daemon in its own process; output in {out}/")
 
     setups: dict[str, Setup] = {s.name: s.setup([sc for r, sc in runs if r is s], out) for s in systems}
-    daemon_args = [a for st in setups.values() for a in st.daemon_args]
+    for st in setups.values():
+        st.car = car
+    daemon_args = [a for st in setups.values() for a in st.daemon_args] + (["--car", car_spec(car)] if car else [])
     with tempfile.TemporaryDirectory(prefix="vehest-secoc-") as keydir:
         keys = _dev_keys(Path(keydir)) if args.secoc == "on" else None
         secoc_args = []
@@ -120,7 +130,7 @@ def _run(args, systems, runs, out: Path, config: dict, setups: dict, daemon_args
                     master = SimMaster(bus, _with_secoc(system.car(sc), keys), log_writer=writer, progress=progress)
                     session = master.run_lockstep(end=False)
                 progress.done(f"{session.stats['realtime_factor']:.1f}x real time over the bus")
-                local_ecu = Ecu()  # configured like the daemon
+                local_ecu = Ecu(EcuConfig(car=next(iter(setups.values())).car if setups else None))  # like the daemon
                 for st in setups.values():
                     st.configure(local_ecu)
                 if keys is not None:

@@ -4,6 +4,7 @@ Nothing here knows a system by name: each car's figures come from its system in 
 from __future__ import annotations
 
 import collections
+from dataclasses import replace
 from pathlib import Path
 
 from ..bus import bus as busmod
@@ -13,7 +14,7 @@ from ..progress import Progress
 from ..service import sdnotify
 from ..service.hil import ResidualBus, load_hil_config
 from ..systems import Setup, registered
-from ._common import check_seconds
+from ._common import add_car_argument, car_from_args, check_seconds, ecu_car, has_car, with_car
 
 
 def add_subparser(subparsers) -> None:
@@ -30,6 +31,7 @@ def add_subparser(subparsers) -> None:
                         "an ECU alone runs until SIGINT/SIGTERM)")
     p.add_argument("-o", "--out", default="out/hil", metavar="DIR",
                    help="where each car's plots go (default: out/hil)")
+    add_car_argument(p)
     sdnotify.add_log_level(p)
     p.set_defaults(func=run)
 
@@ -42,6 +44,11 @@ def run(args) -> int:
         print(f"{config.path}: valid")
         return 0
 
+    ecar = car_from_args(args)
+    if ecar is not None:  # the simulated 14-DOF cars run it
+        config = replace(config, cars=tuple(replace(c, scenario=with_car(c.scenario, ecar)) if has_car(c.scenario)
+                                            else c for c in config.cars))
+    ecar = ecu_car(ecar, [c.scenario for c in config.cars])  # the ECU's calibration
     sdnotify.apply_log_level(args.log_level)
     notifier = sdnotify.Notifier.from_env()
     out = Path(args.out)
@@ -51,6 +58,7 @@ def run(args) -> int:
         for name in dict.fromkeys(car.system for car in config.cars):
             out.mkdir(parents=True, exist_ok=True)
             setups[name] = systems[name].setup([c.scenario for c in config.cars if c.system == name], out)
+            setups[name].car = ecar
 
     def configure(ecu) -> None:
         for st in setups.values():
@@ -59,7 +67,8 @@ def run(args) -> int:
     name = config.scenario.name if config.scenario is not None else ""
     progress = Progress(f"{name} (real time)" if config.mode == "realtime"
                         else f"{name} (lockstep)") if config.car_simulated else None
-    runner = ResidualBus(config, duration_s=args.duration, notifier=notifier, progress=progress, configure=configure)
+    runner = ResidualBus(config, duration_s=args.duration, notifier=notifier, progress=progress, configure=configure,
+                         car=ecar)
     try:
         with busmod.stop_on_signals(runner.stop):
             if not config.ecu_simulated:
@@ -99,7 +108,7 @@ def run(args) -> int:
         sdir = out / session.name
         sdir.mkdir(parents=True, exist_ok=True)
         metrics[car.system].append(systems[car.system].metrics(car.scenario, session, sdir,
-                                                               setups.get(car.system, Setup())))
+                                                               setups.get(car.system, Setup(car=ecar))))
     tables = [t for s in systems.values() for t in s.tables(metrics.get(s.name, []))]
     if tables:
         print("\n\n".join(tables))

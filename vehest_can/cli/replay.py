@@ -10,7 +10,8 @@ from ..errors import ConfigError
 from ..progress import Progress
 from ..service.estimates import TABLE_FORMATS, EstimateTable, check_table_path
 from ..service.replay import ECU_TX, MAX_GAP_S, play, replay_file
-from ._common import check_range
+from ..systems.ecu import Ecu, EcuConfig
+from ._common import add_car_argument, car_from_args, check_range
 
 _BUS_FLAGS = ("interface", "channel", "bitrate", "fd", "data_bitrate", "timing", "bus_kwargs", "bus_config", "bus_context")
 
@@ -35,6 +36,9 @@ def add_subparser(subparsers) -> None:
     p.add_argument("--play", action="store_true",
                    help="send the log's frames (not the ECU's own) onto the bus of -i/-c at their recorded pace "
                         "(default: udp_multicast on this host only)")
+    add_car_argument(p, "the car the ECU is calibrated for (a car file, docs/car.md, or a shipped car's name: "
+                        "paper, commonroad_vehicle1 .. 3); default: the paper's. A log recorded with an ECU "
+                        "calibrated for another car replays DIFFERENT")
     busmod.add_arguments(p)
     p.set_defaults(func=run)
 
@@ -43,19 +47,22 @@ def run(args) -> int:
     # a gap shorter than a tick is no gap; an hour of idle ticks is 7.2 M steps of the ECU
     check_range(args.max_gap, "--max-gap", TICK_S, 3600.0, "seconds")
     if args.play:
+        if args.car:
+            raise ConfigError("--car calibrates the offline replay's ECU; --play only sends the log onto a bus")
         return _play(args)
     given = [f for f in _BUS_FLAGS if getattr(args, f, None) not in (None, False, [], {})]  # python-can's: absent if not given
     if given:
         raise ConfigError(f"bus options ({', '.join('--' + f.replace('_', '-') for f in given)}) apply to --play only: "
                           "the offline replay uses no bus")
     check_log_file(args.log)
+    ecu = Ecu(EcuConfig(car=car_from_args(args, plant=False)))
     table_path = check_table_path(args.table) if args.table else None
     writer = SessionLog(check_log_path(args.output), {"VEHEST"}) if args.output else None
     table = None
     try:
         table = EstimateTable(table_path, ECU_TX) if table_path else None
         progress = Progress(f"replay {Path(args.log).name}", unit="B")
-        result = replay_file(args.log, writer=writer, table=table, max_gap_s=args.max_gap, progress=progress)
+        result = replay_file(args.log, ecu, writer=writer, table=table, max_gap_s=args.max_gap, progress=progress)
         progress.done()
     finally:
         if writer is not None:

@@ -8,7 +8,17 @@ from ..errors import ConfigError
 from ..progress import Progress
 from ..sim.session import CAR_NODES, SimMaster
 from ..systems import load_any_scenario
-from ._common import add_log_arguments, add_secoc_arguments, check_log_arguments, check_seconds, open_session_log, secoc_from_args
+from ._common import (
+    add_car_argument,
+    add_log_arguments,
+    add_secoc_arguments,
+    car_from_args,
+    check_log_arguments,
+    check_seconds,
+    open_session_log,
+    secoc_from_args,
+    with_car,
+)
 
 
 def add_subparser(subparsers) -> None:
@@ -22,6 +32,9 @@ def add_subparser(subparsers) -> None:
     p.add_argument("--duration", type=float, metavar="S", help="run S seconds (repeats the driver profile)")
     p.add_argument("--pose", choices=("wheel", "x_down", "z_down"),
                    help="camber inspection devices in this pose (calibration fixture), overriding the scenario")
+    add_car_argument(p, "the car the 14-DOF plant runs (a car file, docs/car.md, or a shipped car's name: paper, "
+                        "commonroad_vehicle1 .. 3), instead of the scenario's own (its [vehicle] keys still "
+                        "override it); tyre-force and roll scenarios")
     add_log_arguments(p)
     add_secoc_arguments(p)
     busmod.add_arguments(p)
@@ -36,6 +49,9 @@ def run(args) -> int:
         from dataclasses import replace
 
         sc = replace(sc, camber=replace(sc.camber, pose=args.pose))
+    car = car_from_args(args)
+    if car is not None:
+        sc = with_car(sc, car)
     check_seconds(args.duration, "--duration")
     check_log_arguments(args)
     drive = system.car(sc, args.duration)

@@ -16,12 +16,13 @@ import numpy as np
 from ..bus.bus import open_bus
 from ..bus.busload import bus_load
 from ..bus.frames import TICK_S, database, message, to_message
+from ..carfile import car_of
 from ..errors import ConfigError
 from ..paths import dbc_path
 from ..service.daemon import EcuDaemon
 from ..sim.session import SimMaster
 from ..systems import FaultCase, FaultStudy, fault_study
-from ..systems.ecu import COUNTERS, Ecu
+from ..systems.ecu import COUNTERS, Ecu, EcuConfig
 from .injector import FaultInjector
 from .spec import FaultConfig, faults_from_cli
 from .wire import EXT_FLAG, FaultBus, Wire, WireModel
@@ -83,7 +84,7 @@ def run_with_faults(car, config: FaultConfig | None = None, *, bitrate: int = 50
     wire = WireModel(bitrate, data_bitrate, stuffing=stuffing, tx_queue=tx_queue, tx_policy=tx_policy)
     for spec in config.floods:
         wire.add_flood(spec, "FLOOD")
-    ecu = Ecu()
+    ecu = Ecu(EcuConfig(car=car_of(getattr(car, "scenario", None))))  # calibrated for the car's car file
     car.reset()
     closed = car.closed   # the car takes the ECU's frames (actuators): from the wire, as they arrive
     sensors, vehest = FaultInjector(config, stream=0), FaultInjector(config, stream=1)

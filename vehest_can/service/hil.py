@@ -30,6 +30,7 @@ from ..paths import dbc_dir
 from ..schema import Checker, Num, read_toml, type_name
 from ..sim.session import SimMaster
 from ..systems import System, claiming, registered, shipped_scenarios, unclaimed
+from ..systems.ecu import Ecu, EcuConfig
 from .daemon import EcuDaemon
 
 log = logging.getLogger(__name__)
@@ -631,12 +632,13 @@ class ResidualBus:
     run early, cleanly. `configure(ecu)` is applied to the simulated ECU first (e.g. calibrations)."""
 
     def __init__(self, config: HilConfig, *, duration_s: float | None = None, notifier=None, progress=None,
-                 configure=None):
+                 configure=None, car=None):
         self.config = config
         self.duration_s = duration_s if duration_s is not None else config.duration_s
         self.notifier = notifier
         self.progress = progress
         self.configure = configure
+        self.car = car  # the car the simulated ECU is calibrated for (None: the paper's)
         self.stop_event = threading.Event()
 
     def stop(self) -> None:
@@ -658,8 +660,8 @@ class ResidualBus:
             daemon = None
             if cfg.ecu_simulated:
                 result.ecu_buses = cfg.ecu_buses
-                daemon = EcuDaemon({n: open_(n, "ecu") for n in cfg.ecu_buses}, routes=cfg.ecu_routes(),
-                                   notifier=self.notifier)
+                daemon = EcuDaemon({n: open_(n, "ecu") for n in cfg.ecu_buses}, Ecu(EcuConfig(car=self.car)),
+                                   routes=cfg.ecu_routes(), notifier=self.notifier)
                 if self.configure is not None:
                     self.configure(daemon.ecu)
                 daemon.stop_event = self.stop_event

@@ -56,6 +56,13 @@ def _groups(p) -> dict[str, list[str]]:
     return out
 
 
+def base_vehicle(car) -> int:
+    """The CommonRoad vehicle whose hidden physics the MB plant keeps: the car's own where the car is
+    one of CommonRoad's parameter sets (a car file ``commonroad_vehicleN``), else BASE_VEHICLE."""
+    name = getattr(car, "name", "") or ""
+    return int(name[-1]) if name.startswith("commonroad_vehicle") and name[-1].isdigit() else BASE_VEHICLE
+
+
 def mb_parameters(prm, base: int = BASE_VEHICLE):
     """The package's ``VehicleParameters`` for the car of a ``vh_v14_params_t`` (our plant's data
     sheet): its masses, inertias, geometry, springs, dampers, anti-roll bars (the bar rate that gives

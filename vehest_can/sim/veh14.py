@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ScenarioError
+from ..errors import ConfigError, ScenarioError
 from ..schema import Checker, Num, type_name
 from .car import PLANTS, Car
 from .scenario import DT, SCENARIO_TOP, ScenarioBase, _native, kind_checker, scenario_top
@@ -27,7 +27,7 @@ WHEELS = ("FL", "FR", "RL", "RR")
 
 # ---- schema --------------------------------------------------------------------------------
 
-_TOP: dict[str, Any] = {"kind": "string", "plant": "string", **SCENARIO_TOP}
+_TOP: dict[str, Any] = {"kind": "string", "plant": "string", "car": "string", **SCENARIO_TOP}
 _TABLES = ("driver", "road", "vehicle", "tyre", "sensors")
 
 _STEER_DEG = Num(-30.0, 30.0)     # road-wheel angle; the plant clamps at 0.6 rad (34 deg)
@@ -111,6 +111,7 @@ class Veh14Scenario(ScenarioBase, node="vh_chs", truth="vh_v14_truth_t", seed_sa
     plant: str = "veh14"                         # one of PLANTS
     plant_fixed: bool = False                    # the file names its plant (the demo runs it on that one only)
     path: Path | None = None
+    car: Any = None                              # the car it names (a vehest_can.carfile.CarFile); None: the paper's
 
     def with_plant(self, plant: str) -> Veh14Scenario:
         """The same run on another plant, named ``<name>@<plant>`` unless it is ours."""
@@ -162,9 +163,13 @@ class Veh14Scenario(ScenarioBase, node="vh_chs", truth="vh_v14_truth_t", seed_sa
     # ---- C structs ----
 
     def plant_params(self, ffi, lib):
-        """``vh_v14_params_t *``: the paper's car with this scenario's overrides and extra mass."""
-        prm = ffi.new("vh_v14_params_t *")
-        lib.vh_v14_params_default(prm)
+        """``vh_v14_params_t *``: the scenario's car (the paper's unless it names one) with its overrides
+        and extra mass."""
+        if self.car is not None:
+            prm = self.car.veh14_params(ffi, lib)
+        else:
+            prm = ffi.new("vh_v14_params_t *")
+            lib.vh_v14_params_default(prm)
         for key, value in self.vehicle:
             setattr(prm, _VEHICLE[key][0], value)
         prm.ms += self.mass_delta_kg
@@ -240,9 +245,10 @@ class Veh14Car(Car):
             raise ScenarioError(f"{sc._where()}: the plant, its sensor nodes or its actuators refuse this scenario")
         self.mb = None
         if sc.plant == "commonroad_mb":
-            from .mbplant import MbPlant, mb_parameters
+            from .mbplant import MbPlant, base_vehicle, mb_parameters
 
-            self.mb = MbPlant(mb_parameters(prm), sc.initial_speed_kmh / 3.6, drag=0.5 * prm.rho * prm.cda)
+            self.mb = MbPlant(mb_parameters(prm, base_vehicle(sc.car)), sc.initial_speed_kmh / 3.6,
+                              drag=0.5 * prm.rho * prm.cda)
             self.mb.attach(self.car)
         self.reset()
 
@@ -353,10 +359,22 @@ def veh14_scenario_from_dict(doc: dict, path: str | Path, kind: str) -> Veh14Sce
         if tyre_doc:
             c.fail("tyre", "is the veh14 plant's tyre; the commonroad_mb plant keeps its own (remove the table)")
         _require_mb(c)
+    car = None
+    if "car" in doc:
+        from ..carfile import load_car
+
+        try:
+            car = load_car(c.string(doc["car"], "car"), relative_to=Path(path).parent)
+        except ScenarioError:
+            raise
+        except ConfigError as exc:
+            c.fail("car", str(exc))
+
     sc = Veh14Scenario(**top, plant=plant, plant_fixed="plant" in doc, steer_deg=steer, drive_nm=drive, brake_nm=brake,
                          mu_left=mu_l, mu_right=mu_r, mass_delta_kg=mass_delta, vehicle=tuple(sorted(vehicle)),
                          tyre=tuple(sorted(tyre)), sensors=tuple(sorted(sensors)),
-                         accel_gravity=flags["accel_gravity"], ride_height=flags["ride_height"], path=Path(path))
+                         accel_gravity=flags["accel_gravity"], ride_height=flags["ride_height"], path=Path(path),
+                         car=car)
     prm = sc.plant_params(ffi, lib)
     if not prm.ms > 0:
         c.fail("vehicle.mass_delta_kg", f"leaves a sprung mass of {prm.ms:g} kg")
@@ -365,7 +383,7 @@ def veh14_scenario_from_dict(doc: dict, path: str | Path, kind: str) -> Veh14Sce
             c.fail("tyre", "the Magic Formula coefficients do not give a peaked curve for loads up to "
                            "20 kN (need 1 < C < 2, D > 0, BCD > 0, E < 1)")
         c.fail("vehicle", "the plant refuses this combination: the roll stiffness must be below the tyres' "
-                          "own (2 kt t^2) and at least the springs' (2 k t^2), and the roll centres below the CG")
+                          "own (2 kt t^2), and the roll centres below the CG")
     if lib.vh_chs_init(ffi.new("vh_chs_t *"), sc.node_config(ffi, lib)) != lib.VH_OK:
         c.fail("sensors", "the sensor node refuses this configuration")
     return sc

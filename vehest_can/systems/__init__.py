@@ -29,6 +29,9 @@ class Setup:
 
     daemon_args: list[str] = field(default_factory=list)
     configure: Callable[[Any], None] = lambda ecu: None
+    #: the car the ECU is calibrated for (``--car``, a :class:`~vehest_can.carfile.CarFile`); None: each
+    #: scenario's own car, else the paper's. The off-line references of the metrics use the same.
+    car: Any = None
 
 
 class FaultCase(NamedTuple):
@@ -108,6 +111,11 @@ class System(Protocol):
     #: the counter sets its application keeps in the ECU (optional; none: it counts into the ECU's own)
     ecu_counters: tuple[EcuCounters, ...]
 
+    def configure_car(self, app: Any, car: Any) -> None:
+        """(Optional.) Write a car (:class:`~vehest_can.carfile.CarFile`, :attr:`.ecu.EcuConfig.car`) into its
+        application's vehicle model in ``app`` (``vh_ecu_config_t.app``), before ``configure_ecu``."""
+        ...
+
     def configure_ecu(self, app: Any, part: Any) -> None:
         """(Optional.) Write its part of an :class:`~.ecu.EcuConfig` (``EcuConfig.systems[name]``; None: its
         default) into its application's configuration in ``app`` (``vh_ecu_config_t.app``)."""
@@ -154,6 +162,11 @@ class Registration:
 
     def claims(self, doc: dict) -> bool:
         return doc.get("kind") in self.kinds
+
+    def configure_car(self, app: Any, car: Any) -> None:
+        """(Optional.) Write a car (:class:`~vehest_can.carfile.CarFile`, :attr:`.ecu.EcuConfig.car`) into its
+        application's vehicle model in ``app`` (``vh_ecu_config_t.app``), before ``configure_ecu``."""
+        ...
 
     def configure_ecu(self, app: Any, part: Any) -> None:
         """By default its application keeps the C core's default configuration."""

@@ -59,6 +59,9 @@ class EcuConfig:
     rx_burst_frames: int = 2
     #: each system's part by its name, as its ``configure_ecu`` takes it; absent: its default
     systems: dict[str, Any] = field(default_factory=dict)
+    #: the car every system's model is calibrated for (a :class:`~vehest_can.carfile.CarFile`); None: the
+    #: paper's (firmware_sim/cars/paper.toml, the C defaults bit for bit). A system's part overrides it.
+    car: Any = None
 
     @classmethod
     def default(cls) -> EcuConfig:
@@ -70,10 +73,66 @@ class EcuConfig:
         if not 0 <= self.rx_burst_frames <= 255:
             raise ConfigError(f"rx_burst_frames must be 0..255 (0 = off), got {self.rx_burst_frames}")
         c.rx_burst_frames = self.rx_burst_frames
+        if self.car is not None:  # the paper's car is the C default byte for byte (tests/test_carfile.py)
+            write_car(c.app, self.car)
         for s in _systems():
             if hasattr(s, "configure_ecu"):  # optional: without it, the C core's default
                 s.configure_ecu(c.app, self.systems.get(s.name))
         return c
+
+
+def write_car(app, car=None) -> None:
+    """A car (None: the paper's) into every system's configuration in ``app`` (``vh_ecu_apps_config_t``)."""
+    from ..carfile import paper_car
+
+    car = paper_car() if car is None else car
+    for s in _systems():
+        if hasattr(s, "configure_car"):
+            s.configure_car(app, car)
+
+
+def _ecu_refusal(car) -> str | None:
+    """What in the C refuses an ECU calibrated for `car` (each application's host completion and check,
+    the configuration checks of the filters), or None when it accepts it."""
+    c = ffi.new("vh_ecu_config_t *")
+    lib.vh_ecu_config_default(c)
+    write_car(c.app, car)
+    app = c.app
+    if not lib.vh_skf_config_check(ffi.addressof(app.tf, "skf")):
+        return "vh_skf_config_check (SKFMEC)"
+    if lib.vh_skfq_params_from_config(ffi.addressof(app.tf, "skf"), ffi.new("vh_skfq_params_t *")) != lib.VH_OK:
+        return "vh_skfq_params_from_config (the fixed-point SKFMEC's constants)"
+    if lib.vh_tfa_params_from_config(ffi.addressof(app.tf, "skf"), ffi.addressof(app.tf, "tfa"),
+                                     ffi.new("vh_tfa_params_t *")) != lib.VH_OK:
+        return "vh_tfa_params_from_config (SKFMEC-A's constants)"
+    tf = ffi.new("vh_tf_app_config_t *", app.tf)
+    if lib.vh_tf_app_config_host(tf) != lib.VH_OK or lib.vh_tf_app_check(tf) != lib.VH_OK:
+        return "vh_tf_app_check (the tyre-force application: its integer TX fractions)"
+    if lib.vh_roll_params_check(ffi.addressof(app.roll, "ukf")) != 0:
+        return "vh_roll_params_check (the roll UKF)"
+    if lib.vh_roll_smc_params_check(ffi.addressof(app.roll, "smc")) != 0:
+        return "vh_roll_smc_params_check (the roll SMC)"
+    if lib.vh_ecu_init(ffi.new("vh_ecu_t *"), c) != lib.VH_OK:
+        return "vh_ecu_init"
+    return None
+
+
+def _plant_refusal(car) -> str | None:
+    if lib.vh_v14_init(ffi.new("vh_v14_t *"), car.veh14_params(ffi, lib)) != lib.VH_OK:
+        return "vh_v14_init (the 14-DOF plant)"
+    return None
+
+
+def check_car(car, *, plant: bool = True) -> None:
+    """The C's checks of an ECU calibrated for `car` (and, with `plant`, of the 14-DOF plant with it). A
+    refusal is a ConfigError naming the key to blame: the one whose value from the paper's car makes the C
+    accept the rest of this car (the Python ranges of ``load_car`` come first; this names what they miss)."""
+    from ..carfile import blame
+
+    for refusal in (_ecu_refusal, _plant_refusal) if plant else (_ecu_refusal,):
+        what = refusal(car)
+        if what is not None:
+            raise ConfigError(blame(car, what, lambda c, r=refusal: r(c) is None))
 
 
 class Ecu:
@@ -83,6 +142,8 @@ class Ecu:
         self.config = config or EcuConfig.default()
         self._c_config = self.config.to_c()
         self.c = ffi.new("vh_ecu_t *")
+        if lib.vh_ecu_init(self.c, self._c_config) != lib.VH_OK and self.config.car is not None:
+            check_car(self.config.car, plant=False)  # names the car's key when it is the car
         check(lib.vh_ecu_init(self.c, self._c_config), "ECU configuration")
         self._rx = ffi.new("vh_frame_t *")
         self._tx = ffi.new("vh_frame_t[]", lib.VH_ECU_MAX_TX)

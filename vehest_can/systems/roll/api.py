@@ -37,6 +37,29 @@ def params_dict(prm) -> dict:
     return out
 
 
+def car_fields(car) -> dict[str, float]:
+    """The UKF's vehicle of a car (:class:`~vehest_can.carfile.CarFile`), as ``vh_roll_params_t`` fields (k_phi,
+    c_phi per axle; the tyre's simplified model stays the default's)."""
+    return {"ms": car.sprung_mass_kg, "ix": car.roll_inertia_kgm2, "iy": car.pitch_inertia_kgm2,
+            "iz": car.yaw_inertia_kgm2, "lf": car.cg_to_front_axle_m, "lr": car.cg_to_rear_axle_m,
+            "tf": car.half_track_front_m, "tr": car.half_track_rear_m, "h": car.cg_height_m,
+            "hf": car.roll_centre_height_front_m, "hr": car.roll_centre_height_rear_m,
+            "kphi_f": car.roll_stiffness("front"), "kphi_r": car.roll_stiffness("rear"),
+            "cphi_f": car.roll_damping("front"), "cphi_r": car.roll_damping("rear"),
+            "m_uf": car.unsprung_mass_front_kg, "m_ur": car.unsprung_mass_rear_kg,
+            "k_f": car.spring_rate_front_n_per_m, "k_r": car.spring_rate_rear_n_per_m,
+            "kt": car.tyre_stiffness_n_per_m, "ct": car.tyre_damping_ns_per_m}
+
+
+def write_car(cfg, car) -> None:
+    """A car into a ``vh_roll_app_config_t *``: the UKF's vehicle, the wheel radius, and the controller's
+    model terms of eq. 27 from them (``vh_roll_smc_params_default``, as the app's default does)."""
+    for k, v in car_fields(car).items():
+        setattr(cfg.ukf, k, v)
+    cfg.rw = car.wheel_radius_m
+    lib.vh_roll_smc_params_default(ffi.addressof(cfg, "smc"), ffi.addressof(cfg, "ukf"))
+
+
 def make_params(**over):
     prm = default_params()
     for k, v in over.items():

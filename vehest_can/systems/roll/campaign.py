@@ -7,9 +7,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...carfile import car_of
 from ...sim.session import run_inprocess
 from .. import CampaignRunner
-from ..ecu import Ecu
+from ..ecu import Ecu, EcuConfig
 from . import report
 from .scenario import RollCar, roll_scenario_from_dict
 
@@ -19,7 +20,7 @@ _KEEP = ("peak_roll_deg", "peak_roll_rate_deg_s", "peak_yaw_rate_deg_s", "peak_a
 
 
 def _run(scenario) -> dict:
-    s = run_inprocess(RollCar(scenario), Ecu())
+    s = run_inprocess(RollCar(scenario), Ecu(EcuConfig(car=car_of(scenario))))  # the ECU calibrated for its car
     arc = scenario.arc_params(*_native())
     m = report.evaluate(s, tuple((float(arc[i].m_max), float(arc[i].rate_max)) for i in range(2)))
     out: dict = {k: float(m[k]) for k in _KEEP}

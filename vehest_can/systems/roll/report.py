@@ -201,17 +201,20 @@ def _by_tick(session, name: str, n: int, scaling: bool = True) -> dict[str, np.n
     return out
 
 
-def rerun(session) -> dict[str, Any]:
+def rerun(session, car=None) -> dict[str, Any]:
     """The ECU's float32 UKF once more, through the array API (in ``vehest_can._native``) on the samples
     decoded from the bus, and the double build on the same: whether the published estimates equal the
     array API's at the DBC's resolution (bit for bit), and how far float32 is from double. Assumes a
-    clean run (every measurement valid at every step), as the shipped cases are."""
+    clean run (every measurement valid at every step), as the shipped cases are. `car`: the car the ECU was
+    calibrated for (a :class:`~vehest_can.carfile.CarFile`; None: the paper's)."""
     from ...native import ffi as nffi
     from ...native import lib as nlib
     from . import api as rn
 
     cfg = nffi.new("vh_roll_app_config_t *")
     nlib.vh_roll_app_config_default(cfg)
+    if car is not None:
+        rn.write_car(cfg, car)
     over = {name: (list(getattr(cfg.ukf, name)) if f.type.kind == "array" else getattr(cfg.ukf, name))
             for name, f in nffi.typeof(cfg.ukf).fields}
     prm = rn.make_params(**over)

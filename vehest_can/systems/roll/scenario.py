@@ -87,6 +87,7 @@ class RollScenario:
     path = _chassis_attr("path")
     plant = _chassis_attr("plant")
     plant_fixed = _chassis_attr("plant_fixed")
+    car = _chassis_attr("car")
 
     def active_at(self, t) -> np.ndarray:
         """The driver's switch at times t: True where active."""

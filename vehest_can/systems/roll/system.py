@@ -24,24 +24,32 @@ class Roll(Registration):
     # the UKF's health is on the same scale (VH_ROLL_H_RESET is FAULT)
     estimators = (EcuEstimator("roll_ukf", "ROLL_Sensors", lambda c: c.app.roll.ukf.health, lambda c: bool(c.app.roll.heard)),)
 
+    def configure_car(self, app, car) -> None:
+        """The car into the UKF's vehicle and the controller's model terms."""
+        from .api import write_car
+
+        write_car(app.roll, car)
+
     def metrics(self, scenario, session, out_dir: Path, setup: Setup) -> dict:
         """Against the plant, from the bus: the ECU's float32 UKF estimates (VEHEST_RollEst), the
         actuators' moments; an active run also against its passive twin (in-process)."""
+        from ...carfile import car_of
         from ...sim.session import run_inprocess
-        from ..ecu import Ecu
+        from ..ecu import Ecu, EcuConfig
 
         sc = scenario
+        car = setup.car or car_of(sc)  # the ECU's calibration: the re-run and the twin use the same car
         arc = sc.arc_params(*_native())
         limits = tuple((float(arc[i].m_max), float(arc[i].rate_max)) for i in range(2))
         m = {"scenario": sc.name, "plant": sc.plant, "description": sc.description, "mode": session.mode,
              "control": "active" if sc.active else "passive", "speed_kmh": sc.chassis.initial_speed_kmh,
-             **report.evaluate(session, limits), **report.rerun(session)}
+             **report.evaluate(session, limits), **report.rerun(session, car)}
         print(f"  ECU's float32 UKF on the bus == array API on the decoded samples: "
               f"{'identical' if m['ecu_equals_array_api'] else 'DIFFERENT'} ({m['steps']} steps)")
         passive = None
         if sc.active:
             twin = sc.with_mode("passive")
-            passive = run_inprocess(RollCar(twin, len(session.truth) * 0.0005), Ecu())
+            passive = run_inprocess(RollCar(twin, len(session.truth) * 0.0005), Ecu(EcuConfig(car=car)))
             m["vs_passive"] = report.compare(m, report.evaluate(passive))
         m["acceptance"] = report.acceptance_entries(m)
         m["plots"] = [str(p) for p in report.plots(session, out_dir, sc.name, passive, plant=sc.plant)]

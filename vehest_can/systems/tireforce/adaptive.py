@@ -119,6 +119,24 @@ class AdaptiveConfig:
     kin_dh_max: float = 30.0     # that derivative bounded to this [deg per unit mu]
     kin_side_min: float = 0.95   # used (and updated) only while both sides' estimates are at least this
 
+    @classmethod
+    def for_car(cls, car, **overrides) -> AdaptiveConfig:
+        """The defaults with a car's data (:func:`car_fields`)."""
+        return replace(cls(), **car_fields(car), **overrides)
+
+
+def car_fields(car) -> dict:
+    """What SKFMEC-A takes from a car (:class:`~vehest_can.carfile.CarFile`), as ``vh_tfa_config_t`` fields:
+    drag, springs, the tyre's vertical stiffness and, where the car file has them, its Magic Formula
+    coefficients. What the ECU and the off-line references both write."""
+    f = {"cda": car.drag_area_m2, "rho": car.air_density_kg_m3, "spring_front": car.spring_rate_front_n_per_m,
+         "spring_rear": car.spring_rate_rear_n_per_m, "tyre_kz": car.tyre_stiffness_n_per_m}
+    if car.lateral_coefficients is not None:
+        f["tyre_a"] = tuple(car.lateral_coefficients)
+    if car.longitudinal_coefficients is not None:
+        f["tyre_b"] = tuple(car.longitudinal_coefficients)
+    return f
+
 
 @dataclass
 class AdaptiveRun(tf.TireForceRun):
@@ -712,7 +730,7 @@ class AdaptiveFixed:
                        ptr(ride_ok, "uint8_t *"), ptr(fy, "int32_t *"), ptr(fz, "int32_t *"), ptr(k, "int32_t *"),
                        ptr(p, "int32_t *"), ptr(health, "uint8_t *"))
         fn = 2.0 ** -lib.VH_SKFQ_FN
-        m0 = self.config.m
+        m0 = self.params.m_num / self.params.m_den  # the model mass as the ECU sends it (vh_tfa_params_from_config)
         return AdaptiveRun(x=np.zeros((n, 7)), fy=fy * fn, fz=fz * fn, health=health, resets=0,
                            saturations=self.saturations - sat0, mass=k * 2.0 ** -lib.VH_TFA_FK * m0,
                            mass_std=np.sqrt(p * 2.0 ** -lib.VH_TFA_FP) * m0, raw={"fy": fy, "fz": fz, "k": k, "p": p})

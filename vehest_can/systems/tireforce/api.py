@@ -41,6 +41,32 @@ class SkfConfig(_C_CONFIG):
         return from_c_default(cls, lambda c: lib.vh_skf_config_default(c, _VARIANT_C[variant]), overrides,
                               "estimator setting", lambda k, v: tuple(float(x) for x in v) if k in _VEC else v)
 
+    @classmethod
+    def for_car(cls, car, variant: str = SKFMEC, **overrides) -> SkfConfig:
+        """The default configuration with a car's model (:func:`car_fields`); the paper's car gives the
+        C default bit for bit."""
+        return cls.default(variant, **car_fields(car), **overrides)
+
+
+def car_fields(car) -> dict[str, float]:
+    """The SKFMEC's vehicle of a car (:class:`~vehest_can.carfile.CarFile`), as ``vh_skf_config_t`` fields:
+    m the total mass, e roll axis to sprung CG, k_phi and c_phi per axle, and zeta1, zeta2 of the model's
+    own steady cornering (``vh_skf_zeta_steady``). What the ECU and the off-line references both write."""
+    f = {"m": car.total_mass_kg, "ms": car.sprung_mass_kg, "iz": car.yaw_inertia_kgm2, "ix": car.roll_inertia_kgm2,
+         "lf": car.cg_to_front_axle_m, "lr": car.cg_to_rear_axle_m, "h": car.cg_height_m, "e": car.roll_lever_m,
+         "hf": car.roll_centre_height_front_m, "hr": car.roll_centre_height_rear_m,
+         "kphif": car.roll_stiffness("front"), "kphir": car.roll_stiffness("rear"),
+         "cphif": car.roll_damping("front"), "cphir": car.roll_damping("rear"), "rw": car.wheel_radius_m,
+         "iw": car.wheel_inertia_kgm2, "tf": car.half_track_front_m, "tr": car.half_track_rear_m}
+    c = ffi.new("vh_skf_config_t *")
+    lib.vh_skf_config_default(c, lib.VH_SKF_SKFMEC)
+    for k, v in f.items():
+        setattr(c, k, v)
+    z = ffi.new("double[2]")
+    lib.vh_skf_zeta_steady(c, z, z + 1)
+    f["zeta1"], f["zeta2"] = z[0], z[1]
+    return f
+
 
 @dataclass
 class Inputs:

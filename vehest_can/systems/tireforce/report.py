@@ -283,15 +283,20 @@ def decode_signals(rows: list[dict]) -> DecodedInputs:
 ALL_VARIANTS = (*tf.VARIANTS, ADAPTIVE)
 
 
-def _run(v: str, u: tf.Inputs, dec: DecodedInputs) -> tf.TireForceRun:
-    return AdaptiveSkfmec().run(u, dec.mask, dec.ride) if v == ADAPTIVE else tf.estimator(v).run(u, dec.mask)
+def _run(v: str, u: tf.Inputs, dec: DecodedInputs, car=None) -> tf.TireForceRun:
+    if car is None:  # the C defaults: the paper's car
+        return AdaptiveSkfmec().run(u, dec.mask, dec.ride) if v == ADAPTIVE else tf.estimator(v).run(u, dec.mask)
+    if v == ADAPTIVE:
+        return AdaptiveSkfmec(tf.SkfConfig.for_car(car), AdaptiveConfig.for_car(car)).run(u, dec.mask, dec.ride)
+    return tf.estimator(v, tf.SkfConfig.for_car(car, tf.EKF if v == tf.EKF else tf.SKFMEC)).run(u, dec.mask)
 
 
-def run_estimators(decoded: DecodedInputs, variants=ALL_VARIANTS) -> dict[str, tf.TireForceRun]:
-    """Each estimator variant (fresh instance, default configuration) over the decoded drive:
-    the paper's three and SKFMEC-A (adaptive.py, with the ride heights where the car has them)."""
+def run_estimators(decoded: DecodedInputs, variants=ALL_VARIANTS, car=None) -> dict[str, tf.TireForceRun]:
+    """Each estimator variant (fresh instance, default configuration calibrated for `car`, a
+    :class:`~vehest_can.carfile.CarFile`; None: the paper's) over the decoded drive: the paper's three and
+    SKFMEC-A (adaptive.py, with the ride heights where the car has them)."""
     u = decoded.for_filter()
-    return {v: _run(v, u, decoded) for v in variants}
+    return {v: _run(v, u, decoded, car) for v in variants}
 
 
 def scenario(name: str, *, mass_delta_kg: float | None = None):
@@ -309,9 +314,13 @@ def scenario(name: str, *, mass_delta_kg: float | None = None):
     return tireforce_scenario_from_dict(doc, path)
 
 
-def simulate(sc, variants=ALL_VARIANTS, progress=None):
-    """Plant + sensor node offline, decode, estimators: (truth, DecodedInputs, runs)."""
+def simulate(sc, variants=ALL_VARIANTS, progress=None, car=None):
+    """Plant + sensor node offline, decode, estimators calibrated for `car` (None: the scenario's car,
+    else the paper's): (truth, DecodedInputs, runs)."""
+    from ...carfile import car_of
     from ...native import ffi, lib
+
+    car = car or car_of(sc)
 
     steps = 2 + len(variants)
     truth, frames = sc.run_with_frames(ffi, lib)
@@ -323,7 +332,7 @@ def simulate(sc, variants=ALL_VARIANTS, progress=None):
     u = dec.for_filter()
     runs = {}
     for i, v in enumerate(variants):
-        runs[v] = _run(v, u, dec)
+        runs[v] = _run(v, u, dec, car)
         if progress:
             progress(3 + i, steps)
     return truth, dec, runs
@@ -358,7 +367,8 @@ def _pct_errors(est: np.ndarray, ref: np.ndarray | float, peak: np.ndarray, name
 
 
 def evaluate(truth, runs: dict[str, tf.TireForceRun], settle_s: float = SETTLE_S,
-             max_ay_g: float | None = None, true_mass_kg: float | None = None) -> dict:
+             max_ay_g: float | None = None, true_mass_kg: float | None = None,
+             model_mass_kg: float | None = None) -> dict:
     """Per-tire and per-axle RMS errors of each run against the truth, the fixed-vs-double
     difference, the oracle decomposition and a verdict per acceptance line.
 
@@ -367,8 +377,8 @@ def evaluate(truth, runs: dict[str, tf.TireForceRun], settle_s: float = SETTLE_S
     tire's (axle's) peak |F_y| over the whole run. ``max_ay_g`` keeps only the samples with the
     truth's |a_y| at or below it (needs ``ay``; the paper's relations hold below ~0.5 g), peaks
     then taken over those samples too. ``true_mass_kg`` (the plant's mass) adds the mass estimate's
-    acceptance line. Axle estimates are the means of the two per-tire
-    estimates, compared with the true axle means (F_yf, F_yr of the paper: average tire force).
+    acceptance line; ``model_mass_kg`` is the estimators' car's (None: the paper's). Axle estimates are
+    the means of the two per-tire estimates, compared with the true axle means (F_yf, F_yr of the paper: average tire force).
     """
     t = np.asarray(truth["t"], dtype=np.float64)
     fy = np.asarray(truth["fy"], dtype=np.float64)
@@ -388,6 +398,7 @@ def evaluate(truth, runs: dict[str, tf.TireForceRun], settle_s: float = SETTLE_S
         raise ConfigError("a tire without lateral force: percentages of peak |Fy| are undefined")
     dt = t[1] - t[0] if n > 1 else 0.0
     out: dict = {"settle_s": settle_s, "max_ay_g": max_ay_g, "samples": int(s.sum()), "true_mass_kg": true_mass_kg,
+                 "model_mass_kg": tf.SkfConfig.default().m if model_mass_kg is None else model_mass_kg,
                  "duration_s": float(t[-1] - t[0] + dt),
                  "peak_fy_N": _per(WHEELS + AXLES, np.r_[peak, peak_axle]), "variants": {}}
     for name, run in runs.items():
@@ -409,7 +420,7 @@ def evaluate(truth, runs: dict[str, tf.TireForceRun], settle_s: float = SETTLE_S
         }
         if isinstance(run, AdaptiveRun) and run.mass is not None and run.mass_std is not None:
             mass, std = run.mass, run.mass_std
-            ok = np.flatnonzero(std <= AdaptiveConfig().mass_sigma_ok * tf.SkfConfig.default().m)
+            ok = np.flatnonzero(std <= AdaptiveConfig().mass_sigma_ok * out["model_mass_kg"])
             out["variants"][name]["mass"] = {"final_kg": float(mass[-1]), "final_std_kg": float(std[-1]),
                                              "converged_s": float(t[ok[0]] - t[0]) if ok.size else None}
     if tf.SKFMEC in runs and tf.FIXED in runs:
@@ -454,7 +465,8 @@ def acceptance(m: dict) -> list[dict]:
     mm, true = v.get(ADAPTIVE, {}).get("mass"), m.get("true_mass_kg")
     # a line where there was a payload to find or an excitation that found one (a run at the
     # model's mass without longitudinal excitation rightly stays unconverged: no target there)
-    if mm is not None and true is not None and (mm["converged_s"] is not None or true != tf.SkfConfig.default().m):
+    if mm is not None and true is not None and (mm["converged_s"] is not None or
+                                                true != m.get("model_mass_kg", tf.SkfConfig.default().m)):
         conv = f"converged at {mm['converged_s']:.2f} s" if mm["converged_s"] is not None else "not converged"
         ok = abs(100 * (mm["final_kg"] / true - 1)) <= TARGET_MASS_PCT and mm["converged_s"] is not None
         lines.append({"line": f"mass estimate within {TARGET_MASS_PCT:g} % of the truth ({ADAPTIVE})",
@@ -560,7 +572,7 @@ def table(metrics: dict, name: str | None = None) -> str:
     for v, vm in metrics["variants"].items():
         if "mass" in vm:
             mm = vm["mass"]
-            true = tf.SkfConfig.default().m + metrics.get("mass_delta_kg", 0.0)
+            true = metrics.get("true_mass_kg") or tf.SkfConfig.default().m + metrics.get("mass_delta_kg", 0.0)
             conv = f"converged at {mm['converged_s']:.2f} s" if mm["converged_s"] is not None else "not converged (DEGRADED)"
             lines.append(f"{'  mass (' + v + ')':<22} {_mass_vs_truth(mm['final_kg'], true)}, "
                          f"std {mm['final_std_kg']:.0f} kg, {conv}")
@@ -719,8 +731,11 @@ def plots(kind: str, truth, runs: dict[str, tf.TireForceRun] | None, out_dir: Pa
 # ---- command line ----------------------------------------------------------------------------
 
 def true_mass(sc) -> float:
-    """The plant's mass in a scenario: the model's plus the payload."""
-    return tf.SkfConfig.default().m + sc.mass_delta_kg
+    """The plant's mass in a scenario: its car's (the paper's unless it names one) plus the payload."""
+    from ...carfile import car_of
+
+    car = car_of(sc)
+    return (tf.SkfConfig.default().m if car is None else car.total_mass_kg) + sc.mass_delta_kg
 
 
 def report(sc, out_dir: Path | None = None, progress=None, max_ay_g: float | None = None) -> dict:

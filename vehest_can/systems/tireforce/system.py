@@ -11,7 +11,7 @@ from ...sim.veh14 import Veh14Car
 from .. import EcuCounters, EcuEstimator, Registration, Setup
 from . import api as tf
 from . import report
-from .adaptive import AdaptiveFixed
+from .adaptive import AdaptiveConfig, AdaptiveFixed
 from .campaign import CAMPAIGN
 from .scenario import KINDS, load_tireforce_scenario, tireforce_scenario_dir
 
@@ -36,6 +36,18 @@ class TireForce(Registration):
                   EcuEstimator("skfmec_a", "CHS_Sensors", lambda c: c.app.tf.tfa.health, lambda c: bool(c.app.tf.heard)))
     ecu_counters = (EcuCounters("chassis", CHASSIS_COUNTERS, lambda c: c.app.tf.cnt),)
 
+    def configure_car(self, app, car) -> None:
+        """The car into the SKFMEC's and SKFMEC-A's configurations (the same fields the off-line references take)."""
+        from .adaptive import car_fields as tfa_fields
+
+        for k, v in tf.car_fields(car).items():
+            setattr(app.tf.skf, k, v)
+        for k, v in tfa_fields(car).items():
+            if isinstance(v, tuple):
+                getattr(app.tf.tfa, k)[0:len(v)] = list(v)
+            else:
+                setattr(app.tf.tfa, k, v)
+
     def configure_ecu(self, app, part: tf.SkfConfig | None) -> None:
         """Its part (``systems["tireforce"]``): the SKFMEC the ECU runs in fixed point; None: the C core's default."""
         if part is not None:
@@ -44,9 +56,12 @@ class TireForce(Registration):
     def metrics(self, scenario, session, out_dir: Path, setup: Setup) -> dict:
         """Against the plant: the ECU's fixed-point estimates from the bus, and the double SKFMEC and
         the paper's plain EKF re-run off-line on the same decoded CHS_Sensors samples."""
+        from ...carfile import car_of
+
         sc = scenario
+        car = setup.car or car_of(sc)  # the ECU's calibration: the references use the same car
         dec = report.decode_inputs(session.messages())
-        runs = report.run_estimators(dec)
+        runs = report.run_estimators(dec, car=car)
         est = decode(session, "VEHEST_TireForceEst")
         on = est["SkfmecQ_Health"] > 0  # published (NaN elsewhere) and past INIT: SNA before
         bus_fy = np.column_stack([est[f"Fy{i}"] for i in range(1, 5)])[on]
@@ -56,7 +71,8 @@ class TireForce(Registration):
         # SKFMEC-A in the ECU (VEHEST_TireForceAdaptive, every 10 ms) against its fixed-point array API
         ada = decode(session, "VEHEST_TireForceAdaptive")
         on_a = ada["SkfmecA_Health"] > 0
-        ref_a = AdaptiveFixed().run(dec.for_filter(), dec.mask, dec.ride)
+        ref_a = (AdaptiveFixed() if car is None else AdaptiveFixed(tf.SkfConfig.for_car(car), AdaptiveConfig.for_car(car))
+                 ).run(dec.for_filter(), dec.mask, dec.ride)
         bus_a = np.column_stack([ada[f"FyA{i}"] for i in range(1, 5)] + [ada["EstMass"]])[on_a]
         mass_a = np.asarray(ref_a.mass)
         want_a = np.column_stack([np.floor(ref_a.fy / 0.5 + 0.5) * 0.5, np.floor(mass_a / 0.5 + 0.5) * 0.5])[on_a]
@@ -66,7 +82,9 @@ class TireForce(Registration):
         true_mass = report.true_mass(sc)
         metrics = {"scenario": sc.name, "plant": sc.plant, "description": sc.description, "mass_delta_kg": sc.mass_delta_kg,
                    "mode": session.mode, "ecu_equals_array_api": same, "ecu_adaptive_equals_array_api": same_a,
-                   **report.evaluate(session.truth, runs, true_mass_kg=true_mass), "relations": report.relations(session.truth)}
+                   **report.evaluate(session.truth, runs, true_mass_kg=true_mass,
+                                     model_mass_kg=None if car is None else car.total_mass_kg),
+                   "relations": report.relations(session.truth)}
         files = report.plots("relations", session.truth, None, out_dir, title=sc.name)
         files += report.plots("forces", session.truth, runs, out_dir, title=sc.name, true_mass_kg=true_mass)
         metrics["plots"] = [str(p) for p in files]
