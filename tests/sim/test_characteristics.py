@@ -182,8 +182,8 @@ def test_cli_prints_the_table_and_writes_json(tmp_path, capsys):
     text = capsys.readouterr().out
     assert rc == 0
     lines = text.strip().splitlines()
-    assert lines[0].split()[:4] == ["plant", "payload", "kg", "roll"]
-    assert [ln.split()[:2] for ln in lines[1:]] == [["veh14", "0"], ["veh14", "100"]]
+    assert lines[0].split()[:5] == ["car", "plant", "payload", "kg", "roll"]
+    assert [ln.split()[:3] for ln in lines[1:]] == [["paper", "veh14", "0"], ["paper", "veh14", "100"]]
     doc = json.loads(out.read_text())
     assert doc["vehicle"] == {"cg_height_m": 0.60}
     assert [f["mass_delta_kg"] for f in doc["figures"]] == [0.0, 100.0]
@@ -222,3 +222,14 @@ def test_argparse_errors_are_usage_errors(capsys):
     with pytest.raises(SystemExit) as exc:
         main(["characterise", "--mass-delta-kg", "heavy"])
     assert exc.value.code == 2 and "invalid float value" in capsys.readouterr().err
+
+
+def test_cli_runs_each_car_file(capsys):
+    """--car: each car on each plant; a CommonRoad car is a different car (it rolls more than the paper's)."""
+    rc = main(["characterise", "--plant", "veh14", "--mass-delta-kg", "0", "--ramp-s", "5",
+               "--car", "paper", "commonroad_vehicle2"])
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert rc == 0
+    rows = {ln.split()[0]: float(ln.split()[3]) for ln in lines[1:]}  # car, plant, payload, roll
+    assert set(rows) == {"paper", "commonroad_vehicle2"}
+    assert rows["commonroad_vehicle2"] > 2 * rows["paper"]

@@ -29,6 +29,9 @@ def add_subparser(subparsers) -> None:
                         help=f"plants to run, of {', '.join(_PLANTS)} (default: both)")
     parser.add_argument("--mass-delta-kg", nargs="+", type=float, default=[0.0, 200.0], metavar="KG",
                         help="payloads at the sprung CG, one run each (default: 0 200)")
+    parser.add_argument("--car", nargs="+", metavar="FILE_OR_NAME",
+                        help="cars to run, each a car file (docs/car.md) or a shipped car's name: paper, "
+                             "commonroad_vehicle1 .. 3 (default: the paper's)")
     parser.add_argument("--scenario", metavar="FILE",
                         help="a scenario-like TOML file whose [vehicle] table overrides the paper car "
                              "(only that table is read; its mass_delta_kg is refused: use --mass-delta-kg)")
@@ -61,7 +64,8 @@ def run(args) -> int:
         vehicle, source = ch.vehicle_from_toml(args.scenario), args.scenario
     m = ch.Manoeuvre(speed_kmh=args.speed_kmh, steer_deg=args.steer_deg, ramp_s=args.ramp_s, ay_max=args.ay_max)
     plants = list(dict.fromkeys(args.plant))
-    rows = ch.characterise_all(plants, list(dict.fromkeys(args.mass_delta_kg)), vehicle, m, source)
+    cars = tuple(dict.fromkeys(args.car)) if args.car else (None,)
+    rows = ch.characterise_all(plants, list(dict.fromkeys(args.mass_delta_kg)), vehicle, m, source, cars)
     print("\n".join(ch.table(rows)))
     if args.json:
         Path(args.json).write_text(json.dumps(ch.to_json(rows, m, vehicle), indent=2) + "\n")

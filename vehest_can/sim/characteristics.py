@@ -20,21 +20,20 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ..errors import ConfigError
+from .car import PLANTS
 
 G = 9.81
 #: a run's tick [s]
 DT = 0.0005
 #: ticks per recorded sample and speed-control update (5 ms: far faster than the quasi-steady ramp)
 CHUNK = 10
-#: the plants, in table order
-PLANTS = ("veh14", "commonroad_mb")
 
 
 @dataclass(frozen=True)
@@ -80,6 +79,7 @@ class Figures:
     speed_kmh_min: float = 0.0            # the speed held over the fit
     speed_kmh_max: float = 0.0
     car: dict[str, float] = field(default_factory=dict)  # m, h_cg, L, tracks: what the rigid values use
+    car_name: str = "paper"  # the car file's
 
 
 def fit_line(x: np.ndarray, y: np.ndarray) -> Fit:
@@ -107,8 +107,10 @@ def vehicle_from_toml(path: str | Path) -> dict[str, Any]:
     return dict(vehicle)
 
 
-def scenario_doc(plant: str, mass_delta_kg: float, vehicle: dict[str, Any] | None, m: Manoeuvre) -> dict:
-    """The 14-DOF scenario document of the manoeuvre (drive torque 0: the run's speed control sets it)."""
+def scenario_doc(plant: str, mass_delta_kg: float, vehicle: dict[str, Any] | None, m: Manoeuvre,
+                 car: str | None = None) -> dict:
+    """The 14-DOF scenario document of the manoeuvre (drive torque 0: the run's speed control sets it);
+    `car` a car file or shipped car's name (docs/car.md), None the paper's."""
     vehicle = dict(vehicle or {})
     if "mass_delta_kg" in vehicle:
         raise ConfigError("vehicle.mass_delta_kg: the payloads are the runs' own (--mass-delta-kg); "
@@ -119,17 +121,18 @@ def scenario_doc(plant: str, mass_delta_kg: float, vehicle: dict[str, Any] | Non
             "driver": {"steer_deg": [[0.0, 0.0], [m.settle_s, 0.0], [ramp_end, m.steer_deg]]},
             "road": {"mu": [[0.0, m.mu]]},
             "vehicle": {**vehicle, "mass_delta_kg": mass_delta_kg},
-            "sensors": {"ride_height": False}}
+            "sensors": {"ride_height": False}, **({"car": car} if car else {})}
 
 
 def scenario(plant: str, mass_delta_kg: float = 0.0, vehicle: dict[str, Any] | None = None,
-             manoeuvre: Manoeuvre = Manoeuvre(), source: str | Path = "<characterise>"):
+             manoeuvre: Manoeuvre = Manoeuvre(), source: str | Path = "<characterise>", car: str | None = None):
     """The validated ``Veh14Scenario`` of one run (errors name `source` and the key)."""
     from .veh14 import veh14_scenario_from_dict
 
     if plant not in PLANTS:
         raise ConfigError(f"unknown plant {plant!r}: one of {', '.join(PLANTS)}")
-    return veh14_scenario_from_dict(scenario_doc(plant, mass_delta_kg, vehicle, manoeuvre), Path(source), "tireforce")
+    return veh14_scenario_from_dict(scenario_doc(plant, mass_delta_kg, vehicle, manoeuvre, car), Path(source),
+                                    "tireforce")
 
 
 def _run(car, v_ref: float, prm) -> dict[str, np.ndarray]:
@@ -208,25 +211,29 @@ def figures(run: dict[str, np.ndarray], prm, plant: str, mass_delta_kg: float, m
 
 
 def characterise(plant: str, mass_delta_kg: float = 0.0, vehicle: dict[str, Any] | None = None,
-                 manoeuvre: Manoeuvre = Manoeuvre(), source: str | Path = "<characterise>") -> Figures:
+                 manoeuvre: Manoeuvre = Manoeuvre(), source: str | Path = "<characterise>",
+                 car: str | None = None) -> Figures:
     """One plant's figures for the paper car with the `vehicle` overrides (keys of a scenario's
     ``[vehicle]`` table) and `mass_delta_kg` of payload. `source` names the overrides in errors."""
     from ..native import ffi, lib
     from .veh14 import Veh14Car
 
-    sc = scenario(plant, mass_delta_kg, vehicle, manoeuvre, source)
+    sc = scenario(plant, mass_delta_kg, vehicle, manoeuvre, source, car)
     prm = sc.plant_params(ffi, lib)
     run = _run(Veh14Car(sc), manoeuvre.speed_kmh / 3.6, prm)
-    return figures(run, prm, plant, mass_delta_kg, manoeuvre)
+    return replace(figures(run, prm, plant, mass_delta_kg, manoeuvre), car_name=sc.car.name if sc.car else "paper")
 
 
 def characterise_all(plants=PLANTS, payloads=(0.0, 200.0), vehicle: dict[str, Any] | None = None,
-                     manoeuvre: Manoeuvre = Manoeuvre(), source: str | Path = "<characterise>") -> list[Figures]:
-    return [characterise(p, dm, vehicle, manoeuvre, source) for p in plants for dm in payloads]
+                     manoeuvre: Manoeuvre = Manoeuvre(), source: str | Path = "<characterise>",
+                     cars: tuple[str | None, ...] = (None,)) -> list[Figures]:
+    """Every car (car files or shipped names; None the paper's) on every plant with every payload."""
+    return [characterise(p, dm, vehicle, manoeuvre, source, car) for car in cars for p in plants for dm in payloads]
 
 
 #: the table's columns: (heading, format of a Figures)
 _COLUMNS = (
+    ("car", lambda f: f.car_name),
     ("plant", lambda f: f.plant),
     ("payload kg", lambda f: f"{f.mass_delta_kg:g}"),
     ("roll deg/g", lambda f: f"{f.roll_gradient_deg_per_g:.3f}"),
