@@ -94,3 +94,44 @@ def test_check_passes_when_every_line_passes(tmp_path, capsys):
 def test_verdict_words():
     assert [verdict_word(v) for v in ("pass", "PASS", "ok", True, "SHORT", "fail", False, None)] == \
         ["PASS"] * 4 + ["FAIL"] * 4
+
+
+class Killer(Gate):
+    """The gate system, whose first scenario's metrics kill the demo's ECU daemon (as a crash would)."""
+
+    def metrics(self, scenario, session, out_dir, setup):
+        import os
+        import signal
+
+        m = super().metrics(scenario, session, out_dir, setup)
+        if scenario.name == "one":
+            for stat in Path("/proc").glob("[0-9]*/stat"):
+                try:
+                    fields = stat.read_text().rsplit(")", 1)[1].split()
+                    cmd = (stat.parent / "cmdline").read_bytes()
+                except OSError:
+                    continue
+                if int(fields[1]) == os.getpid() and b"daemon" in cmd:
+                    os.kill(int(stat.parent.name), signal.SIGKILL)
+        return m
+
+
+@pytest.mark.multicast
+def test_a_daemon_that_dies_half_way_is_named_and_the_finished_scenarios_are_kept(tmp_path, capsys):
+    import json
+
+    (tmp_path / "g").mkdir()
+    for name in ("one", "two"):
+        (tmp_path / "g" / f"{name}.toml").write_text('kind = "gate"\n')
+    gate = Killer(tmp_path / "g", 1)
+    out = tmp_path / "out"
+    args = build_parser().parse_args(["demo", str(tmp_path / "g" / "one.toml"), str(tmp_path / "g" / "two.toml"),
+                                      "-o", str(out)])
+    rc = args.func(args, systems=[gate])
+    cap = capsys.readouterr()
+    assert rc == 1
+    assert "demo: stopped after 1 of 2 scenarios: lockstep: " in cap.err
+    assert "the ECU daemon exited (status -9)" in cap.err
+    assert "gate.one: some frames" in cap.out and "gate.two" not in cap.out  # the summary of what finished
+    assert [m["scenario"] for m in json.loads((out / "metrics.json").read_text())] == ["one"]
+    assert (out / "one" / "table.txt").exists() and (out / "ecu_daemon.log").exists()

@@ -113,45 +113,56 @@ def _with_secoc(car, keys):
     return car
 
 
+#: In lockstep nothing waits on the wall clock but these bounds, each far beyond what a loaded machine
+#: needs (docs/results.md): the daemon's first answer, one tick's answer, and the daemon's own idle stop
+#: (between two scenarios the demo draws plots; the daemon must outlive that, and still stop if the
+#: demo itself is killed).
+RESET_WAIT_S, ACK_WAIT_S, DAEMON_IDLE_S = 120.0, 60.0, 1800.0
+
+
+def _daemon_check(proc: subprocess.Popen, log: Path):
+    """A callable: None while the daemon runs, else why it cannot answer, with its last lines."""
+    def why() -> str | None:
+        if proc.poll() is None:
+            return None
+        lines = log.read_text(errors="replace").strip().splitlines()[-5:] if log.exists() else []
+        return (f"the ECU daemon exited (status {proc.returncode}); its last lines: "
+                + (" | ".join(lines) if lines else "(none)"))
+    return why
+
+
 def _run(args, systems, runs, out: Path, config: dict, setups: dict, daemon_args: list[str], keys,
          secoc_args: list[str]) -> int:
-    ecu_proc = subprocess.Popen(_daemon_cmd(config, "lockstep", ["--idle-timeout", "60", *daemon_args]),
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy())
+    daemon_log = out / "ecu_daemon.log"
+    with open(daemon_log, "w") as log_file:  # a file, not a pipe: a chatty daemon never blocks on it
+        ecu_proc = subprocess.Popen(_daemon_cmd(config, "lockstep", ["--idle-timeout", f"{DAEMON_IDLE_S:g}",
+                                                                     *daemon_args]),
+                                    stdout=log_file, stderr=subprocess.STDOUT, text=True, env=os.environ.copy())
+    daemon_gone = _daemon_check(ecu_proc, daemon_log)
     results: list[tuple[System, dict]] = []
+    stopped: str | None = None  # why the demo stopped before its last scenario
     try:
         bus = busmod.open_bus(config)
         try:
             for system, sc in runs:
-                sdir = out / sc.name
-                sdir.mkdir(parents=True, exist_ok=True)
-                progress = Progress(f"{sc.name} (lockstep)")
-                # the ECU's view of the session (its frames Tx), as the daemon would log it
-                with SessionLog(sdir / f"session.{args.log_format}", {"VEHEST"}, per_bus=args.log_per_bus) as writer:
-                    master = SimMaster(bus, _with_secoc(system.car(sc), keys), log_writer=writer, progress=progress)
-                    session = master.run_lockstep(end=False)
-                progress.done(f"{session.stats['realtime_factor']:.1f}x real time over the bus")
-                local_ecu = Ecu(EcuConfig(car=next(iter(setups.values())).car if setups else None))  # like the daemon
-                for st in setups.values():
-                    st.configure(local_ecu)
-                if keys is not None:
-                    local_ecu.enable_secoc(keys)
-                local = run_inprocess(_with_secoc(system.car(sc), keys), local_ecu)
-                same = (len(local.frames) == len(session.frames)
-                        and np.array_equal(local.frames, session.frames))
-                print(f"  bus lockstep == in-process lockstep: {'identical' if same else 'DIFFERENT'} "
-                      f"({len(session.frames)} frames)")
-                metrics = system.metrics(sc, session, sdir, setups[system.name])
-                metrics["bus_equals_inprocess"] = bool(same)
-                metrics["inprocess_realtime_factor"] = local.stats["realtime_factor"]
+                metrics = _scenario(args, system, sc, out, bus, setups, keys, daemon_gone)
                 results.append((system, metrics))
+                # kept as it comes: the metrics so far and this scenario's table, whatever happens next
+                write_metrics([m for _, m in results], out / "metrics.json")
+                (out / sc.name / "table.txt").write_text("\n\n".join(system.tables([metrics])) + "\n")
+        except KeyboardInterrupt:
+            stopped = "interrupted (Ctrl-C)"
+        except VehestError as exc:
+            stopped = str(exc)
         finally:
             bus.shutdown()
     finally:
-        err = stop_process(ecu_proc, timeout=10)
-    print("ECU daemon: " + " | ".join(line for line in err.strip().splitlines()[-4:]))
+        stop_process(ecu_proc, timeout=10)
+    tail = daemon_log.read_text(errors="replace").strip().splitlines()[-4:]
+    print("ECU daemon: " + " | ".join(tail) + f" (its log: {daemon_log})")
 
     all_metrics = [m for _, m in results]
-    if args.realtime > 0:
+    if args.realtime > 0 and stopped is None:
         wall_clock = [(s, sc) for s, sc in runs if s.realtime]
         system, sc = (wall_clock or runs)[0]
         all_metrics.append(_realtime(args, config, _with_secoc(system.car(sc, args.realtime), keys), sc.name, out,
@@ -171,11 +182,41 @@ def _run(args, systems, runs, out: Path, config: dict, setups: dict, daemon_args
     print(f"\nplots: {', '.join(str(p) for p in sorted(out.glob('*/*.png')))}")
     logs = sorted(out.glob(f"*/session*.{args.log_format}"))
     print(f"metrics: {out / 'metrics.json'}; session logs: {', '.join(str(p) for p in logs)}")
+    if stopped is not None:
+        print(f"demo: stopped after {len(results)} of {len(runs)} scenarios: {stopped}", file=sys.stderr)
+        return 130 if stopped.startswith("interrupted") else 1
     failed = [c for c in checks if not c["passed"]]
     if args.check and failed:
         print(f"demo --check: {len(failed)} acceptance line(s) {FAIL}", file=sys.stderr)
         return 4
     return 0
+
+
+def _scenario(args, system, sc, out: Path, bus, setups: dict, keys, daemon_gone) -> dict:
+    """One scenario over the bus, its in-process twin, and its metrics (plots written)."""
+    sdir = out / sc.name
+    sdir.mkdir(parents=True, exist_ok=True)
+    progress = Progress(f"{sc.name} (lockstep)")
+    # the ECU's view of the session (its frames Tx), as the daemon would log it
+    with SessionLog(sdir / f"session.{args.log_format}", {"VEHEST"}, per_bus=args.log_per_bus) as writer:
+        master = SimMaster(bus, _with_secoc(system.car(sc), keys), log_writer=writer, progress=progress,
+                           ack_timeout=ACK_WAIT_S, peer=daemon_gone)
+        session = master.run_lockstep(end=False, connect_timeout_s=RESET_WAIT_S)
+    progress.done(f"{session.stats['realtime_factor']:.1f}x real time over the bus")
+    local_ecu = Ecu(EcuConfig(car=next(iter(setups.values())).car if setups else None))  # like the daemon
+    for st in setups.values():
+        st.configure(local_ecu)
+    if keys is not None:
+        local_ecu.enable_secoc(keys)
+    local = run_inprocess(_with_secoc(system.car(sc), keys), local_ecu)
+    same = (len(local.frames) == len(session.frames)
+            and np.array_equal(local.frames, session.frames))
+    print(f"  bus lockstep == in-process lockstep: {'identical' if same else 'DIFFERENT'} "
+          f"({len(session.frames)} frames)")
+    metrics = system.metrics(sc, session, sdir, setups[system.name])
+    metrics["bus_equals_inprocess"] = bool(same)
+    metrics["inprocess_realtime_factor"] = local.stats["realtime_factor"]
+    return metrics
 
 
 def _realtime(args, config, car, name: str, out: Path, extra: list[str]) -> dict:

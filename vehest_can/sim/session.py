@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import logging
 import queue
+import sys
 import threading
 import time
 from dataclasses import dataclass, field
@@ -124,8 +125,10 @@ class SimMaster:
     (with ``keep=False`` it counts them: a long run's memory stays flat, its frames go to the log)."""
 
     def __init__(self, bus: can.BusABC, car: Car, *, log_writer: can.Listener | None = None,
-                 ack_timeout: float = 2.0, progress=None, keep: bool = True):
+                 ack_timeout: float = 2.0, progress=None, keep: bool = True, peer=None):
         """`car`: a :class:`vehest_can.sim.car.Car`.
+        `peer`: None, or a callable that says why the ECU cannot answer (its process ended: a text with
+        its last lines) or None while it can; a wait for the ECU then ends as soon as it cannot.
         `log_writer` gets every frame with its session time (tick * TICK_S) in ``timestamp``: a
         :class:`vehest_can.bus.log.SessionLog` turns that into absolute time, direction and bus.
         `keep`: the session holds the plant's truth and every frame; without, it holds neither
@@ -136,6 +139,7 @@ class SimMaster:
         self.ack_timeout = ack_timeout
         self.progress = progress
         self.keep = keep
+        self.peer = peer
         self.stop_event = threading.Event()
         self._recording = Recording()
         self._frames_seen = 0
@@ -169,8 +173,15 @@ class SimMaster:
         got: list[can.Message] = []
         end = time.monotonic() + deadline_s
         while True:
-            msg = self.bus.recv(timeout=max(0.0, end - time.monotonic()))
+            left = end - time.monotonic()
+            # in slices of at most 1 s, to notice an ECU process that ended
+            msg = self.bus.recv(timeout=max(0.0, min(left, 1.0))) if left > 0 else None
             if msg is None:
+                why = self.peer() if self.peer is not None else None
+                if why:
+                    raise BusError(f"lockstep: tick {tick}: {why}")
+                if time.monotonic() < end:
+                    continue
                 raise BusError(f"lockstep: no VEHEST_SyncAck for tick {tick} within {deadline_s:.1f} s "
                                f"(is the ECU daemon running on this bus?)")
             if is_own(msg, self._own):
@@ -187,12 +198,16 @@ class SimMaster:
                 return got
             got.append(msg)
 
-    def connect(self, attempts: int = 50) -> None:
-        """RESET handshake: the ECU starts from scratch; retried while the daemon is starting.
+    def connect(self, timeout_s: float = 10.0) -> None:
+        """RESET handshake: the ECU starts from scratch; retried every 0.2 s for up to `timeout_s` while
+        the daemon is starting (a line on stderr says so after the first second).
 
         Each attempt carries its own tick number, above any STEP tick, so a late answer to an
         earlier attempt is never taken for the answer to a later one (or to tick 0)."""
-        for attempt in range(attempts):
+        t0 = time.monotonic()
+        said = False
+        attempt = 0
+        while True:
             nonce = lockstep.RESET_TICK_BASE + attempt
             reset = lockstep.sync_message(nonce, lockstep.RESET)
             self.bus.send(reset)
@@ -200,18 +215,26 @@ class SimMaster:
                 self._await_ack(nonce, 0.2)
                 self._log(reset, 0)
                 return
-            except BusError:
-                continue
-        raise BusError("lockstep: the ECU daemon did not answer RESET (is it running on this bus?)")
+            except BusError as exc:
+                if self.peer is not None and (why := self.peer()):
+                    raise BusError(f"lockstep: {why}") from exc
+            attempt += 1
+            waited = time.monotonic() - t0
+            if waited >= timeout_s:
+                raise BusError(f"lockstep: the ECU daemon did not answer RESET within {timeout_s:g} s "
+                               "(is it running on this bus?)")
+            if waited >= 1.0 and not said:
+                print(f"waiting for the ECU daemon to answer (up to {timeout_s:g} s) ...", file=sys.stderr, flush=True)
+                said = True
 
-    def run_lockstep(self, *, end: bool = True, window: int = 16) -> Session:
+    def run_lockstep(self, *, end: bool = True, window: int = 16, connect_timeout_s: float = 10.0) -> Session:
         """Mode 2. Deterministic: the ECU sees exactly each tick's frames, whatever the bus.
 
         Up to `window` ticks are in flight: the ECU steps on each SIM_Sync in the order the
         frames were sent, so its output does not depend on the window; the window only saves
         round trips (and bounds what a lossy bus like udp_multicast has to buffer)."""
         self.car.reset()
-        self.connect()
+        self.connect(connect_timeout_s)
         n = self.car.n
         closed = self.car.closed
         if closed:  # the car acts on the ECU's frames of each tick before its next: one tick in flight
