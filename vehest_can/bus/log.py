@@ -33,15 +33,9 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..native import ffi, lib
+from .formats import FORMATS  # what --log writes, by extension
 from .frames import BUSES, FRAME_DTYPE, TICK_S, database, sent_by
 
-#: what --log writes, by extension (python-can's writers)
-FORMATS = {
-    ".log": "candump -L (can-utils)",
-    ".asc": "Vector ASC",
-    ".blf": "Vector BLF",
-    ".mf4": "ASAM MDF 4 (needs the mf4 extra: asammdf)",
-}
 #: formats whose channels are numbers: python-can counts those from 0 and writes 1, 2 ... (MF4
 #: writes the number as given, so it gets the 1-based one itself)
 _NUMBERED = {".asc": 0, ".blf": 0, ".mf4": 1}

@@ -1,10 +1,16 @@
 """The one console script: ``vehest-can VERB ...``, one module per verb in this package (cantools
-style): each exposes ``add_subparser(subparsers)``, is discovered automatically, and its parser's
-``func`` default runs the verb. ``python -m vehest_can.cli`` is the same script."""
+style): each exposes ``HELP`` (its line in ``vehest-can --help``) and ``add_subparser(subparsers)``, is
+discovered automatically, and its parser's ``func`` default runs the verb. ``python -m vehest_can.cli``
+is the same script.
+
+A command builds the parser of its own verb only, and a verb module imports at its top only what its
+flags need: the heavy parts (numpy, the C core, plotting, MF4, Dask) load when the verb runs, so
+``vehest-can --help`` and ``vehest-can VERB --help`` start at once."""
 from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.abc
 import logging
 import os
 import pkgutil
@@ -14,7 +20,35 @@ from .. import __version__
 from ..errors import VehestError
 
 
-def build_parser() -> argparse.ArgumentParser:
+class _NoAsammdf(importlib.abc.MetaPathFinder):
+    """While python-can is first imported: no asammdf (python-can imports it, and pandas with it, at
+    import time for its MF4 reader and writer alone: about a second of every command's start)."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name == "asammdf" or name.startswith("asammdf."):
+            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+        return None
+
+
+def _defer_mf4(argv: list[str]) -> None:
+    """A command line that names no MF4 file or format has no use for asammdf: python-can is imported
+    without it (its MF4 support off in this process only). One that does gets python-can as it is."""
+    if "can" in sys.modules or any("mf4" in a.lower() for a in argv):
+        return
+    finder = _NoAsammdf()
+    sys.meta_path.insert(0, finder)
+    try:
+        import can  # noqa: F401 - the one import that counts
+    finally:
+        sys.meta_path.remove(finder)
+
+
+def verbs() -> list[str]:
+    return sorted(m.name for m in pkgutil.iter_modules(__path__) if not m.name.startswith("_"))
+
+
+def build_parser(verb: str | None = None) -> argparse.ArgumentParser:
+    """Every verb's full parser (`verb` None), or `verb`'s alone with the others listed by their HELP."""
     parser = argparse.ArgumentParser(
         prog="vehest-can",
         description="Vehicle state estimator ECU on a CAN bus: simulate, run, replay, measure.",
@@ -24,16 +58,25 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output on stderr")
     sub = parser.add_subparsers(title="verbs", dest="verb", metavar="VERB")
     sub.required = True
-    for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
-        if info.name.startswith("_"):
-            continue
-        module = importlib.import_module(f"{__name__}.{info.name}")
-        module.add_subparser(sub)
+    for name in verbs():
+        module = importlib.import_module(f"{__name__}.{name}")
+        if verb is None or name == verb:
+            module.add_subparser(sub)
+        else:
+            sub.add_parser(name, help=module.HELP)
     return parser
 
 
+def _verb_in(argv: list[str]) -> str:
+    """The verb a command line names ("" when none: the top-level help, or an error)."""
+    first = next((a for a in argv if not a.startswith("-")), "")  # the global flags take no value
+    return first if first in verbs() else ""
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else argv
+    _defer_mf4(argv)
+    parser = build_parser(_verb_in(argv))
     args = parser.parse_args(argv)
     logging.basicConfig(
         level=logging.WARNING - 10 * min(args.verbose, 2),

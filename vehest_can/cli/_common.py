@@ -6,10 +6,13 @@ import dataclasses
 import math
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from ..bus.log import FORMATS, SessionLog, check_log_path
+from ..bus.formats import FORMATS
 from ..errors import ConfigError
+
+if TYPE_CHECKING:
+    from ..bus.log import SessionLog
 
 #: the longest run of a verb that keeps every tick of its session in memory (sim, faults, demo)
 MAX_SESSION_S = 600.0
@@ -43,10 +46,14 @@ def add_log_arguments(parser: argparse.ArgumentParser) -> None:
 def check_log_arguments(args) -> None:
     """Before anything starts: a bad --log is an error now, not after the run."""
     if getattr(args, "log", None):
+        from ..bus.log import check_log_path
+
         check_log_path(args.log)
 
 
 def open_session_log(args, nodes) -> SessionLog | None:
+    from ..bus.log import SessionLog
+
     return SessionLog(args.log, nodes, per_bus=args.log_per_bus) if args.log else None
 
 

@@ -5,16 +5,23 @@ import json
 import math
 import sys
 from dataclasses import asdict
+from typing import TYPE_CHECKING
 
 from ..bus import bus as busmod
-from ..bus.busload import BusLoad, FrameLoad, bus_load
 from ..errors import BusError, ConfigError
+
+if TYPE_CHECKING:  # annotations only: the verb's parser loads none of it
+    from ..bus.busload import BusLoad, FrameLoad
+
+
+#: the verb's one line in `vehest-can --help` (read without building its parser)
+HELP = "worst-case and nominal bus load from DBC files"
 
 
 def add_subparser(subparsers) -> None:
     parser = subparsers.add_parser(
         "busload",
-        help="worst-case and nominal bus load from DBC files",
+        help=HELP,
         description="Bus load per bus (one DBC file = one bus) from each frame's length and cycle time: "
                     "worst case with bit stuffing, nominal without dynamic stuff bits. Classic CAN after "
                     "Davis et al. 2007; CAN FD per ISO 11898-1:2015, arbitration and data phase at their "
@@ -62,6 +69,7 @@ def _rate_text(bps: int | None) -> str:
 
 
 def _cycle_text(frame: FrameLoad) -> str:
+
     if frame.cycle_us is None:
         return "event"
     us = frame.cycle_us
@@ -69,12 +77,14 @@ def _cycle_text(frame: FrameLoad) -> str:
 
 
 def _format(frame: FrameLoad) -> str:
+
     if not frame.fd:
         return "classic"
     return "FD+BRS" if frame.brs else "FD"
 
 
 def _bus_table(buses: list[BusLoad], limit: float) -> list[str]:
+
     head = ("bus", "bitrate", "worst %", "nominal %", "cyclic", "event", f"limit {limit:g}%")
     rows = [(b.bus, f"{_rate_text(b.bitrate)}/{_rate_text(b.data_bitrate)}", f"{b.worst_pct:.1f}",
              f"{b.nominal_pct:.1f}", str(b.cyclic_frames), str(b.event_frames),
@@ -83,6 +93,7 @@ def _bus_table(buses: list[BusLoad], limit: float) -> list[str]:
 
 
 def _frame_table(bus: BusLoad) -> list[str]:
+
     head = ("frame", "id", "DLC", "format", "cycle", "bits nom+data", "worst us", "worst %", "nominal %")
     rows = []
     for f in bus.frames:
@@ -102,6 +113,8 @@ def _table(head, rows, right=()) -> list[str]:
 
 
 def run(args) -> int:
+    from ..bus.busload import bus_load
+
     bitrate = parse_bitrate(args.bitrate, "--bitrate")
     data_bitrate = parse_bitrate(args.data_bitrate, "--data-bitrate")
     if bitrate is not None and data_bitrate is not None and data_bitrate < bitrate:

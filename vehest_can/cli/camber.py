@@ -3,13 +3,14 @@ from __future__ import annotations
 
 import json
 import sys
+from typing import TYPE_CHECKING
 
 from ..bus import bus as busmod
-from ..bus.log import read_log
 from ..errors import ConfigError
-from ..systems.camber import inspection
-from ..systems.camber.api import WHEELS, save_calibrations
 from ._common import DeprecatedAlias, check_plot_path, check_range, check_seconds
+
+if TYPE_CHECKING:  # annotations only: the verb's parser loads none of it
+    from ..systems.camber import inspection
 
 #: accelerometer resolution per axis, mg: a 24-bit part at +-2 g counts 0.00024 mg; 500 mg is a 2-bit sensor
 LSB_MG_RANGE = (1e-4, 500.0)
@@ -17,8 +18,14 @@ SAMPLES_RANGE = (2, 1_000_000)   # per pose: a mean needs two; a million at 100 
 MAX_LISTEN_S = 3600.0            # a live capture or measurement waits at most an hour
 
 
+#: the verb's one line in `vehest-can --help` (read without building its parser)
+HELP = "camber inspection: calibrate devices, measure, error bound"
+
+
 def add_subparser(subparsers) -> None:
-    p = subparsers.add_parser("camber", help="camber inspection: calibrate devices, measure, error bound",
+    from ..systems.camber.api import WHEELS
+
+    p = subparsers.add_parser("camber", help=HELP,
                               description="Camber angle inspection with wheel-mounted 3-axis accelerometers "
                                           "(seed 002).")
     sub = p.add_subparsers(dest="camber_verb", metavar="ACTION")
@@ -54,6 +61,8 @@ def add_subparser(subparsers) -> None:
 
 
 def _live_capture(args, pose: str) -> inspection.Capture:
+    from ..systems.camber import inspection
+
     if not args.yes:
         print(f"Put every inspection device in its fixture with its {pose[0]} axis straight down, "
               f"hold still, then press Enter.", file=sys.stderr)
@@ -67,6 +76,10 @@ def _live_capture(args, pose: str) -> inspection.Capture:
 
 
 def calibrate_cmd(args) -> int:
+    from ..bus.log import read_log
+    from ..systems.camber import inspection
+    from ..systems.camber.api import save_calibrations
+
     if bool(args.x_down) != bool(args.z_down):
         raise ConfigError("give both --x-down and --z-down logs, or neither (live capture)")
     check_range(args.samples, "--samples", *SAMPLES_RANGE, "samples per pose")
@@ -89,6 +102,9 @@ def calibrate_cmd(args) -> int:
 
 
 def measure_cmd(args) -> int:
+    from ..bus.log import read_log
+    from ..systems.camber import inspection
+
     check_seconds(args.timeout, "--timeout", maximum=MAX_LISTEN_S)
     if args.from_log:
         messages = read_log(args.from_log)
@@ -115,6 +131,8 @@ def measure_cmd(args) -> int:
 
 
 def bound_cmd(args) -> int:
+    from ..systems.camber import inspection
+
     if args.plot:
         check_plot_path(args.plot)
     check_range(args.lsb_mg, "--lsb-mg", *LSB_MG_RANGE, "mg")

@@ -12,9 +12,12 @@ from typing import Any
 from ..errors import ConfigError
 from ._common import add_car_argument, car_from_args
 
+#: the verb's one line in `vehest-can --help` (read without building its parser)
+HELP = "Monte-Carlo validation: many runs of a varied scenario, resumable"
+
 
 def add_subparser(subparsers) -> None:
-    p = subparsers.add_parser("campaign", help="Monte-Carlo validation: many runs of a varied scenario, resumable",
+    p = subparsers.add_parser("campaign", help=HELP,
                               description="Run a campaign file's runs in process (lockstep), stream each batch's "
                                           "results to a Parquet dataset, and report the spread, the worst run "
                                           "and the pass rate of each acceptance line.")

@@ -10,10 +10,14 @@ from ._common import check_range
 _PLANTS = ("veh14", "commonroad_mb")  # as vehest_can.sim.characteristics.PLANTS (kept out of the import)
 
 
+#: the verb's one line in `vehest-can --help` (read without building its parser)
+HELP = "the plants' roll and understeer gradients and load transfer, side by side"
+
+
 def add_subparser(subparsers) -> None:
     parser = subparsers.add_parser(
         "characterise",
-        help="the plants' roll and understeer gradients and load transfer, side by side",
+        help=HELP,
         description="Drive each plant of the 14-DOF car (veh14: ours; commonroad_mb: CommonRoad's multi-body "
                     "model) with the same car data through a quasi-steady-state manoeuvre: constant speed "
                     "(a speed controller sets the front wheels' drive torque), the road-wheel angle ramped slowly "

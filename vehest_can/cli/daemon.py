@@ -7,15 +7,10 @@ import sys
 from contextlib import contextmanager
 from dataclasses import asdict, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..bus import bus as busmod
 from ..errors import ConfigError
-from ..service import sdnotify
-from ..service.daemon import EcuDaemon
-from ..service.hil import load_hil_config
-from ..systems.camber.api import load_calibrations, load_into_ecu
-from ..systems.ecu import Ecu, EcuConfig
-from ..xcp import ecu as xcp_ecu
 from ._common import (
     add_car_argument,
     add_log_arguments,
@@ -28,9 +23,19 @@ from ._common import (
     secoc_from_args,
 )
 
+if TYPE_CHECKING:  # annotations only: the verb's parser loads none of it
+    from ..systems.ecu import Ecu
+
+
+#: the verb's one line in `vehest-can --help` (read without building its parser)
+HELP = "run the ECU on a CAN bus"
+
 
 def add_subparser(subparsers) -> None:
-    p = subparsers.add_parser("daemon", help="run the ECU on a CAN bus",
+    from ..service import sdnotify
+    from ..xcp import ecu as xcp_ecu
+
+    p = subparsers.add_parser("daemon", help=HELP,
                               description="Run the ECU firmware on a python-can bus until SIGINT/SIGTERM.")
     p.add_argument("--mode", choices=("lockstep", "realtime"), default="realtime",
                    help="lockstep: step on the simulator's SIM_Sync frames; realtime: own 2 kHz clock (default)")
@@ -62,6 +67,11 @@ def add_subparser(subparsers) -> None:
 
 
 def run(args) -> int:
+    from ..service import sdnotify
+    from ..systems.camber.api import load_calibrations, load_into_ecu
+    from ..systems.ecu import Ecu, EcuConfig
+    from ..xcp import ecu as xcp_ecu
+
     for flag, value in (("--duration", args.duration), ("--idle-timeout", args.idle_timeout),
                         ("--report-every", args.report_every)):
         check_seconds(value, flag, maximum=math.inf)
@@ -95,6 +105,10 @@ def run(args) -> int:
 
 
 def _serve(args, ecu: Ecu, xcp, xcp_config) -> int:
+    from ..service import sdnotify
+    from ..service.daemon import EcuDaemon
+    from ..xcp import ecu as xcp_ecu
+
     buses, routes, channel = _open_buses(args)
     rx_by_bus = {}
     if xcp_config is not None:  # a bus of its own for XCP: its frames go there, the rest stay; it listens there only
@@ -132,6 +146,8 @@ def _serve(args, ecu: Ecu, xcp, xcp_config) -> int:
 def _open_buses(args) -> tuple[dict, dict, str | None]:
     """({name: bus}, frame ID -> bus name, log channel): the python-can flags' one bus, or each bus the
     ECU is on in a HIL configuration."""
+    from ..service.hil import load_hil_config
+
     if not args.hil:
         config = busmod.bus_config(args)
         bus = busmod.open_bus(config)

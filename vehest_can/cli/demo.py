@@ -11,25 +11,24 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from ..bus import bus as busmod
-from ..bus.log import FORMATS, SessionLog
-from ..carfile import car_spec
+from ..bus.formats import FORMATS
 from ..errors import VehestError
-from ..progress import Progress
-from ..service.daemon import stop_process
-from ..sim.car import PLANTS, on_plants
-from ..sim.report import FAIL, checks_of, checks_text, realtime_summary, write_junit, write_metrics
-from ..sim.session import SimMaster, run_inprocess
-from ..systems import Setup, System, load_any_scenario, registered, shipped_scenarios
-from ..systems.ecu import Ecu, EcuConfig
+from ..sim import PLANTS
 from ._common import CAR_HELP, add_car_argument, car_from_args, check_seconds, ecu_car, has_car, with_car
+
+if TYPE_CHECKING:  # annotations only: the verb's parser loads none of it
+    from ..systems import System
+
+
+#: the verb's one line in `vehest-can --help` (read without building its parser)
+HELP = "the full loop: plant -> bus -> ECU -> estimates, with table and plots"
 
 
 def add_subparser(subparsers) -> None:
-    p = subparsers.add_parser("demo", help="the full loop: plant -> bus -> ECU -> estimates, with table and plots",
+    p = subparsers.add_parser("demo", help=HELP,
                               description="Start the ECU daemon as its own process, run every system's scenarios in "
                                           "lockstep over the bus, and report against the papers.")
     p.add_argument("scenarios", nargs="*", metavar="SCENARIO",
@@ -62,6 +61,10 @@ def _daemon_cmd(config: dict, mode: str, extra: list[str]) -> list[str]:
 
 
 def run(args, systems: list[System] | None = None) -> int:
+    from ..carfile import car_spec
+    from ..sim.car import on_plants
+    from ..systems import Setup, load_any_scenario, registered, shipped_scenarios
+
     check_seconds(args.realtime, "--realtime", zero=True)
     systems = registered() if systems is None else systems
     paths = [Path(p) for p in args.scenarios] or shipped_scenarios(systems)
@@ -133,6 +136,9 @@ def _daemon_check(proc: subprocess.Popen, log: Path):
 
 def _run(args, systems, runs, out: Path, config: dict, setups: dict, daemon_args: list[str], keys,
          secoc_args: list[str]) -> int:
+    from ..service.daemon import stop_process
+    from ..sim.report import FAIL, checks_of, checks_text, write_junit, write_metrics
+
     daemon_log = out / "ecu_daemon.log"
     with open(daemon_log, "w") as log_file:  # a file, not a pipe: a chatty daemon never blocks on it
         ecu_proc = subprocess.Popen(_daemon_cmd(config, "lockstep", ["--idle-timeout", f"{DAEMON_IDLE_S:g}",
@@ -194,6 +200,13 @@ def _run(args, systems, runs, out: Path, config: dict, setups: dict, daemon_args
 
 def _scenario(args, system, sc, out: Path, bus, setups: dict, keys, daemon_gone) -> dict:
     """One scenario over the bus, its in-process twin, and its metrics (plots written)."""
+    import numpy as np
+
+    from ..bus.log import SessionLog
+    from ..progress import Progress
+    from ..sim.session import SimMaster, run_inprocess
+    from ..systems.ecu import Ecu, EcuConfig
+
     sdir = out / sc.name
     sdir.mkdir(parents=True, exist_ok=True)
     progress = Progress(f"{sc.name} (lockstep)")
@@ -220,6 +233,11 @@ def _scenario(args, system, sc, out: Path, bus, setups: dict, keys, daemon_gone)
 
 
 def _realtime(args, config, car, name: str, out: Path, extra: list[str]) -> dict:
+    from ..progress import Progress
+    from ..service.daemon import stop_process
+    from ..sim.report import realtime_summary
+    from ..sim.session import SimMaster
+
     stats_file = out / "realtime_daemon.json"
     stats_file.unlink(missing_ok=True)
     # no --duration: the daemon runs until the car is done and SIGTERM stops it (clean shutdown)

@@ -6,11 +6,13 @@ import shutil
 from pathlib import Path
 
 from ..errors import ConfigError
-from ..paths import examples_dir
+
+#: the verb's one line in `vehest-can --help` (read without building its parser)
+HELP = "list the shipped examples (HIL configurations, systemd unit) or copy them"
 
 
 def add_subparser(subparsers) -> None:
-    p = subparsers.add_parser("examples", help="list the shipped examples (HIL configurations, systemd unit) or copy them",
+    p = subparsers.add_parser("examples", help=HELP,
                               description="List the examples shipped with the package, or copy them to a folder "
                                           "to edit (existing files are kept unless --force).")
     p.add_argument("--copy", metavar="DIR", help="copy every example into DIR (hil/, systemd/)")
@@ -19,6 +21,8 @@ def add_subparser(subparsers) -> None:
 
 
 def run(args) -> int:
+    from ..paths import examples_dir
+
     root = examples_dir()
     files = sorted(p for p in root.glob("*/*") if p.is_file())
     if not files:

@@ -5,22 +5,26 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..bus import bus as busmod
-from ..bus.busload import bus_load
 from ..errors import ConfigError
-from ..faults.campaign import analyse, bus_run, fault_table, format_table, run_with_faults
-from ..faults.spec import DESCRIPTIONS, FaultConfig, faults_from_cli, load_faults
-from ..paths import dbc_path
-from ..progress import Progress
-from ..systems import load_any_scenario
 from ._common import check_range, check_seconds
+
+if TYPE_CHECKING:  # annotations only: the verb's parser loads none of it
+    from ..faults.spec import FaultConfig
+
+
+#: the verb's one line in `vehest-can --help` (read without building its parser)
+HELP = "inject bus faults; table of what the ECU detects, its health response and recovery"
 
 
 def add_subparser(subparsers) -> None:
+    from ..faults.spec import DESCRIPTIONS
+
     kinds = "; ".join(f"{k}: {v}" for k, v in DESCRIPTIONS.items())
     p = subparsers.add_parser(
-        "faults", help="inject bus faults; table of what the ECU detects, its health response and recovery",
+        "faults", help=HELP,
         description="Run the launch scenario in simulated time with the sensor node's and the ECU's frames "
                     "through a fault injector and a bit-rate-limited wire model, once per fault, and tabulate "
                     "the ECU's fault counters, the health and valid flags of the scenario's filters during the fault and the "
@@ -54,6 +58,8 @@ def add_subparser(subparsers) -> None:
 
 
 def _config(args) -> FaultConfig | None:
+    from ..faults.spec import FaultConfig, faults_from_cli, load_faults
+
     given = None
     if args.faults_file:
         given = load_faults(args.faults_file)
@@ -68,6 +74,12 @@ def _config(args) -> FaultConfig | None:
 
 
 def run(args) -> int:
+    from ..bus.busload import bus_load
+    from ..faults.campaign import analyse, fault_table, format_table, run_with_faults
+    from ..paths import dbc_path
+    from ..progress import Progress
+    from ..systems import load_any_scenario
+
     check_seconds(args.duration, "--duration")
     check_seconds(args.bus_run, "--bus-run")
     check_range(args.tx_queue, "--tx-queue", 1, 10_000, "frames")  # a CAN controller holds a few dozen
@@ -113,6 +125,8 @@ def run(args) -> int:
 
 
 def _bus_run(args, car, config, wire) -> int:
+    from ..faults.campaign import bus_run
+
     if not args.bus_run > 1.2:
         raise ConfigError(f"--bus-run {args.bus_run}: needs more than 1.2 s (0.5 s settle at each end)")
     bus_config = busmod.bus_config(args) if getattr(args, "interface", None) or args.bus_config else None

@@ -8,18 +8,18 @@ from dataclasses import replace
 from pathlib import Path
 
 from ..bus import bus as busmod
-from ..bus.frames import BUSES, TICK_S, database, sent_by
 from ..errors import VehestError
-from ..progress import Progress
-from ..service import sdnotify
-from ..service.hil import ResidualBus, load_hil_config
-from ..systems import Setup, registered
 from ._common import add_car_argument, car_from_args, check_seconds, ecu_car, has_car, with_car
+
+#: the verb's one line in `vehest-can --help` (read without building its parser)
+HELP = "HIL rehearsal: simulate only the nodes the bench lacks"
 
 
 def add_subparser(subparsers) -> None:
+    from ..service import sdnotify
+
     p = subparsers.add_parser(
-        "hil", help="HIL rehearsal: simulate only the nodes the bench lacks",
+        "hil", help=HELP,
         description="Residual-bus simulation from a TOML configuration (docs/hil.md): the ECU daemon on each of "
                     "its buses if VEHEST is simulated, the car of each scenario (plant + sensor node of a "
                     "registered system) if its nodes are, all in one process, on the configured python-can buses.")
@@ -37,6 +37,12 @@ def add_subparser(subparsers) -> None:
 
 
 def run(args) -> int:
+    from ..bus.frames import BUSES, TICK_S, database, sent_by
+    from ..progress import Progress
+    from ..service import sdnotify
+    from ..service.hil import ResidualBus, load_hil_config
+    from ..systems import Setup, registered
+
     check_seconds(args.duration, "--duration", maximum=86_400)
     config = load_hil_config(args.config)
     if args.check:

@@ -6,12 +6,14 @@ import sys
 import time
 
 from ..bus import bus as busmod
-from ..service.monitor import Monitor
 from ._common import check_seconds
+
+#: the verb's one line in `vehest-can --help` (read without building its parser)
+HELP = "live view of the ECU's estimates, health and fault counters"
 
 
 def add_subparser(subparsers) -> None:
-    p = subparsers.add_parser("monitor", help="live view of the ECU's estimates, health and fault counters",
+    p = subparsers.add_parser("monitor", help=HELP,
                               description="Listen on a python-can bus and show the latest value of every signal "
                                           "the ECU publishes, decoded through the DBCs (cantools monitor style). "
                                           "On a terminal the screen is redrawn; otherwise (or with --once) "
@@ -24,6 +26,8 @@ def add_subparser(subparsers) -> None:
 
 
 def run(args) -> int:
+    from ..service.monitor import Monitor
+
     check_seconds(args.duration, "--duration", maximum=365 * 86400.0)
     check_seconds(args.refresh, "--refresh", maximum=60.0)
     live = sys.stdout.isatty() and not args.once

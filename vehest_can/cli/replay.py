@@ -4,20 +4,19 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..bus import bus as busmod
-from ..bus.frames import TICK_S
-from ..bus.log import SessionLog, check_log_file, check_log_frames, check_log_path
+from ..bus.formats import MAX_GAP_S, TABLE_FORMATS
 from ..errors import ConfigError
-from ..progress import Progress
-from ..service.estimates import TABLE_FORMATS, EstimateTable, check_table_path
-from ..service.replay import ECU_TX, MAX_GAP_S, play, replay_file
-from ..systems.ecu import Ecu, EcuConfig
 from ._common import add_car_argument, car_from_args, check_range
 
 _BUS_FLAGS = ("interface", "channel", "bitrate", "fd", "data_bitrate", "timing", "bus_kwargs", "bus_config", "bus_context")
 
 
+#: the verb's one line in `vehest-can --help` (read without building its parser)
+HELP = "run a recorded CAN log through the ECU offline, or play it onto a bus"
+
+
 def add_subparser(subparsers) -> None:
-    p = subparsers.add_parser("replay", help="run a recorded CAN log through the ECU offline, or play it onto a bus",
+    p = subparsers.add_parser("replay", help=HELP,
                               description="Replay a log (candump -L, .asc, .blf, .mf4 ...) through the ECU. "
                                           "Lockstep logs (with SIM_Sync) are replayed tick for tick and the ECU's "
                                           "output is compared with the one recorded. Exit status 3 when it differs. "
@@ -32,7 +31,7 @@ def add_subparser(subparsers) -> None:
     p.add_argument("--max-gap", type=float, default=MAX_GAP_S, metavar="S",
                    help=f"a gap between frames longer than S seconds is not stepped through tick by tick: the ECU "
                         f"steps S seconds of idle ticks, then the clock jumps to the next frame; with --play, the "
-                        f"gap is shortened to S (default {MAX_GAP_S:g}; {TICK_S:g}..3600)")
+                        f"gap is shortened to S (default {MAX_GAP_S:g}; one tick..3600)")
     p.add_argument("--play", action="store_true",
                    help="send the log's frames (not the ECU's own) onto the bus of -i/-c at their recorded pace "
                         "(default: udp_multicast on this host only)")
@@ -45,6 +44,13 @@ def add_subparser(subparsers) -> None:
 
 def run(args) -> int:
     # a gap shorter than a tick is no gap; an hour of idle ticks is 7.2 M steps of the ECU
+    from ..bus.frames import TICK_S
+    from ..bus.log import SessionLog, check_log_file, check_log_path
+    from ..progress import Progress
+    from ..service.estimates import EstimateTable, check_table_path
+    from ..service.replay import ECU_TX, replay_file
+    from ..systems.ecu import Ecu, EcuConfig
+
     check_range(args.max_gap, "--max-gap", TICK_S, 3600.0, "seconds")
     if args.play:
         if args.car:
@@ -93,6 +99,9 @@ def run(args) -> int:
 
 
 def _play(args) -> int:
+    from ..bus.log import check_log_frames
+    from ..service.replay import play
+
     offline = [flag for flag, v in (("-o/--output", args.output), ("--table", args.table)) if v]
     if offline:
         raise ConfigError(f"{' and '.join(offline)} write the offline replay's results; --play only sends the log "

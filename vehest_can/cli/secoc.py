@@ -3,10 +3,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+#: the verb's one line in `vehest-can --help` (read without building its parser)
+HELP = "SecOC key files: make development keys, check a key file"
+
 
 def add_subparser(subparsers) -> None:
     parser = subparsers.add_parser(
-        "secoc", help="SecOC key files: make development keys, check a key file",
+        "secoc", help=HELP,
         description="Key files for SecOC-style authenticated frames (CMAC-AES-128, one key per sending "
                     "node). 'keygen' writes random development keys for every sending node of the DBCs "
                     "(mode 600, never overwrites); 'check' validates a file and prints each key's "

@@ -5,9 +5,6 @@ import sys
 
 from ..bus import bus as busmod
 from ..errors import ConfigError
-from ..progress import Progress
-from ..sim.session import CAR_NODES, SimMaster
-from ..systems import load_any_scenario
 from ._common import (
     add_car_argument,
     add_log_arguments,
@@ -20,9 +17,12 @@ from ._common import (
     with_car,
 )
 
+#: the verb's one line in `vehest-can --help` (read without building its parser)
+HELP = "run the simulated car and sensor nodes on a bus"
+
 
 def add_subparser(subparsers) -> None:
-    p = subparsers.add_parser("sim", help="run the simulated car and sensor nodes on a bus",
+    p = subparsers.add_parser("sim", help=HELP,
                               description="Run a scenario's car on a python-can bus, against an ECU (daemon or "
                                           "real) on the same bus.")
     p.add_argument("scenario", metavar="SCENARIO", help="scenario file, or the name of a shipped one (any "
@@ -42,6 +42,10 @@ def add_subparser(subparsers) -> None:
 
 
 def run(args) -> int:
+    from ..progress import Progress
+    from ..sim.session import CAR_NODES, SimMaster
+    from ..systems import load_any_scenario
+
     system, sc = load_any_scenario(args.scenario)
     if args.pose is not None:
         if getattr(sc, "camber", None) is None:

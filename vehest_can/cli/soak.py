@@ -9,14 +9,15 @@ from pathlib import Path
 
 from ..bus import bus as busmod
 from ..errors import ConfigError
-from ..progress import Progress
-from ..service.soak import Soak, SoakConfig, format_result
 from ._common import check_seconds
+
+#: the verb's one line in `vehest-can --help` (read without building its parser)
+HELP = "long real-time run (daemon + car + hostile sender): memory, fds, latency, fault rates"
 
 
 def add_subparser(subparsers) -> None:
     p = subparsers.add_parser(
-        "soak", help="long real-time run (daemon + car + hostile sender): memory, fds, latency, fault rates",
+        "soak", help=HELP,
         description="Run the real-time ECU daemon (its own process) against a simulated car on udp_multicast "
                     "(this host only), with a bounded hostile sender, and report the daemon's RSS, open fds, "
                     "frame-to-estimate latency p50/p99/p99.9 and fault rates per window.")
@@ -35,6 +36,9 @@ def add_subparser(subparsers) -> None:
 
 
 def run(args) -> int:
+    from ..progress import Progress
+    from ..service.soak import Soak, SoakConfig, format_result
+
     check_seconds(args.duration, "--duration", maximum=30 * 86400)
     check_seconds(args.interval, "--interval", maximum=86400)
     if not (math.isfinite(args.hostile_rate) and 0 < args.hostile_rate <= 20_000):

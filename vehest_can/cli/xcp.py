@@ -20,9 +20,12 @@ from contextlib import contextmanager
 from ..bus import bus as busmod
 from ..errors import ConfigError
 
+#: the verb's one line in `vehest-can --help` (read without building its parser)
+HELP = "the ECU's XCP: its A2L, its items, read and calibrate them on a bus"
+
 
 def add_subparser(subparsers) -> None:
-    p = subparsers.add_parser("xcp", help="the ECU's XCP: its A2L, its items, read and calibrate them on a bus",
+    p = subparsers.add_parser("xcp", help=HELP,
                               description="The ECU's XCP-on-CAN slave (docs/xcp.md): write its A2L, list what it "
                                           "measures and calibrates, read or write an item by its C name on the "
                                           "bus of a running `vehest-can daemon`.")

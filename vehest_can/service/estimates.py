@@ -24,14 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..bus.formats import TABLE_FORMATS
 from ..bus.frames import BUSES, database
 from ..bus.log import check_output_path
 
-TABLE_FORMATS = {
-    ".csv": "CSV",
-    ".parquet": "Apache Parquet (pyarrow)",
-    ".mf4": "ASAM MDF 4, a channel group per message (needs the mf4 extra: asammdf)",
-}
 KEYS = ("time", "tick", "bus", "frame_id", "message")
 
 

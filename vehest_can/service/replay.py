@@ -30,6 +30,7 @@ import can
 import numpy as np
 
 from ..bus import lockstep
+from ..bus.formats import MAX_GAP_S
 from ..bus.frames import FRAME_DTYPE, TICK_S, sent_by, to_message
 from ..bus.log import SessionLog, iter_log, iter_log_arrays, messages_to_arrays
 from ..native import ffi, lib
@@ -42,7 +43,6 @@ ECU_TX = ECU_SENT - {lockstep.ACK.frame_id}
 #: standard ID -> sent by the ECU core (a table lookup: np.isin sorts each batch)
 _IS_ECU_TX = np.zeros(0x800, dtype=bool)
 _IS_ECU_TX[sorted(ECU_TX)] = True
-MAX_GAP_S = 1.0
 #: ECU frames held for comparison on the side that is ahead; beyond this the two streams are not
 #: aligned (e.g. a log that has none of the ECU's frames) and are not compared further
 COMPARE_WINDOW = 1 << 20

@@ -14,10 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..native import ffi, lib, struct_dtype
-
-#: the plants a car with a choice can be played by (a scenario's ``plant`` key): ours, and CommonRoad's
-#: multi-body model (vehest_can.sim.mbplant)
-PLANTS = ("veh14", "commonroad_mb")
+from . import PLANTS  # noqa: F401 - re-exported beside on_plants
 
 
 def on_plants(sc: Any, plants: tuple[str, ...]) -> list:

@@ -1,15 +1,5 @@
-"""``vehest-can bench``: speed figures, measured side by side in one process.
-
-Targets (issue 2): filter >= 100x faster than filterpy per step through the array API; one full
-ECU tick (unpack, checks, two filters, pack) <= 5 µs median in a C loop; in-process lockstep of
-plant + sensor node + ECU >= 100x faster than real time. Tyre-force estimators (seed 000): the
-SKFMEC step in fixed point and in double and the plain EKF step in a C loop, against the numpy
-reference step (skf_ref) on the same inputs; the ECU tick with the chassis estimator active
-(DLS_Sensors + CHS_Sensors in every tick) <= 10 µs median; the 14-DOF chassis plant alone
->= 200x real time. XCP (issue 16): the ECU tick with the slave off, on and idle, and with a
-20-signal DAQ list on the 1 ms event, three ECUs stepped in turn on the same frames. Medians of
-repeated runs; ratios are against baselines timed in the same run.
-"""
+"""``vehest-can bench``: speed figures, measured side by side in one process (the verb's
+description, vehest_can.cli.bench, says which and their targets)."""
 from __future__ import annotations
 
 import shutil
@@ -125,6 +115,7 @@ def run(quick: bool = False) -> dict:
                                  repeats=1 if quick else 3)
     res["chassis_plant"] = chassis_plant(seconds=1.0 if quick else 10.0, repeats=3 if quick else 9)
     res["roll"] = roll(steps=400 if quick else 1200, ref_steps=20 if quick else 60, repeats=3 if quick else 7)
+    res["startup_s"] = startup(3 if quick else 10)
     return res
 
 
@@ -203,6 +194,29 @@ def chassis_plant(seconds: float = 10.0, repeats: int = 9) -> dict[str, float]:
     from ..systems.tireforce.scenario import load_tireforce_scenario
 
     return bench(load_tireforce_scenario("chassis_paper_mu_drop"), seconds=seconds, repeats=repeats)
+
+
+#: command lines timed from a new process: the console script's help and three verbs', beside the
+#: interpreter alone and cantools' command line (baselines of the same run)
+STARTUP = (("vehest-can --help", ["-m", "vehest_can.cli", "--help"]),
+           ("vehest-can demo --help", ["-m", "vehest_can.cli", "demo", "--help"]),
+           ("vehest-can replay --help", ["-m", "vehest_can.cli", "replay", "--help"]),
+           ("vehest-can sim --help", ["-m", "vehest_can.cli", "sim", "--help"]),
+           ("baseline: python -c pass", ["-c", "pass"]),
+           ("baseline: cantools --help", ["-m", "cantools", "--help"]))
+
+
+def startup(repeats: int = 10) -> dict[str, float]:
+    """Median wall time [s] of each STARTUP command line in a new process (target <= 0.3 s)."""
+    out = {}
+    for name, argv in STARTUP:
+        times = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            subprocess.run([sys.executable, *argv], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=False)
+            times.append(time.perf_counter() - t0)
+        out[name] = float(np.median(times))
+    return out
 
 
 def lockstep_factors(car_factory, repeats: int = 3) -> tuple[float, float]:
@@ -308,6 +322,9 @@ def table(res: dict, lockstep: dict[str, tuple[float, float]] | None = None) -> 
         mx = f", longest {c['ecu_all_roll'][1] / 1000:.1f} µs (target <= 100 µs)" if "ecu_all_roll" in c else ""
         lines.append(f"{'ECU tick, every system (+ roll UKF + SMC)':<44}{c['ecu_tick_all'][0] / 1000:>9.2f} µs/tick"
                      f"   p99 {c['ecu_tick_all'][1] / 1000:.2f} µs{mx} (target median <= 15 µs)")
+    for name, secs in res.get("startup_s", {}).items():
+        target = "" if name.startswith("baseline") else " (target <= 0.3 s)"
+        lines.append(f"{'start-up ' + name:<44}{secs * 1000:>9.0f} ms median{target}")
     for name, (alone, factor) in (lockstep or {}).items():
         # CommonRoad's multi-body plant is a Python package compiled at run time: its target is the car's
         mb = name.endswith("@commonroad_mb")
