@@ -59,13 +59,13 @@ def test_paper_car_derived_figures_are_the_documented_ones():
 def test_the_data_sheet_keys_are_the_scenario_vehicle_tables():
     """The same names, plant fields and ranges as a scenario's [vehicle] table."""
     for key, (field, spec) in _VEHICLE.items():
-        if key in carfile._RANGE:
-            assert carfile._RANGE[key] == (field, spec), key
+        if key in carfile.DATA_SHEET:
+            assert carfile.DATA_SHEET[key] == (field, spec), key
         else:
             form = "roll_stiffness" if key.startswith("roll_stiffness") else "roll_damping"
             assert key.startswith(form) and (spec.lo, spec.hi) == {
                 "roll_stiffness": (1e3, 1e6), "roll_damping": (0.0, 1e5)}[form], key
-    assert set(carfile._RANGE) | {k for k in _VEHICLE if k.startswith("roll_")} == set(_VEHICLE)
+    assert set(carfile.DATA_SHEET) | {k for k in _VEHICLE if k.startswith("roll_")} == set(_VEHICLE)
 
 
 # ---- both forms ---------------------------------------------------------------------------------------
@@ -301,6 +301,6 @@ def test_roll_bus_equals_its_rerun_for_a_commonroad_car(tmp_path):
 
 def test_carfile_is_a_frozen_dataclass_with_the_keys():
     fields = {f.name for f in dataclasses.fields(CarFile)}
-    assert {"name", "description", "path", *carfile._RANGE} <= fields
+    assert {"name", "description", "path", *carfile.DATA_SHEET} <= fields
     with pytest.raises(dataclasses.FrozenInstanceError):
         paper_car().sprung_mass_kg = 1.0  # type: ignore[misc]

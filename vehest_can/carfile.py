@@ -22,9 +22,9 @@ from .schema import Checker, Num, read_toml, type_name
 CARS = ShippedSet("cars", "firmware_sim/cars")
 AXLES = ("front", "rear")
 
-# The data-sheet keys shared with a scenario's [vehicle] table (vehest_can/sim/veh14.py _VEHICLE): the
-# same names, ranges and plant fields. Copied here, not imported, so this module needs no C to import.
-_RANGE: dict[str, tuple[str, Num]] = {
+#: The data-sheet keys, shared with a scenario's [vehicle] table (vehest_can/sim/veh14.py builds it from
+#: these): TOML key -> (vh_v14_params_t field, plausibility range).
+DATA_SHEET: dict[str, tuple[str, Num]] = {
     "sprung_mass_kg": ("ms", Num(200.0, 5000.0)),
     "unsprung_mass_front_kg": ("m_uf", Num(10.0, 200.0)),
     "unsprung_mass_rear_kg": ("m_ur", Num(10.0, 200.0)),
@@ -59,7 +59,7 @@ _COEF = Num(-1e6, 1e6)
 _AXLE_KEYS = {f"{form}_{axle}_{unit}" for axle in AXLES for form, unit in (
     ("roll_stiffness", "nm_per_rad"), ("anti_roll_bar", "nm_per_rad"), ("roll_damping", "nms_per_rad"),
     ("damper_rate", "ns_per_m"))}
-_TOP = {"name", "description", "roll_axis_to_cg_m", "tyre", *_RANGE, *_AXLE_KEYS}
+_TOP = {"name", "description", "roll_axis_to_cg_m", "tyre", *DATA_SHEET, *_AXLE_KEYS}
 _TYRE_KEYS = {"lateral_coefficients": "a", "longitudinal_coefficients": "b"}
 #: relative size below which a bar is rounding residue of k_phi <-> bar (as the plant, vh_veh14.c)
 BAR_RESIDUE = 1e-9
@@ -186,7 +186,7 @@ class CarFile:
         sub-steps, the tyre size and, without a [tyre] table, its coefficients) stays at the C defaults."""
         prm = ffi.new("vh_v14_params_t *")
         lib.vh_v14_params_default(prm)
-        for key, (fname, _) in _RANGE.items():
+        for key, (fname, _) in DATA_SHEET.items():
             setattr(prm, fname, getattr(self, key))
         prm.kphi_f, prm.kphi_r = self.roll_stiffness("front"), self.roll_stiffness("rear")
         prm.cphi_f, prm.cphi_r = self.roll_damping("front"), self.roll_damping("rear")
@@ -215,7 +215,7 @@ def car_from_dict(doc: dict, path: str | Path, name: str | None = None) -> CarFi
         c.fail("name", "missing (required: the car's name)")
     values: dict[str, Any] = {"name": name, "description": c.string(doc.get("description", ""), "description"),
                               "path": Path(path) if not str(path).startswith("<") else None}
-    for key, (_, spec) in _RANGE.items():
+    for key, (_, spec) in DATA_SHEET.items():
         if key in doc:
             values[key] = _number(c, doc[key], key, spec)
         elif key in _OPTIONAL:
@@ -356,8 +356,8 @@ def paper_car() -> CarFile:
 
 
 def _spec(key: str) -> Num | None:
-    if key in _RANGE:
-        return _RANGE[key][1]
+    if key in DATA_SHEET:
+        return DATA_SHEET[key][1]
     return {"roll_stiffness": _ROLL_STIFFNESS, "anti_roll_bar": _BAR, "roll_damping": _ROLL_DAMPING,
             "damper_rate": _DAMPER, "roll_axis_to_cg_m": _E}.get(key.rsplit("_", 3)[0] if key != "roll_axis_to_cg_m" else key)
 
@@ -366,7 +366,7 @@ def blame(car: CarFile, what: str, accepts) -> str:
     """The message of a C refusal (`what`) of `car`: the key whose value from the paper's car makes
     ``accepts(car)`` true, with its value and documented range; per axle the two forms count as one key."""
     paper = paper_car()
-    groups = [(k,) for k in _RANGE] + [
+    groups = [(k,) for k in DATA_SHEET] + [
         (f"{a}_{axle}_{u}", f"{b}_{axle}_{v}") for axle in AXLES
         for a, u, b, v in (("roll_stiffness", "nm_per_rad", "anti_roll_bar", "nm_per_rad"),
                            ("roll_damping", "nms_per_rad", "damper_rate", "ns_per_m"))] + [

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from ..carfile import DATA_SHEET
 from ..errors import ConfigError, ScenarioError
 from ..schema import Checker, Num, type_name
 from .car import PLANTS, Car
@@ -38,31 +39,12 @@ _MU = Num(0.0, 2.0)
 # [vehicle] overrides: TOML key -> (vh_v14_params_t field, range). Plausibility ranges; the plant then
 # checks the combination (a roll stiffness the tyres can carry, springs softer in roll than k_phi, ...).
 _VEHICLE = {
-    "sprung_mass_kg": ("ms", Num(200.0, 5000.0)),
-    "roll_inertia_kgm2": ("ix", Num(50.0, 5000.0)),
-    "pitch_inertia_kgm2": ("iy", Num(200.0, 20000.0)),
-    "yaw_inertia_kgm2": ("iz", Num(200.0, 20000.0)),
-    "cg_to_front_axle_m": ("lf", Num(0.3, 3.0)),
-    "cg_to_rear_axle_m": ("lr", Num(0.3, 3.0)),
-    "cg_height_m": ("h", Num(0.2, 1.5)),
-    "half_track_front_m": ("tf", Num(0.4, 1.2)),
-    "half_track_rear_m": ("tr", Num(0.4, 1.2)),
-    "roll_centre_height_front_m": ("hf", Num(0.0, 0.4)),
-    "roll_centre_height_rear_m": ("hr", Num(0.0, 0.4)),
+    **DATA_SHEET,
+    # the paper's form of the roll stiffness and damping, per axle (a car file may give bars and dampers)
     "roll_stiffness_front_nm_per_rad": ("kphi_f", Num(1e3, 1e6)),
     "roll_stiffness_rear_nm_per_rad": ("kphi_r", Num(1e3, 1e6)),
     "roll_damping_front_nms_per_rad": ("cphi_f", Num(0.0, 1e5)),
     "roll_damping_rear_nms_per_rad": ("cphi_r", Num(0.0, 1e5)),
-    "wheel_radius_m": ("rw", Num(0.15, 0.6)),
-    "wheel_inertia_kgm2": ("iw", Num(0.3, 20.0)),
-    "unsprung_mass_front_kg": ("m_uf", Num(10.0, 200.0)),
-    "unsprung_mass_rear_kg": ("m_ur", Num(10.0, 200.0)),
-    "spring_rate_front_n_per_m": ("k_f", Num(5e3, 3e5)),
-    "spring_rate_rear_n_per_m": ("k_r", Num(5e3, 3e5)),
-    "tyre_stiffness_n_per_m": ("kt", Num(5e4, 2e6)),
-    "tyre_damping_ns_per_m": ("ct", Num(0.0, 5e3)),
-    "air_density_kg_m3": ("rho", Num(0.0, 2.0)),
-    "drag_area_m2": ("cda", Num(0.0, 5.0)),
 }
 #: The true car is this much heavier than the paper's (the estimator's model): payload at the sprung CG.
 _MASS_DELTA = Num(-500.0, 2000.0)
