@@ -115,6 +115,37 @@ def test_asammdf_decodes_the_mf4_with_both_dbcs(session, tmp_path):
     assert start + sig.timestamps[-1] == pytest.approx(EPOCH + session.frame_tick[-1] * TICK_S, abs=0.01)
 
 
+@pytest.mark.parametrize("per_bus", [False, True])
+def test_mf4_sources_are_the_buses_and_the_first_frame_is_at_the_start_time(session, tmp_path, per_bus):
+    """asammdf lists each bus as the source of its frames (python-can's writer leaves the source name empty),
+    and the header's start time is the first frame's time (python-can's: when the file was opened)."""
+    asammdf = pytest.importorskip("asammdf", reason="MF4 needs the mf4 extra (asammdf)")
+    log = write(session, tmp_path / "s.mf4", per_bus=per_bus)
+    frames = 0
+    for path in dict.fromkeys(log.paths.values()):
+        mdf = asammdf.MDF(str(path))
+        groups = [g for g in mdf.groups if g.channel_group.acq_source is not None]
+        assert groups and all(g.channel_group.acq_source.name in ("pt", "ch") for g in groups)
+        for i, g in enumerate(mdf.groups):
+            if "CAN_DataFrame" not in [c.name for c in g.channels]:
+                continue
+            bus = g.channel_group.acq_source.name
+            assert mdf.get("CAN_DataFrame", i).source.name == bus
+            channel = mdf.get("CAN_DataFrame.BusChannel", i).samples
+            ids = mdf.get("CAN_DataFrame.ID", i).samples
+            assert set(channel) <= {("pt", "ch").index(bus) + 1} and set(ids) <= bus_ids(bus)
+            frames += len(ids)
+        first = [m for m in session.messages() if per_bus is False or m.arbitration_id in bus_ids(path.stem[-2:])][0]
+        start = mdf.header.start_time.timestamp()
+        assert start == pytest.approx(EPOCH + first.timestamp, abs=1e-6)
+        decoded = mdf.extract_bus_logging({"CAN": [(str(dbc_path("pt")), 1), (str(dbc_path("ch")), 2)]})
+        msg = database("pt" if first.arbitration_id in bus_ids("pt") else "ch").get_message_by_frame_id(
+            first.arbitration_id)
+        assert decoded.get(msg.signals[0].name).timestamps[0] == pytest.approx(0.0, abs=1e-6)  # at the start
+        assert decoded.header.start_time.timestamp() == pytest.approx(start, abs=1e-6)
+    assert frames == len(session.frames)
+
+
 def test_bad_log_paths_are_clear_errors(tmp_path):
     with pytest.raises(ConfigError, match="unknown log format '.xyz'"):
         check_log_path(tmp_path / "x.xyz")

@@ -5,11 +5,12 @@ import subprocess
 import sys
 import time
 
+import can
 import pytest
 from daemonproc import start_daemon, stop_daemon
 
 from vehest_can.bus.bus import cli_args, private_multicast
-from vehest_can.service.monitor import Monitor
+from vehest_can.service.monitor import Monitor, compile_filter
 from vehest_can.sim.powertrain import powertrain_car
 from vehest_can.sim.session import run_inprocess
 from vehest_can.systems.driveline.scenario import load_driveline_scenario
@@ -27,7 +28,30 @@ def test_monitor_shows_the_latest_decoded_values():
     assert "VEHEST_DrivelineEst: 2000 frames, 2000/s" in text and "DkfT_Health=OK" in text
     assert "DkfT_Valid=VALID" in text and "CntCrcError=0" in text and "Nm" in text
     assert "VEHEST_TireForceEst: not heard" in text  # no chassis in this session
-    assert mon.other > 0 and mon.undecodable == 0   # the car's frames are not the ECU's
+    # every frame decoded, the sensor node's too (not counted as "other")
+    assert "DLS_Sensors: 2000 frames, 2000/s" in text and "EngineSpeed=" in text
+    assert "0 IDs in no DBC, 0 undecodable" in screen[0]
+    assert "_CRC=" not in text and "_Counter=" not in text  # change every frame: left out
+
+
+def test_monitor_filter_and_raw_view():
+    s = run_inprocess(powertrain_car(load_driveline_scenario("launch_2nd"), duration_s=0.2), Ecu())
+    mon = Monitor()
+    for k, m in zip(s.frame_tick, s.messages()):
+        mon.feed(m, now=k * 0.0005)
+    mon.feed(can.Message(arbitration_id=0x7E5, is_extended_id=False, data=b"\x01\x02"), now=0.2)
+    by_signal = "\n".join(mon.body(100, now=0.2, pattern=compile_filter("cnttimeout")))
+    assert by_signal.splitlines()[1].split() == ["CntTimeout=0"] and "DLS_Sensors" not in by_signal
+    by_id = "\n".join(mon.body(100, now=0.2, pattern=compile_filter("0x100")))
+    assert by_id.startswith("pt 100 DLS_Sensors:") and "EngineSpeed=" in by_id and "VEHEST" not in by_id
+    assert mon.body(100, pattern=compile_filter("CntTime(")) == []  # not a regex: taken literally, no match
+    raw = mon.body(100, now=0.2, raw=True)
+    assert any(line.startswith("pt 100") and "FD BRS [20]" in line for line in raw)
+    assert any("7E5" in line and "(in no DBC)" in line and "CAN [2] 01 02" in line for line in raw)
+    assert not any("not heard" in line for line in raw) and max(map(len, raw)) <= 100
+    frozen = mon.snapshot()
+    mon.feed(s.messages().__next__(), now=0.3)
+    assert frozen.frames == mon.frames - 1
 
 
 @pytest.mark.multicast

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import difflib
+import errno
 import importlib
 import inspect
 import ipaddress
@@ -375,7 +376,7 @@ def open_bus(config: dict) -> can.BusABC:
         else:
             bus = can.Bus(**config)
     except (can.CanError, OSError, ValueError, ImportError, TypeError) as exc:
-        raise BusError(f"cannot open bus {_describe(config)}: {exc}") from exc
+        raise BusError(f"cannot open bus {_describe(config)}: {exc}{_why(config, exc)}") from exc
     log.info("bus open: %s", describe_bus(bus, config))
     return bus
 
@@ -410,6 +411,21 @@ def serving(bus: can.BusABC, writer: can.Listener | None, stop):
         if writer is not None:
             writer.stop()
         bus.shutdown()
+
+
+def _why(config: dict, exc: BaseException) -> str:
+    """What a bare errno means for this interface, and what to do about it."""
+    errno_ = getattr(exc, "errno", None) or getattr(exc.__cause__ or exc.__context__, "errno", None)
+    if config.get("interface") == "socketcan" and errno_ == errno.EAFNOSUPPORT:
+        return ("\n  this kernel has no SocketCAN (no AF_CAN sockets; `modprobe can-raw vcan` needs a kernel with "
+                "CAN, which containers and many VMs lack). Without it: leave out -i/--interface, and the ECU and "
+                "the tools meet on the default udp_multicast bus that stays on this host (docs/bus.md); for a "
+                "real vcan0, run inside user-mode Linux (docs/uml.md)")
+    if config.get("interface") == "socketcan" and errno_ == errno.ENODEV:
+        ch = config.get("channel")
+        return (f"\n  no CAN interface {ch!r} here: create one (`ip link add dev {ch} type vcan && ip link set up "
+                f"{ch}`, as root) or name an existing one (`ip link show type can`, `ip link show type vcan`)")
+    return ""
 
 
 def _describe(config: dict) -> str:

@@ -2,13 +2,14 @@
 
 Written (:class:`SessionLog`): a session's frames as other tools expect them, in the format of the
 file's extension through python-can's writers (``.log`` candump -L, ``.asc``, ``.blf``;
-``.mf4`` through asammdf, the ``mf4`` extra). Not ``.trc``: python-can's TRC writer drops CAN FD
+``.mf4`` through asammdf, the ``mf4`` extra: :class:`Mf4Log`). Not ``.trc``: python-can's TRC writer drops CAN FD
 frames, and both buses are CAN FD; not ``.csv``: it keeps no channel, direction or FD flag.
 
 * absolute time: the session starts at a wall-clock epoch (``time.time()`` when its first frame
   is logged, minus that frame's session time) and advances by the session's own clock (simulated
-  time in lockstep, the node's clock in real time), like ``candump -l``; the epoch and the tick
-  are recorded beside the log (``<log>.json``), so a lockstep log still maps back to ticks;
+  time in lockstep; in real time the wall clock, when the node sent or received the frame), like
+  ``candump -l``; the epoch and the tick are recorded beside the log (``<log>.json``), so a
+  lockstep log still maps back to ticks;
 * direction: the frames the logging node sent are Tx (``is_rx=False``), the rest Rx;
 * one channel per bus, named as the bus configuration names it (``pt``, ``ch``: the DBC a frame's
   ID belongs to); formats whose channels are numbers (ASC, BLF, MF4) write ``pt`` as 1 and
@@ -27,6 +28,7 @@ import mmap
 import time
 from collections.abc import Generator, Iterable, Iterator
 from pathlib import Path
+from typing import Any
 
 import can
 import numpy as np
@@ -100,7 +102,11 @@ class SessionLog(can.Listener):
         self._writers: dict[Path, can.Listener] = {}
         try:
             for p in dict.fromkeys(self.paths.values()):
-                self._writers[p] = can.Logger(str(p))
+                if p.suffix.lower() == ".mf4":
+                    on = [b for b in BUSES if self.paths[b] == p]
+                    self._writers[p] = Mf4Log(p, {BUSES.index(b) + (self._base or 0): b for b in on})
+                else:
+                    self._writers[p] = can.Logger(str(p))
         except (OSError, ValueError, ImportError) as exc:
             self.stop()
             raise ConfigError(f"{self.path}: cannot write the log ({exc})") from exc
@@ -126,7 +132,7 @@ class SessionLog(can.Listener):
             "format": FORMATS[self.path.suffix.lower()],
             "epoch": self.epoch,
             "epoch_utc": time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(self.epoch)) if self.epoch else None,
-            "time": "epoch + session time (simulated time in lockstep, the node's clock in real time)",
+            "time": "epoch + session time (simulated time in lockstep, the wall clock in real time)",
             "tick_s": TICK_S,
             "tx_nodes": self.nodes,
             "channels": {b: (b if self._base is None else BUSES.index(b) + self._base) for b in BUSES},
@@ -146,6 +152,108 @@ class SessionLog(can.Listener):
 
     def __exit__(self, *exc) -> None:
         self.stop()
+
+
+class Mf4Log(can.Listener):
+    """A CAN bus log in ASAM MDF 4, read by python-can's MF4Reader and asammdf's ``extract_bus_logging``:
+    python-can's layout (channel groups ``CAN_DataFrame``, ``CAN_ErrorFrame``, ``CAN_RemoteFrame``, its
+    record types), but one set of groups per bus, each with the bus's name as its acquisition source
+    (``pt``, ``ch``: tools list signals by source), and the header's start time at the first frame's
+    time, so the signals start at 0 (python-can's writer takes the moment the file is opened).
+    Frames are appended in batches, not one ``extend`` per frame."""
+
+    BATCH = 4096
+
+    def __init__(self, path: str | Path, channels: dict[int, str]):
+        """`channels`: BusChannel number -> bus name, the buses this file holds."""
+        from can.io.mf4 import ERR_DTYPE, RTR_DTYPE, STD_DTYPE
+
+        self.path = Path(path)
+        self.channels = channels
+        self._dtypes = (STD_DTYPE, ERR_DTYPE, RTR_DTYPE)
+        self._mdf: Any = None  # asammdf's MDF, made at the first frame
+        self._start = 0.0
+        self._last = 0.0
+        self._group = {ch: 3 * i for i, ch in enumerate(channels)}  # a bus's data group; error, remote next
+        self._batch = {ch: (np.zeros(self.BATCH, STD_DTYPE), np.zeros(self.BATCH)) for ch in channels}
+        self._n = dict.fromkeys(channels, 0)
+        self._saved = False
+
+    def _open(self, start: float) -> None:
+        from datetime import UTC, datetime
+
+        from asammdf import MDF, Signal, Source
+
+        self._mdf = mdf = MDF(version="4.10")
+        mdf.header.start_time = datetime.fromtimestamp(start, UTC)
+        self._start = self._last = start
+        for ch, bus in self.channels.items():
+            source = Source(name=bus, path=f"CAN{ch}", comment=f"CAN FD bus {bus} (BusChannel {ch})",
+                            source_type=Source.SOURCE_BUS, bus_type=Source.BUS_TYPE_CAN)
+            for name, dtype in zip(("CAN_DataFrame", "CAN_ErrorFrame", "CAN_RemoteFrame"), self._dtypes):
+                mdf.append(Signal(name=name, samples=np.array([], dtype=dtype), timestamps=np.array([], dtype="<f8"),
+                                  source=source), acq_name=bus, acq_source=source)
+
+    def on_message_received(self, msg: can.Message) -> None:
+        ts = msg.timestamp or 0.0
+        if self._mdf is None:
+            self._open(ts)
+        self._last = max(self._last, ts)  # a master channel never goes back (python-can's writer does the same)
+        t = self._last - self._start
+        ch = msg.channel if msg.channel in self._group else next(iter(self._group))
+        if msg.is_error_frame or msg.is_remote_frame:
+            kind = 1 if msg.is_error_frame else 2
+            rec = np.zeros(1, self._dtypes[kind])
+            self._fill(rec[0], "CAN_ErrorFrame" if kind == 1 else "CAN_RemoteFrame", msg, ch)
+            self._mdf.extend(self._group[ch] + kind, [(np.array([t]), None), (rec, None)])
+            return
+        records, times = self._batch[ch]
+        i = self._n[ch]
+        records[i] = 0
+        self._fill(records[i], "CAN_DataFrame", msg, ch)
+        times[i] = t
+        self._n[ch] = i + 1
+        if i + 1 == self.BATCH:
+            self._flush(ch)
+
+    @staticmethod
+    def _fill(rec, kind: str, msg: can.Message, ch: int) -> None:
+        from can.util import len2dlc
+
+        rec[f"{kind}.BusChannel"] = ch
+        rec[f"{kind}.ID"] = msg.arbitration_id
+        rec[f"{kind}.IDE"] = int(msg.is_extended_id)
+        rec[f"{kind}.Dir"] = 0 if msg.is_rx else 1
+        if kind == "CAN_RemoteFrame":
+            rec[f"{kind}.DLC"] = msg.dlc
+            return
+        data = bytes(msg.data or b"")[:64]
+        rec[f"{kind}.DataLength"] = len(data)
+        rec[f"{kind}.DataBytes"][: len(data)] = np.frombuffer(data, np.uint8)
+        rec[f"{kind}.DLC"] = len2dlc(len(data)) if msg.is_fd else msg.dlc
+        rec[f"{kind}.EDL"] = int(msg.is_fd)
+        rec[f"{kind}.BRS"] = int(msg.is_fd and msg.bitrate_switch)
+        rec[f"{kind}.ESI"] = int(msg.is_fd and msg.error_state_indicator)
+
+    def _flush(self, ch: int) -> None:
+        n = self._n[ch]
+        if n and self._mdf is not None:
+            records, times = self._batch[ch]
+            self._mdf.extend(self._group[ch], [(times[:n].copy(), None), (records[:n].copy(), None)])
+        self._n[ch] = 0
+
+    def stop(self) -> None:
+        if self._saved:
+            return
+        self._saved = True
+        if self._mdf is None:  # no frame: an empty log, starting now
+            self._open(time.time())
+        for ch in self._group:
+            self._flush(ch)
+        assert self._mdf is not None
+        self._mdf.save(self.path, overwrite=True, compression=2)
+        self._mdf.close()
+        self._mdf = None
 
 
 def check_log_file(path: str | Path) -> Path:

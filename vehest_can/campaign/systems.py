@@ -74,4 +74,6 @@ def resolve_base(name: str, here: Path) -> tuple[Path, dict]:
     for p in [here / name, Path(name)] + [d / f"{name}.toml" for d in dirs]:
         if p.is_file():
             return p, read_toml(p)
-    raise ScenarioError(f"campaign.base: no scenario {name!r} (a path, or one of the shipped scenarios)")
+    names = sorted({p.stem for d in dirs for p in d.glob("*.toml")})
+    raise ScenarioError(f"campaign.base: no scenario {name!r}: give a path (relative to the campaign file), or "
+                        f"the name of a shipped scenario: {', '.join(names)}")

@@ -81,7 +81,11 @@ def run(args) -> int:
         except ImportError:
             raise ConfigError("--scheduler needs Dask: pip install 'vehest-can[dask]'") from None
 
-    campaign = load_campaign(spec.CAMPAIGNS.path(args.spec))
+    path = spec.CAMPAIGNS.path(args.spec)
+    if not path.exists() and Path(args.spec).suffix != ".toml" and len(Path(args.spec).parts) == 1:
+        raise ConfigError(f"{args.spec}: no such campaign file, nor a shipped campaign's name (shipped: "
+                          f"{', '.join(spec.CAMPAIGNS.names())})")
+    campaign = load_campaign(path)
     car = car_from_args(args)
     if car is not None:
         from dataclasses import replace

@@ -362,6 +362,7 @@ class EcuDaemon:
         latencies = Durations()  # fixed memory: the daemon may run for weeks
         window_latency, window_lateness = Durations(), Durations()
         t0 = time.perf_counter()
+        last_at = float("-inf")
         next_report = report_every
         watchdog = self._start(stats)
         ticker.start()
@@ -394,12 +395,15 @@ class EcuDaemon:
                         continue
                     stats.frames_rx += 1
                     self._count(name, "rx")
-                    self._log(msg, now, name)
+                    # when it came off the bus, not the tick's time; never before the frame logged last
+                    last_at = max(t_rx - t0, last_at)
+                    self._log(msg, last_at, name)
                     self.rx_by_bus.get(name, self.ecu.rx)(msg)
                     if msg.arbitration_id == self._dls_id:
                         pending.append(t_rx)
                 out = self.ecu.step()
-                sent = sum(self._send(m, now) for m in out)
+                last_at = time.perf_counter() - t0  # logged as sent
+                sent = sum(self._send(m, last_at) for m in out)
                 t_tx = time.perf_counter()
                 if sent:
                     latencies.extend(t_tx - t for t in pending)

@@ -129,8 +129,10 @@ class SimMaster:
         """`car`: a :class:`vehest_can.sim.car.Car`.
         `peer`: None, or a callable that says why the ECU cannot answer (its process ended: a text with
         its last lines) or None while it can; a wait for the ECU then ends as soon as it cannot.
-        `log_writer` gets every frame with its session time (tick * TICK_S) in ``timestamp``: a
-        :class:`vehest_can.bus.log.SessionLog` turns that into absolute time, direction and bus.
+        `log_writer` gets every frame with its session time in ``timestamp`` (lockstep: the tick's
+        simulated time, tick * TICK_S; real time: the wall clock since the start, when the frame was
+        sent or received): a :class:`vehest_can.bus.log.SessionLog` turns that into absolute time,
+        direction and bus.
         `keep`: the session holds the plant's truth and every frame; without, it holds neither
         (empty arrays; ``stats`` has the counts ``ticks`` and ``frames``)."""
         self.bus = bus
@@ -146,17 +148,21 @@ class SimMaster:
         self._own = sent_by(CAR_NODES)
         self._ecu = sent_by({"VEHEST"})
         self.foreign = 0  # frames from neither the car nor the ECU: not part of the session
+        self._last_at = float("-inf")
 
-    def _record(self, msg: can.Message, tick: int) -> None:
+    def _record(self, msg: can.Message, tick: int, at: float | None = None) -> None:
         self._frames_seen += 1
         if self.keep:
             self._recording.add(msg, tick)
-        self._log(msg, tick)
+        self._log(msg, tick, at)
 
-    def _log(self, msg: can.Message, tick: int) -> None:
-        """Into the log only (sync frames: on the bus, but not part of the car/ECU session)."""
+    def _log(self, msg: can.Message, tick: int, at: float | None = None) -> None:
+        """Into the log only (sync frames: on the bus, but not part of the car/ECU session), at session
+        time `at` (real time: seconds of wall clock since the start), else at the tick's simulated time."""
         if self.log_writer is not None:
-            msg.timestamp = tick * TICK_S
+            if at is not None:  # never before the frame logged last: a frame that arrived while this
+                at = self._last_at = max(at, self._last_at)  # node sent is logged after, at the send's time
+            msg.timestamp = tick * TICK_S if at is None else at
             self.log_writer.on_message_received(msg)
 
     def _session(self, mode: str, truth: np.ndarray, ticks: int, stats: dict) -> Session:
@@ -272,7 +278,9 @@ class SimMaster:
                              {"wall_s": wall, "realtime_factor": k_done * TICK_S / wall})
 
     def run_realtime(self, *, settle_s: float = 0.2) -> Session:
-        """Mode 3: send the car's frames on a 2 kHz wall clock; record what the ECU publishes."""
+        """Mode 3: send the car's frames on a 2 kHz wall clock; record what the ECU publishes. The log
+        has wall-clock times (when a frame was sent, or taken off the bus), not the tick's: a machine
+        too slow for 2 kHz stretches the run, and the log shows how long it really took."""
         self.car.reset()
         n = self.car.n
         truth = self._truth(n)
@@ -284,7 +292,7 @@ class SimMaster:
         class Inbox(can.Listener):
             def on_message_received(inner, msg: can.Message) -> None:  # noqa: N805
                 if not is_own(msg, self._own):
-                    inbox.put(msg)
+                    inbox.put((time.perf_counter() - t0, msg))
 
             def on_error(inner, exc: Exception) -> None:  # noqa: N805
                 # Counted; the notifier goes on receiving (without this its thread would die and
@@ -295,38 +303,46 @@ class SimMaster:
                     errors["recv_errors"] += 1
                     stop_event.wait(0.005)
 
+        def take(k: int, into: list) -> None:
+            while not inbox.empty():
+                at, msg = inbox.get_nowait()
+                self._record(msg, k, at)
+                into.append(msg)
+
         closed = self.car.closed
+        t0 = time.perf_counter()
         notifier = can.Notifier(self.bus, [Inbox()], timeout=0.005)
         ticker = Ticker(TICK_S)
         sent = done = 0
-        t0 = time.perf_counter()
         ticker.start()
         try:
             for k in range(n):
                 if self.stop_event.is_set():
                     break
                 ticker.wait()
+                # what arrived before each of this tick's frames is logged before it (a log in time
+                # order); it is applied after this tick, with what arrives while it is sent, as always
+                arrived: list[can.Message] = []
                 for f in self.car.tick(k):
+                    take(k, arrived)
                     msg = to_message(f)
                     try:
                         self.bus.send(msg)
                     except can.CanError as exc:
                         raise BusError(f"send failed at tick {k}: {exc}") from exc
                     sent += 1
-                    self._record(msg, k)
+                    self._record(msg, k, time.perf_counter() - t0)
                 if self.keep:
                     truth[k] = self.car.truth()
                 done = k + 1
-                while not inbox.empty():
-                    msg = inbox.get_nowait()
-                    self._record(msg, k)
-                    if closed:  # applied from the car's next tick (zero-order hold)
+                take(k, arrived)
+                if closed:  # applied from the car's next tick (zero-order hold)
+                    for msg in arrived:
                         self.car.rx(msg)
                 if self.progress and k % 200 == 0:
                     self.progress(k, n)
             time.sleep(settle_s)  # the ECU's answers to the last ticks
-            while not inbox.empty():
-                self._record(inbox.get_nowait(), max(done - 1, 0))
+            take(max(done - 1, 0), [])
         finally:
             notifier.stop()
         wall = time.perf_counter() - t0

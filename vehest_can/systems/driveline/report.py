@@ -157,6 +157,7 @@ def plots(session: Session, out_dir: Path) -> list[Path]:
         ax.axvline(PAPER[meas]["gain_steps"], color="0.5", ls=":", label=f"paper: ~{PAPER[meas]['gain_steps']} steps")
         ax.set_title(f"Kalman gain, {meas}")
         ax.set_xlabel("step")
+        ax.set_ylabel("gain [N·m·s/rad; K[T_o, T_o]: 1]")  # T_o per rad/s of a speed; per N·m of torque
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
     figs.save(fig, "gain.png")
