@@ -211,8 +211,11 @@ def c_table(desc: Description) -> str:
 
 
 def dbc_text(desc: Description, data_rate: int) -> str:
-    """The XCP bus's DBC for ``vehest-can busload``: the worst case the firmware allows, one
-    slave frame (RES or DTO, MAX_DTO bytes) and one master CRO (MAX_CTO bytes) per tick."""
+    """The XCP bus's DBC for ``vehest-can busload``: the slave's frame (a RES or a DTO, at most one per
+    tick: VH_ECU_XCP_MAX_TX) is cyclic at the tick with the longer of MAX_CTO and MAX_DTO; the master's
+    CRO is an event frame. A master in standard mode sends its next CRO only after the RES, and the
+    RES takes the tick's one slave frame, so per tick the bus carries a CRO and its RES or a DTO:
+    ``worst_case_frames`` (the budget test holds it to 60 %)."""
     fmt = 14 if desc.fd else 0
     ext = 0x80000000
     def frame_id(i: int) -> int:
@@ -220,13 +223,15 @@ def dbc_text(desc: Description, data_rate: int) -> str:
     cro, dto = frame_id(desc.cro_id), frame_id(desc.dto_id)
     if desc.cro_id & ext or desc.dto_id & ext:
         fmt += 1
+    slave_len = max(desc.max_cto, desc.max_dto)
     return "\n".join([
         'VERSION ""', "", "NS_ :", "", "BS_:", "", "BU_: XCP_MASTER VEHEST", "",
         f"BO_ {cro} XCP_CRO: {desc.max_cto} XCP_MASTER", "",
-        f"BO_ {dto} XCP_DTO: {desc.max_dto} VEHEST", "",
-        f'CM_ "GENERATED from vehest_can/xcp/ecu.toml: the XCP-on-CAN bus of the vehest ECU. Worst case: '
-        f'the ECU sends at most one XCP frame per {desc.tick_us} us tick (VH_ECU_XCP_MAX_TX: a RES or a DTO of '
-        f'MAX_DTO bytes), a master in standard mode one CRO per response.";',
+        f"BO_ {dto} XCP_DTO: {slave_len} VEHEST", "",
+        f'CM_ "GENERATED from vehest_can/xcp/ecu.toml: the XCP-on-CAN bus of the vehest ECU. The ECU sends at '
+        f'most one XCP frame per {desc.tick_us} us tick (VH_ECU_XCP_MAX_TX: a RES of up to MAX_CTO or a DTO of up '
+        f'to MAX_DTO bytes), cyclic here; a master in standard mode sends a CRO (event frame) only after the '
+        f'RES of the one before, so per tick the worst case is a CRO and its RES, or one DTO.";',
         'BA_DEF_ "Baudrate" INT 10000 1000000;', 'BA_DEF_ "BaudrateCANFD" INT 500000 10000000;',
         'BA_DEF_ BO_ "CycleTimeUs" INT 0 100000000;',
         'BA_DEF_ BO_ "VFrameFormat" ENUM "StandardCAN","ExtendedCAN","reserved","reserved","reserved",'
@@ -235,9 +240,15 @@ def dbc_text(desc: Description, data_rate: int) -> str:
         'BA_DEF_DEF_ "Baudrate" 500000;', 'BA_DEF_DEF_ "BaudrateCANFD" 4000000;', 'BA_DEF_DEF_ "CycleTimeUs" 0;',
         'BA_DEF_DEF_ "VFrameFormat" "StandardCAN";',
         f'BA_ "Baudrate" {desc.bitrate};', f'BA_ "BaudrateCANFD" {data_rate};',
-        f'BA_ "CycleTimeUs" BO_ {cro} {desc.tick_us};', f'BA_ "VFrameFormat" BO_ {cro} {fmt};',
+        f'BA_ "VFrameFormat" BO_ {cro} {fmt};',
         f'BA_ "CycleTimeUs" BO_ {dto} {desc.tick_us};', f'BA_ "VFrameFormat" BO_ {dto} {fmt};', "",
     ])
+
+
+def worst_case_frames(desc: Description) -> list[tuple[int, ...]]:
+    """The payload lengths on the XCP bus in one tick, for each case the firmware allows: a CRO and
+    its RES (each up to MAX_CTO), or one DTO (MAX_DTO). The bus budget is the longest of them."""
+    return [(desc.max_cto, desc.max_cto), (desc.max_dto,)]
 
 
 TABLE = Path(__file__).resolve().parents[2] / "c_core" / "ecu" / "vh_ecu_xcp_table.inc"
