@@ -141,6 +141,7 @@ def describe(ffi, path: Path = ECU_TOML) -> Description:
         max_cto=int(x["max_cto"]), max_dto=int(x["max_dto"]), fd=bool(x["fd"]),
         measurement_address=meas_base, calibration_address=cal_base, events=events,
         measurements=tuple(meas), characteristics=tuple(chars), bitrate=int(x.get("bitrate", 500000)),
+        data_bitrate=int(x.get("data_bitrate", 4000000)),
         tick_us=int(x.get("tick_us", 500)), comment=x.get("comment", ""))
     if not desc.fd and (desc.max_cto > 8 or desc.max_dto > 8):
         raise DescriptionError("MAX_CTO/MAX_DTO above 8 need CAN FD (fd = true)")
