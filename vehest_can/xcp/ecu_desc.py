@@ -29,7 +29,7 @@ _VH_XCP_TYPE = {"uint8_t": "VH_XCP_U8", "int8_t": "VH_XCP_I8", "uint16_t": "VH_X
                 "int16_t": "VH_XCP_I16", "uint32_t": "VH_XCP_U32", "int32_t": "VH_XCP_I32",
                 "float": "VH_XCP_F32", "double": "VH_XCP_F64"}
 _TOKEN = re.compile(r"\.?([A-Za-z_]\w*)|\[(\d+)\]")
-_ROW_KEYS = {"c", "elements", "unit", "min", "max", "factor", "offset", "comment", "class"}
+_ROW_KEYS = {"c", "elements", "unit", "units", "min", "max", "factor", "offset", "comment", "class"}
 
 
 def _parse_path(path: str) -> list[str | int]:
@@ -96,10 +96,16 @@ def _measurements(ffi, rows: list[dict], base: int) -> list[Item]:
                 leaves = [f"{path}[{i}]" for i in picks]
             else:
                 leaves = [path]
-        for leaf in leaves:
+        # `units`: one per measurement the row makes (an array's elements differ: a state vector)
+        units = row.get("units")
+        if units is not None and ("unit" in row or len(units) != len(leaves)):
+            raise DescriptionError(f"measurement {path!r}: units takes one unit per element ({len(leaves)}), "
+                                   "instead of unit")
+        for k, leaf in enumerate(leaves):
             lt, off = _member(ffi, MEAS_STRUCT, leaf)
+            common = _common(row) if units is None else {**_common(row), "unit": units[k]}
             items.append(Item(name=leaf, ctype=_primitive(lt, leaf), kind="measurement", address=base + off,
-                              comment=comment, **_common(row)))
+                              comment=comment, **common))
     return items
 
 
@@ -113,6 +119,8 @@ def _characteristics(ffi, rows: list[dict], base: int) -> list[Item]:
             shape, t = (t.length,), t.item
         if "min" not in row or "max" not in row:
             raise DescriptionError(f"characteristic {path!r}: writes are range-checked, give min and max")
+        if "units" in row:
+            raise DescriptionError(f"characteristic {path!r}: one unit for the whole block (an A2L VAL_BLK has one)")
         if row.get("class") not in SAFETY_CLASSES:
             raise DescriptionError(f"characteristic {path!r}: give its class, one of {', '.join(SAFETY_CLASSES)}")
         items.append(Item(name=CAL_PREFIX + path, ctype=_primitive(t, path), kind="characteristic",
