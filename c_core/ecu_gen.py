@@ -15,7 +15,8 @@ scheduler; ``VH_APP_MEAS`` / ``VH_APP_CAL`` entries are its XCP items. This scri
 * made of it and the structs' layout (the headers through cffi, as the build reads them):
   ``c_core/ecu/vh_ecu_xcp_table.inc`` (the slave's limits and readable regions),
   ``vehest_can/xcp/VEHEST_ECU.a2l`` and ``vehest_can/xcp/vehest_xcp.dbc``, by
-  vehest_can/xcp/ecu_desc.py (loaded by its path with the two modules it imports, not the package).
+  vehest_can/xcp/ecu_desc.py (loaded by its path with the two modules it imports, not the package),
+  and the counts of measurements and characteristics in ``docs/xcp.md`` (between its counts markers).
 
 Standalone (no import of the vehest_can package): ``python c_core/ecu_gen.py [--check]`` for the
 shipped files (--check: write nothing, exit 1 if one differs); ``--out DIR --toml FILE --def
@@ -39,6 +40,7 @@ OUT = HERE / "ecu"
 XCP_DIR = HERE.parent / "vehest_can" / "xcp"
 TOML = XCP_DIR / "ecu.toml"
 ECU_PART = OUT / "vh_ecu_xcp.toml"
+DOCS = HERE.parent / "docs" / "xcp.md"
 _APP = re.compile(r"^\s*VH_APP\(\s*(\w+)\s*,\s*(\d+)\s*\)", re.M)
 _STR = r'"(?:[^"\\]|\\.)*"'
 _ITEM = re.compile(rf"VH_APP_(MEAS|CAL)\(\s*(\w+)\s*,\s*({_STR})\s*,\s*((?:{_STR}\s*)+),\s*((?:{_STR}\s*)+)\)")
@@ -159,7 +161,19 @@ def xcp_outputs(toml: Path = TOML) -> dict[Path, str]:
     with tempfile.TemporaryDirectory() as gen:  # the codec's headers, generated for this only
         ffi.cdef(vehest_build.cdef_text(Path(gen)))
     desc = ecu_desc.describe(ffi, toml)
-    return ecu_desc.outputs(desc, toml)
+    out = ecu_desc.outputs(desc, toml)
+    if Path(toml) == TOML:  # the shipped description: the docs' counts are its own
+        out[DOCS] = docs_counts(DOCS.read_text(), desc)
+    return out
+
+
+def docs_counts(text: str, desc) -> str:
+    """docs/xcp.md with the counts of the description between its counts markers."""
+    start, end = "<!-- counts: written by c_core/ecu_gen.py -->", "<!-- /counts -->"
+    i, j = text.index(start) + len(start), text.index(end)
+    n_m, n_c = len(desc.measurements), len(desc.characteristics)
+    unit = "each with its unit" if all(it.unit for it in desc.measurements + desc.characteristics) else "some without a unit"
+    return f"{text[:i]}**{n_m} measurements and {n_c} characteristics, {unit}**{text[j:]}"
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -49,11 +49,12 @@ def test_get_and_set_against_the_running_daemon(daemon_bus, capsys):
         main(["xcp", "set", "cal.app.drv.dkf[0].r", "3000", "--index", "2", *flags])
     capsys.readouterr()
     assert main(["xcp", "set", "cal.app.drv.dkf[0].r", "3000", "--index", "2", *flags, "--dev"]) == 0
-    assert capsys.readouterr().out.strip() == "cal.app.drv.dkf[0].r = [415, 27, 3000]"
+    # a block whose elements differ in unit names each element's
+    assert capsys.readouterr().out.strip() == "cal.app.drv.dkf[0].r = [415, 27, 3000] (rad/s)^2 [0, 1], Nm^2 [2]"
     assert ecu.c.app.drv.dkf[0].cfg.r[2] == 3000.0  # in the running filter
     assert main(["xcp", "get", "tick", "app.drv.dkf[0].health", *flags]) == 0
     out = capsys.readouterr().out.splitlines()
-    assert out[0].startswith("tick = ") and int(out[0].split()[-1]) > 0
+    assert out[0].startswith("tick = ") and out[0].endswith(" tick") and int(out[0].split()[-2]) > 0
     assert main(["xcp", "set", "cal.app.drv.we_min", "500", *flags, "--dev"]) == 1
     err = capsys.readouterr().err
     assert "ERR_OUT_OF_RANGE" in err and "[0, 200] rad/s" in err and "nothing written" in err

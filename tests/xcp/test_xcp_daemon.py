@@ -111,7 +111,7 @@ def test_pyxcp_measures_the_running_daemon_on_its_event_channels(rig):
     m, desc = r.master, r.desc
     m.connect()
     m.getCommModeInfo()
-    assert m.slaveProperties.maxCto == 8 and m.slaveProperties.maxDto == 48
+    assert m.slaveProperties.maxCto == 24 and m.slaveProperties.maxDto == 48
     assert m.identifier(0) == "vehest-can ECU"
     assert m.identifier(1) == "VEHEST_ECU"  # the A2L's name
     t0 = r.read("tick")[0]

@@ -151,6 +151,7 @@ class Description:
     measurements: tuple[Item, ...]
     characteristics: tuple[Item, ...]
     bitrate: int = 500000
+    data_bitrate: int = 0  # CAN FD data phase (bit rate switch); 0: not given
     tick_us: int = 500  # the ECU tick: one DAQ timestamp tick
     comment: str = ""
 
@@ -225,6 +226,7 @@ def from_dict(d: dict, name: str = "VEHEST") -> Description:
         max_dto=int(x.get("max_dto", 8)),
         fd=bool(x.get("fd", False)),
         bitrate=int(x.get("bitrate", 500000)),
+        data_bitrate=int(x.get("data_bitrate", 0)),
         tick_us=int(x.get("tick_us", 500)),
         measurement_address=int(x.get("measurement_address", 0x10000000)),
         calibration_address=int(x.get("calibration_address", 0x20000000)),

@@ -29,7 +29,7 @@ _VH_XCP_TYPE = {"uint8_t": "VH_XCP_U8", "int8_t": "VH_XCP_I8", "uint16_t": "VH_X
                 "int16_t": "VH_XCP_I16", "uint32_t": "VH_XCP_U32", "int32_t": "VH_XCP_I32",
                 "float": "VH_XCP_F32", "double": "VH_XCP_F64"}
 _TOKEN = re.compile(r"\.?([A-Za-z_]\w*)|\[(\d+)\]")
-_ROW_KEYS = {"c", "elements", "unit", "min", "max", "factor", "offset", "comment", "class"}
+_ROW_KEYS = {"c", "elements", "unit", "units", "min", "max", "factor", "offset", "comment", "class"}
 
 
 def _parse_path(path: str) -> list[str | int]:
@@ -96,10 +96,16 @@ def _measurements(ffi, rows: list[dict], base: int) -> list[Item]:
                 leaves = [f"{path}[{i}]" for i in picks]
             else:
                 leaves = [path]
-        for leaf in leaves:
+        # `units`: one per measurement the row makes (an array's elements differ: a state vector)
+        units = row.get("units")
+        if units is not None and ("unit" in row or len(units) != len(leaves)):
+            raise DescriptionError(f"measurement {path!r}: units takes one unit per element ({len(leaves)}), "
+                                   "instead of unit")
+        for k, leaf in enumerate(leaves):
             lt, off = _member(ffi, MEAS_STRUCT, leaf)
+            common = _common(row) if units is None else {**_common(row), "unit": units[k]}
             items.append(Item(name=leaf, ctype=_primitive(lt, leaf), kind="measurement", address=base + off,
-                              comment=comment, **_common(row)))
+                              comment=comment, **common))
     return items
 
 
@@ -113,6 +119,8 @@ def _characteristics(ffi, rows: list[dict], base: int) -> list[Item]:
             shape, t = (t.length,), t.item
         if "min" not in row or "max" not in row:
             raise DescriptionError(f"characteristic {path!r}: writes are range-checked, give min and max")
+        if "units" in row:
+            raise DescriptionError(f"characteristic {path!r}: one unit for the whole block (an A2L VAL_BLK has one)")
         if row.get("class") not in SAFETY_CLASSES:
             raise DescriptionError(f"characteristic {path!r}: give its class, one of {', '.join(SAFETY_CLASSES)}")
         items.append(Item(name=CAL_PREFIX + path, ctype=_primitive(t, path), kind="characteristic",
@@ -141,6 +149,7 @@ def describe(ffi, path: Path = ECU_TOML) -> Description:
         max_cto=int(x["max_cto"]), max_dto=int(x["max_dto"]), fd=bool(x["fd"]),
         measurement_address=meas_base, calibration_address=cal_base, events=events,
         measurements=tuple(meas), characteristics=tuple(chars), bitrate=int(x.get("bitrate", 500000)),
+        data_bitrate=int(x.get("data_bitrate", 4000000)),
         tick_us=int(x.get("tick_us", 500)), comment=x.get("comment", ""))
     if not desc.fd and (desc.max_cto > 8 or desc.max_dto > 8):
         raise DescriptionError("MAX_CTO/MAX_DTO above 8 need CAN FD (fd = true)")
@@ -211,8 +220,11 @@ def c_table(desc: Description) -> str:
 
 
 def dbc_text(desc: Description, data_rate: int) -> str:
-    """The XCP bus's DBC for ``vehest-can busload``: the worst case the firmware allows, one
-    slave frame (RES or DTO, MAX_DTO bytes) and one master CRO (MAX_CTO bytes) per tick."""
+    """The XCP bus's DBC for ``vehest-can busload``: the slave's frame (a RES or a DTO, at most one per
+    tick: VH_ECU_XCP_MAX_TX) is cyclic at the tick with the longer of MAX_CTO and MAX_DTO; the master's
+    CRO is an event frame. A master in standard mode sends its next CRO only after the RES, and the
+    RES takes the tick's one slave frame, so per tick the bus carries a CRO and its RES or a DTO:
+    ``worst_case_frames`` (the budget test holds it to 60 %)."""
     fmt = 14 if desc.fd else 0
     ext = 0x80000000
     def frame_id(i: int) -> int:
@@ -220,13 +232,15 @@ def dbc_text(desc: Description, data_rate: int) -> str:
     cro, dto = frame_id(desc.cro_id), frame_id(desc.dto_id)
     if desc.cro_id & ext or desc.dto_id & ext:
         fmt += 1
+    slave_len = max(desc.max_cto, desc.max_dto)
     return "\n".join([
         'VERSION ""', "", "NS_ :", "", "BS_:", "", "BU_: XCP_MASTER VEHEST", "",
         f"BO_ {cro} XCP_CRO: {desc.max_cto} XCP_MASTER", "",
-        f"BO_ {dto} XCP_DTO: {desc.max_dto} VEHEST", "",
-        f'CM_ "GENERATED from vehest_can/xcp/ecu.toml: the XCP-on-CAN bus of the vehest ECU. Worst case: '
-        f'the ECU sends at most one XCP frame per {desc.tick_us} us tick (VH_ECU_XCP_MAX_TX: a RES or a DTO of '
-        f'MAX_DTO bytes), a master in standard mode one CRO per response.";',
+        f"BO_ {dto} XCP_DTO: {slave_len} VEHEST", "",
+        f'CM_ "GENERATED from vehest_can/xcp/ecu.toml: the XCP-on-CAN bus of the vehest ECU. The ECU sends at '
+        f'most one XCP frame per {desc.tick_us} us tick (VH_ECU_XCP_MAX_TX: a RES of up to MAX_CTO or a DTO of up '
+        f'to MAX_DTO bytes), cyclic here; a master in standard mode sends a CRO (event frame) only after the '
+        f'RES of the one before, so per tick the worst case is a CRO and its RES, or one DTO.";',
         'BA_DEF_ "Baudrate" INT 10000 1000000;', 'BA_DEF_ "BaudrateCANFD" INT 500000 10000000;',
         'BA_DEF_ BO_ "CycleTimeUs" INT 0 100000000;',
         'BA_DEF_ BO_ "VFrameFormat" ENUM "StandardCAN","ExtendedCAN","reserved","reserved","reserved",'
@@ -235,9 +249,15 @@ def dbc_text(desc: Description, data_rate: int) -> str:
         'BA_DEF_DEF_ "Baudrate" 500000;', 'BA_DEF_DEF_ "BaudrateCANFD" 4000000;', 'BA_DEF_DEF_ "CycleTimeUs" 0;',
         'BA_DEF_DEF_ "VFrameFormat" "StandardCAN";',
         f'BA_ "Baudrate" {desc.bitrate};', f'BA_ "BaudrateCANFD" {data_rate};',
-        f'BA_ "CycleTimeUs" BO_ {cro} {desc.tick_us};', f'BA_ "VFrameFormat" BO_ {cro} {fmt};',
+        f'BA_ "VFrameFormat" BO_ {cro} {fmt};',
         f'BA_ "CycleTimeUs" BO_ {dto} {desc.tick_us};', f'BA_ "VFrameFormat" BO_ {dto} {fmt};', "",
     ])
+
+
+def worst_case_frames(desc: Description) -> list[tuple[int, ...]]:
+    """The payload lengths on the XCP bus in one tick, for each case the firmware allows: a CRO and
+    its RES (each up to MAX_CTO), or one DTO (MAX_DTO). The bus budget is the longest of them."""
+    return [(desc.max_cto, desc.max_cto), (desc.max_dto,)]
 
 
 TABLE = Path(__file__).resolve().parents[2] / "c_core" / "ecu" / "vh_ecu_xcp_table.inc"
