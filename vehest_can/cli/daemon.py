@@ -33,7 +33,7 @@ HELP = "run the ECU on a CAN bus"
 
 def add_subparser(subparsers) -> None:
     from ..service import sdnotify
-    from ..xcp import ecu as xcp_ecu
+    from ..xcp.args import add_arguments as add_xcp_arguments
 
     p = subparsers.add_parser("daemon", help=HELP,
                               description="Run the ECU firmware on a python-can bus until SIGINT/SIGTERM.")
@@ -60,7 +60,7 @@ def add_subparser(subparsers) -> None:
     add_car_argument(p, "the car the ECU is calibrated for (a car file, docs/car.md, or a shipped car's name: "
                         "paper, commonroad_vehicle1 .. 3); default: the paper's")
     sdnotify.add_log_level(p)
-    xcp_ecu.add_arguments(p)  # the XCP slave in the ECU (its own flags, docs/xcp.md)
+    add_xcp_arguments(p)  # the XCP slave in the ECU (its own flags, docs/xcp.md)
     add_secoc_arguments(p)
     busmod.add_arguments(p)
     p.set_defaults(func=run)

@@ -18,9 +18,9 @@ import tomllib
 from pathlib import Path
 
 from . import a2l
+from .args import ECU_TOML
 from .description import C_TYPES, SAFETY_CLASSES, Description, DescriptionError, Event, Item
 
-ECU_TOML = Path(__file__).with_name("ecu.toml")
 A2L_NAME = "VEHEST_ECU"
 SHIPPED_A2L = Path(__file__).with_name(f"{A2L_NAME}.a2l")
 MEAS_STRUCT, CAL_STRUCT = "vh_ecu_t", "vh_ecu_cal_t"
