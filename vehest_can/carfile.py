@@ -61,6 +61,10 @@ _AXLE_KEYS = {f"{form}_{axle}_{unit}" for axle in AXLES for form, unit in (
     ("damper_rate", "ns_per_m"))}
 _TOP = {"name", "description", "roll_axis_to_cg_m", "tyre", *DATA_SHEET, *_AXLE_KEYS}
 _TYRE_KEYS = {"lateral_coefficients": "a", "longitudinal_coefficients": "b"}
+#: [tyre] of another form: a PAC2002 set with load-proportional slip stiffnesses (CommonRoad's tyre), as
+#: published: p_cy1, p_dy1, p_ey1, p_ky1, p_cx1, p_dx1, p_ex1, p_kx1 (p_ky1's sign is the convention's)
+_PAC_KEY, _PAC_N = "pac2002_coefficients", 8
+_KLT_KEY, _KLT = "lateral_compliance_m_per_n", Num(0.0, 1e-3)
 #: relative size below which a bar is rounding residue of k_phi <-> bar (as the plant, vh_veh14.c)
 BAR_RESIDUE = 1e-9
 
@@ -105,6 +109,8 @@ class CarFile:
     roll_axis_to_cg_m: float | None = None   # the SKFMEC's e where a paper prints it; else h - h_ra
     lateral_coefficients: tuple[float, ...] | None = None       # [tyre]: 9 Magic Formula numbers
     longitudinal_coefficients: tuple[float, ...] | None = None
+    pac2002_coefficients: tuple[float, ...] | None = None       # [tyre]: the PAC2002 form instead
+    lateral_compliance_m_per_n: float = 0.0                      # [tyre]: the patch's shift per lateral force
 
     # ---- derived: the plant's formulas (firmware_sim/src/vh_veh14.c) ----
 
@@ -236,7 +242,27 @@ def car_from_dict(doc: dict, path: str | Path, name: str | None = None) -> CarFi
                 values[b] = _number(c, doc[b], b, spec_b)
     if "roll_axis_to_cg_m" in doc:
         values["roll_axis_to_cg_m"] = _number(c, doc["roll_axis_to_cg_m"], "roll_axis_to_cg_m", _E)
-    tyre = c.table(doc.get("tyre", {}), "tyre", set(_TYRE_KEYS))
+    tyre = c.table(doc.get("tyre", {}), "tyre", set(_TYRE_KEYS) | {_PAC_KEY, _KLT_KEY})
+    if _PAC_KEY in tyre:
+        v = tyre[_PAC_KEY]
+        if not isinstance(v, list) or len(v) != _PAC_N:
+            c.fail(f"tyre.{_PAC_KEY}", f"{v!r}: must be a list of {_PAC_N} numbers (p_cy1, p_dy1, p_ey1, p_ky1, "
+                                       f"p_cx1, p_dx1, p_ex1, p_kx1)")
+        if "lateral_coefficients" in tyre or "longitudinal_coefficients" in tyre:
+            c.fail(f"tyre.{_PAC_KEY}", "one tyre per car: give the 1987 coefficients or the PAC2002 set, not both")
+        pac = tuple(_number(c, x, f"tyre.{_PAC_KEY}[{i}]", _COEF) for i, x in enumerate(v))
+        for i in (0, 1, 4, 5):
+            if not pac[i] > 0.0:
+                c.fail(f"tyre.{_PAC_KEY}[{i}]", f"{pac[i]!r}: the shape and peak factors must be positive")
+        for i in (2, 6):
+            if not pac[i] < 1.0:
+                c.fail(f"tyre.{_PAC_KEY}[{i}]", f"{pac[i]!r}: the curvature factor must be below 1")
+        for i in (3, 7):
+            if pac[i] == 0.0:
+                c.fail(f"tyre.{_PAC_KEY}[{i}]", "the slip stiffness factor must not be 0")
+        values[_PAC_KEY] = pac
+    if _KLT_KEY in tyre:
+        values[_KLT_KEY] = _number(c, tyre[_KLT_KEY], f"tyre.{_KLT_KEY}", _KLT)
     for key in _TYRE_KEYS:
         if key in tyre:
             v = tyre[key]
@@ -315,6 +341,11 @@ def commonroad_doc(name: str) -> dict:
         "anti_roll_bar_front_nm_per_rad": -p.K_tsf, "anti_roll_bar_rear_nm_per_rad": -p.K_tsr,
         "tyre_stiffness_n_per_m": p.K_zt, "wheel_radius_m": p.R_w, "wheel_inertia_kgm2": p.I_y_w,
         "drag_area_m2": 0.0,
+        # the multi-body model's tyre (tire_model.py: PAC2002 with K_y = p_ky1 F_z, K_x = p_kx1 F_z) and its
+        # lateral compliance K_lt (the contact patch's shift per lateral force)
+        "tyre": {_PAC_KEY: [p.tire.p_cy1, p.tire.p_dy1, p.tire.p_ey1, p.tire.p_ky1,
+                            p.tire.p_cx1, p.tire.p_dx1, p.tire.p_ex1, p.tire.p_kx1],
+                 _KLT_KEY: p.K_lt},
     }
 
 

@@ -324,7 +324,7 @@ static void model(const vh_skf_config_t *c, const ctx_t *u, const double x[NX], 
 
 /* First usable sample: vx from the wheel speeds, the axle forces of quasi-steady cornering at the
  * measured a_y (the same split as vh_skf_zeta_steady) and the roll angle of eq. 31. */
-static void seed_state(vh_skf_t *f, const vh_skf_input_t *in)
+static void seed_state(vh_skf_t *f, const vh_skf_input_t *in, unsigned mask)
 {
     const vh_skf_config_t *c = &f->cfg;
     const double l = c->lf + c->lr;
@@ -336,7 +336,7 @@ static void seed_state(vh_skf_t *f, const vh_skf_input_t *in)
     x[VH_SKF_FYF] = c->m * in->ay * c->lr / (2.0 * l);
     x[VH_SKF_FYR] = c->m * in->ay * c->lf / (2.0 * l);
     x[VH_SKF_PHI] = x[VH_SKF_FYF] / c->zeta1;
-    x[VH_SKF_P] = in->p;
+    x[VH_SKF_P] = (mask & VH_SKF_Y_P) ? in->p : 0.0;
     for (i = 0; i < NX; ++i) {
         f->x[i] = f->d[i] * x[i];
     }
@@ -383,7 +383,7 @@ int vh_skf_step(vh_skf_t *f, const vh_skf_input_t *in, unsigned mask)
         if ((mask & VH_SKF_SEED_VALID) != VH_SKF_SEED_VALID) {
             return 0; /* wait for a usable first sample */
         }
-        seed_state(f, in);
+        seed_state(f, in, mask);
     }
 
     /* wheel accelerations: first-order filtered difference; longitudinal forces by eq. 30 */

@@ -203,7 +203,7 @@ static void sums(const vh_skfq_params_t *k, const ctx_t *u, const int32_t x[NX],
 }
 
 /* First usable sample, as vh_skf's seed_state. */
-static void seed_state(vh_skfq_t *f, const vh_skfq_input_t *in, const int32_t z[NY], uint32_t *sat)
+static void seed_state(vh_skfq_t *f, const vh_skfq_input_t *in, const int32_t z[NY], unsigned mask, uint32_t *sat)
 {
     const vh_skfq_params_t *k = &f->prm;
     const int64_t wsum = (int64_t)in->omega[0] + in->omega[1] + in->omega[2] + in->omega[3];
@@ -212,7 +212,7 @@ static void seed_state(vh_skfq_t *f, const vh_skfq_input_t *in, const int32_t z[
     f->x[VH_SKF_VY] = 0;
     f->x[VH_SKF_R] = z[VH_SKF_YR];
     f->x[VH_SKF_PHI] = KM(k->k_seed_phi, in->ay, FA, FX);
-    f->x[VH_SKF_P] = z[VH_SKF_YP];
+    f->x[VH_SKF_P] = (mask & VH_SKF_Y_P) ? z[VH_SKF_YP] : 0;
     f->x[VH_SKF_FYF] = KM(k->k_seed_fy[0], in->ay, FA, FX);
     f->x[VH_SKF_FYR] = KM(k->k_seed_fy[1], in->ay, FA, FX);
     for (i = 0; i < 4; ++i) {
@@ -262,7 +262,7 @@ int vh_skfq_step(vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask)
         if ((mask & VH_SKF_SEED_VALID) != VH_SKF_SEED_VALID) {
             return 0; /* wait for a usable first sample */
         }
-        seed_state(f, in, z, sat);
+        seed_state(f, in, z, mask, sat);
     }
 
     /* wheel accelerations and eq. 30 */

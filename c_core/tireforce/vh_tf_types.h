@@ -21,7 +21,8 @@ enum {
     VH_SKF_U_VALID = 16u, VH_SKF_ALL_VALID = 31u
 };
 /* What the first usable sample needs, to seed the state (vx from the wheel speeds, the axle
- * forces and roll angle from a_y, r and p): the step waits without them. */
-enum { VH_SKF_SEED_VALID = VH_SKF_U_VALID | VH_SKF_Y_AY | VH_SKF_Y_R | VH_SKF_Y_P };
+ * forces and roll angle from a_y, r; the roll rate p where it is valid, else 0: a car without a
+ * roll-rate sensor runs without it, DEGRADED): the step waits without them. */
+enum { VH_SKF_SEED_VALID = VH_SKF_U_VALID | VH_SKF_Y_AY | VH_SKF_Y_R };
 
 #endif /* VH_TF_TYPES_H */

@@ -61,6 +61,7 @@ int vh_tfa_check(const vh_tfa_params_t *prm)
                        prm->ride_phi <= 0 || prm->ride_unsprung < 0)) ||
         !k_ok(prm->k_roll[0]) || !k_ok(prm->k_roll[1]) || !k_ok(prm->k_wheelbase) || !k_ok(prm->k_knot) || !k_ok(prm->k_kin) || !k_ok(prm->k_kin_dh) ||
         prm->alpha_vyd <= 0 || prm->alpha_vyd > ONE30 || prm->vyd_gate <= 0 ||
+        (prm->klt && (!k_ok(prm->k_klt[0]) || !k_ok(prm->k_klt[1]) || prm->k_klt[0].m <= 0 || prm->k_klt[1].m <= 0)) ||
         (prm->road && (prm->alpha_kin <= 0 || prm->alpha_kin > ONE30 || prm->ay_kin_gate < 0 || prm->fx_free < 0 ||
                        prm->k_wheelbase.m <= 0 || prm->k_knot.m <= 0 || prm->k_kin.m <= 0 || prm->k_kin_dh.m <= 0 ||
                        prm->kin_dh_max <= 0 || prm->kin_dh_max > (INT32_C(1000) << FQ) || prm->kin_dmu <= 0 ||
@@ -123,6 +124,9 @@ void vh_tfa_reset(vh_tfa_t *a)
     a->p_road = a->prm.kin_p0;
     a->vyd_lp = 0;
     a->implausible = 0u;
+    a->contra = 0u;
+    a->n_contra = 0u;
+    a->bal = 0u;
     a->sat = 0u;
     a->health = VH_HEALTH_INIT;
 }
@@ -461,6 +465,25 @@ static void plausibility(vh_tfa_t *a, const vh_skfq_input_t *in, uint32_t *sat)
     }
 }
 
+/* adaptive.contradictions, the v_x part: the SKFMEC's v_x against the wheels' speeds r_w w_i: outside
+ * [min - tol, max + tol], tol = vx_tol + vx_tol_rel max, is a contradiction (every wheel braking or driving
+ * slips by less than that; a yaw rate's r t is inside it). */
+static uint32_t vx_contradicts(const vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uint32_t *sat)
+{
+    const vh_tfa_params_t *k = &a->prm;
+    int32_t lo = in->omega[0], hi = in->omega[0], vlo, vhi, tol, vx;
+    int i;
+    for (i = 1; i < 4; ++i) {
+        lo = in->omega[i] < lo ? in->omega[i] : lo;
+        hi = in->omega[i] > hi ? in->omega[i] : hi;
+    }
+    vlo = KM(k->k_rw, lo, FO, FV);
+    vhi = KM(k->k_rw, hi, FO, FV);
+    tol = ADD(k->vx_tol, MUL(k->vx_tol_rel, 30, abs32(vhi), FV, FV));
+    vx = KM(k->k_inv_svx, f->x[VH_SKF_VX], FX, FV);
+    return vx > ADD(vhi, tol) || vx < SUB(vlo, tol) ? VH_TFA_C_VX : 0u;
+}
+
 /* The sprung weight from the ride heights (adaptive.estimate_mass): sum k_i s_i plus the links' vertical
  * forces (hf/tf)(Fy2 - Fy1) + (hr/tr)(Fy4 - Fy3) of the SKFMEC's forces [N], low-passed as the balance
  * (the filter starts at the first usable sample). */
@@ -498,6 +521,12 @@ void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uns
         if (a->valid_run < UINT32_MAX) {
             ++a->valid_run;
         }
+        if (a->valid_run > k->valid_min && f->x[VH_SKF_VX] >= k->vx_gate && abs32(in->ay) <= k->ay_gate) {
+            /* the balance against the mass, normalised by sigma: |y - m^ a_x| > bal_tol + bal_tol_rel |y| */
+            const int32_t yn = KM(k->k_y, a->y_lp, FN, FQ);
+            const int32_t res = SUB(yn, MUL(KM(k->k_phi, a->ax_lp, FA, FQ), FQ, a->k, FK, FQ));
+            a->bal = abs32(res) > ADD(k->bal_tol, MUL(k->bal_tol_rel, 30, abs32(yn), FQ, FQ)) ? VH_TFA_C_BALANCE : 0u;
+        }
     } else {
         a->valid_run = 0u;
     }
@@ -525,8 +554,14 @@ void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uns
         for (ax = 0; ax < 2; ++ax) {
             const int l = 2 * ax, r = l + 1;
             const int32_t mean = vh_fix_rshift_rnd((int64_t)a->fz[l] + a->fz[r], 1, sat);
-            const int32_t d = vh_fix_rshift_rnd((int64_t)KM(k->k_roll[ax], SUB(ride[r], ride[l]), FH, FN) +
-                                                    KM(k->k_link[ax], two[ax], FN, FN), 1, sat);
+            int32_t d = vh_fix_rshift_rnd((int64_t)KM(k->k_roll[ax], SUB(ride[r], ride[l]), FH, FN) +
+                                              KM(k->k_link[ax], two[ax], FN, FN), 1, sat);
+            if (k->klt && mean > 0) {
+                /* the patches' shift: + K_lt / (2t) 2 F_axle (mean^2 + d^2) / mean = ... mean (1 + (d / mean)^2) */
+                const int32_t ratio = vh_fix_div(d, mean, 29, sat);            /* d / mean, Q29 */
+                const int32_t q = ADD(mean, MUL(d, FN, ratio, 29, FN));          /* FN */
+                d = ADD(d, MUL(KM(k->k_klt[ax], two[ax], FN, 30), 30, q, FN, FN));
+            }
             a->fz[l] = SUB(mean, d);
             a->fz[r] = ADD(mean, d);
         }
@@ -560,8 +595,34 @@ void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uns
         split(k, &a->fz[0], &mu4[0], &cap[0], two[0], &a->fy[0], &a->alpha[0], NULL, sat);
         split(k, &a->fz[2], &mu4[2], &cap[2], two[1], &a->fy[2], &a->alpha[1], NULL, sat);
     }
+    {
+        /* contradictions: v_x against the wheels (held while the inputs are not valid), the mass at its clamp,
+         * a load below zero or a friction at its floor; each starts the hold of DEGRADED */
+        uint32_t c = (a->contra & VH_TFA_C_VX) | a->bal;
+        if ((mask & VH_SKF_ALL_VALID) == VH_SKF_ALL_VALID) {
+            c = vx_contradicts(a, f, in, sat);
+        }
+        if (a->k <= k->k_lo || a->k >= k->k_hi) {
+            c |= VH_TFA_C_MASS;
+        }
+        for (i = 0; i < 4; ++i) {
+            if (a->fz[i] < 0) {
+                c |= VH_TFA_C_BOUNDS;
+            }
+        }
+        if (a->mu[0] <= k->mu_floor || a->mu[1] <= k->mu_floor || (k->road && a->mu_road <= k->mu_floor)) {
+            c |= VH_TFA_C_BOUNDS;
+        }
+        if (c != 0u && a->contra == 0u) {
+            ++a->n_contra;
+        }
+        if (c != 0u) {
+            a->implausible = k->hold_implausible;
+        }
+        a->contra = c;
+    }
     a->health = f->health;
-    if (a->health == VH_HEALTH_OK && (a->p > k->p_ok || a->implausible > 0u)) {
+    if (a->health == VH_HEALTH_OK && (a->p > k->p_ok || a->implausible > 0u || a->contra != 0u)) {
         a->health = VH_HEALTH_DEGRADED; /* the mass estimate has not converged, or the car is outside the model */
     }
 }

@@ -44,6 +44,13 @@
 #define VH_TFA_FG 24 /* Q7.24 knot positions (slip angle, normalised slip) and normalised slips */
 #define VH_TFA_FH 29 /* Q2.29 spring deflections from the free length [m] (ride heights) */
 
+/* Contradictions (vh_tfa_t.contra): the SKFMEC's v_x outside the wheels' speed range, the mass at its
+ * clamp, a load below zero or a friction at its floor, the balance against the mass. Each makes the health DEGRADED. */
+#define VH_TFA_C_VX 1u
+#define VH_TFA_C_MASS 2u
+#define VH_TFA_C_BOUNDS 4u
+#define VH_TFA_C_BALANCE 8u /* the longitudinal balance's residual |y - m^ a_x| beyond its bound */
+
 typedef struct {
     int32_t table[VH_TFA_NZ * VH_TFA_NA]; /* lateral force of the tyre at (load i, slip angle j), FN */
     vh_fix_k_t k_inv_fz_step;   /* 1 / 500 N: Fz (FN) -> load knot index in Q15 */
@@ -107,6 +114,12 @@ typedef struct {
     int32_t alpha_vyd;          /* Ts / (tau_vyd + Ts), Q30 */
     int32_t vyd_gate;           /* FA */
     uint32_t hold_implausible;  /* steps */
+    int32_t vx_tol;             /* v_x may leave the wheels' speed range by vx_tol + vx_tol_rel v, FV (Q21 m/s) */
+    int32_t vx_tol_rel;         /* Q30 */
+    int32_t bal_tol;            /* the balance's residual may reach bal_tol / sigma (FQ) + bal_tol_rel |y| */
+    int32_t bal_tol_rel;        /* Q30 */
+    int32_t klt;                /* 1: the tyres' lateral compliance shifts the loads (item 10) */
+    vh_fix_k_t k_klt[2];        /* K_lt / (2 t) front, rear [1/N]: 2 F_axle (FN) -> a fraction (Q30) */
 } vh_tfa_params_t;
 
 typedef struct {
@@ -128,6 +141,9 @@ typedef struct {
     int32_t p_road;             /* its variance, Q30 */
     int32_t vyd_lp;             /* a_y - r v low-passed, FA */
     uint32_t implausible;       /* steps left of DEGRADED after the last implausible step */
+    uint32_t contra;            /* the published states that contradict a measurement now (VH_TFA_C_*) */
+    uint32_t n_contra;          /* how often a contradiction began since init */
+    uint32_t bal;               /* VH_TFA_C_BALANCE while the balance contradicts the mass (held when not gated) */
     uint32_t sat;               /* saturations since init */
     uint8_t health;             /* vh_health_t */
 } vh_tfa_t;

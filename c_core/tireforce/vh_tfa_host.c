@@ -30,6 +30,20 @@ void vh_tfa_config_default(vh_tfa_config_t *c)
     c->kin_side_min = 0.95;
     c->transfer = 1; c->tyre_kz = 250000.0;
     c->tau_vyd = 0.1; c->vyd_gate = 4.0; c->hold_implausible = 0.5;
+    {   /* CommonRoad's PAC2002 set (vehicles 1-3), used where tyre_model is 1 */
+        static const double pac[8] = {1.3507, 1.0489, -0.0074722, 21.92, 1.6411, 1.1739, 0.46403, 22.303};
+        memcpy(c->tyre_p, pac, sizeof pac);
+    }
+    c->vx_tol = 1.0; c->vx_tol_rel = 0.1;
+    c->bal_tol = 1000.0; c->bal_tol_rel = 0.25;
+}
+
+/* A PAC2002 pure-slip curve with load-proportional slip stiffness (adaptive._pac): D = mu Fz,
+ * B = k Fz / (C D), x in rad or as a fraction */
+static double pac(double cc, double mu, double e, double k, double x, double fz)
+{
+    const double bx = k / (cc * mu) * x;
+    return mu * (fz > 1.0 ? fz : 1.0) * sin(cc * atan(bx - e * (bx - atan(bx))));
 }
 
 /* Bakker-Nyborg-Pacejka 1987 at mu = 1 (adaptive._mf): x in the formula's unit, f in kN / size */
@@ -49,6 +63,9 @@ static double bcd_x(const vh_tfa_config_t *c, double f)
 double vh_tfa_longitudinal_force(const vh_tfa_config_t *c, double kappa_pct, double fz)
 {
     const double f = (fz > 1.0 ? fz : 1.0) * 1e-3 / c->tyre_fz_scale;
+    if (c->tyre_model == 1) {
+        return pac(c->tyre_p[4], c->tyre_p[5], c->tyre_p[6], c->tyre_p[7], kappa_pct / 100.0, fz);
+    }
     return c->tyre_fz_scale * mf(c->tyre_b, kappa_pct, f, bcd_x(c, f));
 }
 
@@ -80,7 +97,7 @@ static double peak(const vh_tfa_config_t *c, int lon, double fz, double hi)
     return 0.5 * (lo + up);
 }
 
-double vh_tfa_lateral_force(const vh_tfa_config_t *c, double alpha_deg, double fz)
+static double mf_lateral(const vh_tfa_config_t *c, double alpha_deg, double fz)
 {
     const double *a = c->tyre_a, sc = c->tyre_fz_scale;
     const double f = (fz > 1.0 ? fz : 1.0) * 1e-3 / sc;
@@ -88,6 +105,15 @@ double vh_tfa_lateral_force(const vh_tfa_config_t *c, double alpha_deg, double f
     const double b = a[3] * sin(a[4] * atan(a[5] * f)) / (a[0] * d);
     const double e = a[6] * f * f + a[7] * f + a[8], bx = b * alpha_deg;
     return sc * d * sin(a[0] * atan(bx - e * (bx - atan(bx))));
+}
+
+double vh_tfa_lateral_force(const vh_tfa_config_t *c, double alpha_deg, double fz)
+{
+    if (c->tyre_model == 1) {
+        return pac(c->tyre_p[0], c->tyre_p[1] * c->mu, c->tyre_p[2], c->tyre_p[3],
+                   alpha_deg * 3.14159265358979323846 / 180.0, fz);
+    }
+    return mf_lateral(c, alpha_deg, fz);
 }
 
 int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t *c, vh_tfa_params_t *p)
@@ -107,6 +133,12 @@ int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t 
           c->kin_sigma0 >= c->kin_q && c->kin_dmu > 0.0 && c->kin_dh_max > 0.0 && c->kin_side_min >= 0.0 &&
           skf->lf + skf->lr > 0.0 && c->tyre_kz > 0.0 && c->tau_vyd > 0.0 && c->vyd_gate > 0.0 &&
           c->hold_implausible >= 0.0 && c->hold_implausible < 1e5 &&
+          (c->tyre_model == 0 || (c->tyre_model == 1 && c->tyre_p[0] > 0.0 && c->tyre_p[1] > 0.0 && c->tyre_p[2] < 1.0 &&
+                                  c->tyre_p[3] > 0.0 && c->tyre_p[4] > 0.0 && c->tyre_p[5] > 0.0 && c->tyre_p[6] < 1.0 &&
+                                  c->tyre_p[7] > 0.0)) &&
+          c->tyre_klt >= 0.0 && c->tyre_klt < 1e-3 && c->vx_tol > 0.0 && c->vx_tol < 100.0 &&
+          c->vx_tol_rel >= 0.0 && c->vx_tol_rel < 1.0 && c->bal_tol > 0.0 && c->bal_tol / c->sigma_y < 1000.0 &&
+          c->bal_tol_rel >= 0.0 && c->bal_tol_rel < 1.0 &&
           /* the normalised derivative and 1 + H P H in the RLS's formats (Q10.21, Q15.16) */
           c->kin_dh_max / c->kin_r_deg <= 1000.0 &&
           c->kin_sigma0 * c->kin_sigma0 * (c->kin_dh_max / c->kin_r_deg) * (c->kin_dh_max / c->kin_r_deg) <= 16000.0)) {
@@ -164,7 +196,7 @@ int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t 
     z.combined = c->combined != 0;
     for (i = 0; i < VH_TFA_NZ; ++i) { /* adaptive.friction_tables; row 0 (no load) repeats row 1 */
         const double fz = 500.0 * (i > 0 ? i : 1), f = fz * 1e-3 / c->tyre_fz_scale;
-        const double c_pct = c->tyre_fz_scale * bcd_x(c, f); /* N per % */
+        const double c_pct = c->tyre_model == 1 ? c->tyre_p[7] * fz / 100.0 : c->tyre_fz_scale * bcd_x(c, f); /* N per % */
         const double km = peak(c, 1, fz, 40.0), am = peak(c, 0, fz, 30.0);
         z.compliance[i] = vh_skfq_qconst(1.0 / (100.0 * c_pct), VH_TFA_FC, &ok);
         z.dx[i] = vh_skfq_qconst(vh_tfa_longitudinal_force(c, km, fz), VH_SKFQ_FN, &ok);
@@ -225,6 +257,13 @@ int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t 
     z.alpha_vyd = vh_skfq_qconst(skf->ts / (c->tau_vyd + skf->ts), 30, &ok);
     z.vyd_gate = vh_skfq_qconst(c->vyd_gate, VH_SKFQ_FA, &ok);
     z.hold_implausible = (uint32_t)floor(c->hold_implausible / skf->ts + 0.5);
+    z.vx_tol = vh_skfq_qconst(c->vx_tol, 21, &ok);
+    z.vx_tol_rel = vh_skfq_qconst(c->vx_tol_rel, 30, &ok);
+    z.bal_tol = vh_skfq_qconst(c->bal_tol / c->sigma_y, VH_TFA_FN, &ok);
+    z.bal_tol_rel = vh_skfq_qconst(c->bal_tol_rel, 30, &ok);
+    z.klt = c->tyre_klt > 0.0;
+    z.k_klt[0] = vh_skfq_kconst(c->tyre_klt / (2.0 * skf->tf), &ok);
+    z.k_klt[1] = vh_skfq_kconst(c->tyre_klt / (2.0 * skf->tr), &ok);
     {   /* adaptive.bar_rates: the bar is what the springs leave of the suspension's roll stiffness */
         const double kphi[2] = {skf->kphif, skf->kphir}, t[2] = {skf->tf, skf->tr};
         const double k[2] = {c->spring_front, c->spring_rear};

@@ -45,6 +45,13 @@ typedef struct {
     double kin_dmu;              /* the finite difference of the derivative in mu */
     double kin_dh_max;           /* that derivative's bound [deg per unit mu] */
     double kin_side_min;         /* used while both sides' estimates are at least this */
+    int tyre_model;              /* 0: the 1987 Magic Formula of tyre_a, tyre_b; 1: PAC2002 with load-proportional
+                                  * slip stiffnesses (CommonRoad's), tyre_p */
+    double tyre_p[8];            /* p_cy1, p_dy1, p_ey1, |p_ky1|, p_cx1, p_dx1, p_ex1, p_kx1 */
+    double tyre_klt;             /* the tyre's lateral compliance [m/N] (0: none) */
+    double vx_tol, vx_tol_rel;   /* v_x outside the wheels' speed range by more than vx_tol [m/s] + vx_tol_rel v:
+                                  * a contradiction */
+    double bal_tol, bal_tol_rel; /* the balance's residual |y - m^ a_x| beyond bal_tol [N] + bal_tol_rel |y|: one */
 } vh_tfa_config_t;
 
 void vh_tfa_config_default(vh_tfa_config_t *c);

@@ -214,6 +214,14 @@ static int begin(const vh_tf_app_t *c, void *m, size_t size)
     return 1;
 }
 
+/* The SKFMEC's published health: its own, DEGRADED while its v_x contradicts the wheels (SKFMEC-A's check,
+ * vh_tfa.c): the filter as printed is not changed, only what it is said to be worth. */
+static uint8_t skf_health(const vh_tf_app_t *c)
+{
+    return c->skf.health == VH_HEALTH_OK && (c->tfa.contra & VH_TFA_C_VX) != 0u ? VH_HEALTH_DEGRADED
+               : c->skf.health;
+}
+
 /* An estimate frame's filter: its health, its valid flag (OK while CHS_Sensors has not timed out);
  * returns whether its estimates go out (not timed out, OK or DEGRADED; else their SNA). */
 static int report(const vh_tf_app_t *c, uint8_t health, uint8_t *health_sig, uint8_t *valid_sig)
@@ -249,7 +257,7 @@ int vh_tf_app_fill_est(vh_tf_app_t *c, vh_app_ctx_t *ctx, uint8_t *data)
     if (!begin(c, &m, sizeof m)) {
         return 0;
     }
-    ok = report(c, f->health, &m.skfmec_q_health, &m.skfmec_q_valid);
+    ok = report(c, skf_health(c), &m.skfmec_q_health, &m.skfmec_q_valid);
     /* Q.FN -> raw and x* -> raw: exact integer scalings, the DBC's fraction (times S for the states) */
     TYRES(FY)
     STATES(EST)
@@ -266,7 +274,7 @@ int vh_tf_app_fill_status(vh_tf_app_t *c, vh_app_ctx_t *ctx, uint8_t *data)
     if (!begin(c, &m, sizeof m)) {
         return 0;
     }
-    m.skfmec_q_health_sts = c->skf.health;
+    m.skfmec_q_health_sts = skf_health(c);
     m.cnt_rx_crc_error = c->cnt.crc_error;
     m.cnt_rx_counter_error = cnt_err;
     m.cnt_rx_timeout = c->cnt.timeout;
@@ -276,6 +284,7 @@ int vh_tf_app_fill_status(vh_tf_app_t *c, vh_app_ctx_t *ctx, uint8_t *data)
     m.rx_fault_active = (uint8_t)((c->rx.timed_out || c->rx.resync ? 1u : 0u) |
                                   ((c->valid & 0x1FFFu) != 0x1FFFu ? 2u : 0u) |
                                   (c->ride_heard && (c->ride_rx.timed_out || c->ride_rx.resync || !c->ride_valid) ? 4u : 0u));
+    m.missing_inputs = (uint8_t)((~c->valid & 0xFu) | ((c->valid & CHS_ALL_INPUTS) != CHS_ALL_INPUTS ? 0x10u : 0u));
     SEND(vehest_chassis_status, VEHEST_CHASSIS_STATUS, 1);
     return 1;
 }
@@ -297,6 +306,8 @@ int vh_tf_app_fill_adaptive(vh_tf_app_t *c, vh_app_ctx_t *ctx, uint8_t *data)
     m.est_mass_std = ok ? vh_ch_vehest_tire_force_adaptive_est_mass_std_encode_qs(vh_tfa_mass_std(a), VH_TFA_FP / 2,
                                                                                   a->prm.m_den, a->prm.m_num)
                         : VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_EST_MASS_STD_SNA_CHOICE;
+    m.skfmec_a_contradiction = (uint8_t)a->contra;
+    m.cnt_contradiction = (uint16_t)(a->n_contra & 0xFFFu);
     SEND(vehest_tire_force_adaptive, VEHEST_TIRE_FORCE_ADAPTIVE, 2);
     return 1;
 }

@@ -102,6 +102,17 @@ class AdaptiveConfig:
     spring_rear: float = 25000.0
     sigma_ride: float = 0.01     # std of one ride-height mass measurement, fraction of the model mass
     tyre_kz: float = 250000.0    # the tyre's vertical stiffness [N/m] (the car's data sheet: the bars' rate from k_phi)
+    # the tyre's form: 0 the 1987 Magic Formula of tyre_a, tyre_b; 1 a PAC2002 set with load-proportional
+    # slip stiffnesses (CommonRoad's), tyre_p = (p_cy1, p_dy1, p_ey1, |p_ky1|, p_cx1, p_dx1, p_ex1, p_kx1)
+    tyre_model: int = 0
+    tyre_p: tuple = (1.3507, 1.0489, -0.0074722, 21.92, 1.6411, 1.1739, 0.46403, 22.303)
+    tyre_klt: float = 0.0        # the tyre's lateral compliance [m/N] (contact patch shift per lateral force)
+    # contradictions (health): the SKFMEC's v_x outside the wheels' speed range by more than vx_tol + vx_tol_rel v
+    vx_tol: float = 1.0          # [m/s]
+    vx_tol_rel: float = 0.1
+    # and the longitudinal balance's residual |y − m̂ a_x| (low-passed) beyond bal_tol + bal_tol_rel |y|
+    bal_tol: float = 1000.0      # [N]
+    bal_tol_rel: float = 0.25
     # plausibility (health): the body's sideways sliding a_y - r v low-passed, its gate, the hold after
     tau_vyd: float = 0.1         # [s]
     vyd_gate: float = 4.0        # [m/s^2]
@@ -135,6 +146,10 @@ def car_fields(car) -> dict:
         f["tyre_a"] = tuple(car.lateral_coefficients)
     if car.longitudinal_coefficients is not None:
         f["tyre_b"] = tuple(car.longitudinal_coefficients)
+    if car.pac2002_coefficients is not None:  # |p_ky1|: its sign is the convention's, not the tyre's
+        pac = car.pac2002_coefficients
+        f["tyre_model"], f["tyre_p"] = 1, (*pac[:3], abs(pac[3]), *pac[4:])
+    f["tyre_klt"] = car.lateral_compliance_m_per_n
     return f
 
 
@@ -147,11 +162,23 @@ class AdaptiveRun(tf.TireForceRun):
     raw: dict | None = None             # fixed point: the integers (fy, fz FN; k Q2.29; p Q1.30)
     mu: np.ndarray | None = None        # (n, 4) the friction each tyre's split assumed (None: ``mu``)
     road_mu: np.ndarray | None = None   # (n,) the road's friction from the kinematic coupling (None: off)
+    contra: np.ndarray | None = None    # (n,) contradictions (C_VX, C_MASS, C_BOUNDS bits)
+
+
+def _pac(c: float, mu: float, e: float, k: float, x: np.ndarray, fz: np.ndarray) -> np.ndarray:
+    """A PAC2002 pure-slip curve with load-proportional slip stiffness (CommonRoad's tyre model,
+    no camber, no shifts): D = μ Fz, B = k Fz / (C D), x in rad (slip angle) or as a fraction (κ)."""
+    bx = k / (c * mu) * x
+    return mu * np.maximum(fz, 1.0) * np.sin(c * np.arctan(bx - e * (bx - np.arctan(bx))))
 
 
 def lateral_force(alpha_deg: np.ndarray, fz: np.ndarray, cfg: AdaptiveConfig) -> np.ndarray:
     """The tyre's pure-slip lateral Magic Formula (Bakker, Nyborg & Pacejka 1987) at friction
-    ``cfg.mu``, with the tyre's size factor: F = sc F_pub(α, Fz / sc). α in degrees, ≥ 0."""
+    ``cfg.mu``, with the tyre's size factor: F = sc F_pub(α, Fz / sc). α in degrees, ≥ 0. A PAC2002 tyre
+    (``tyre_model`` 1): ``_pac`` with its peak friction p_dy1 times ``cfg.mu``."""
+    if cfg.tyre_model == 1:
+        p = cfg.tyre_p
+        return _pac(p[0], p[1] * cfg.mu, p[2], p[3], np.radians(alpha_deg), fz)
     a = cfg.tyre_a
     sc = cfg.tyre_fz_scale
     f = np.maximum(fz, 1.0) * 1e-3 / sc
@@ -178,7 +205,10 @@ def _mf(coef: tuple, x: np.ndarray, f: np.ndarray, bcd: np.ndarray) -> np.ndarra
 
 def longitudinal_force(kappa_pct: np.ndarray, fz: np.ndarray, cfg: AdaptiveConfig) -> np.ndarray:
     """The tyre's pure-slip longitudinal Magic Formula at μ = 1 (BCD = (b3 Fz² + b4 Fz) e^(−b5 Fz)
-    per %), with the size factor; κ in %, ≥ 0."""
+    per %), with the size factor; κ in %, ≥ 0. A PAC2002 tyre: ``_pac`` with p_dx1."""
+    if cfg.tyre_model == 1:
+        p = cfg.tyre_p
+        return _pac(p[4], p[5], p[6], p[7], np.asarray(kappa_pct) / 100.0, fz)
     b, sc = cfg.tyre_b, cfg.tyre_fz_scale
     f = np.maximum(fz, 1.0) * 1e-3 / sc
     return sc * _mf(b, kappa_pct, f, (b[3] * f * f + b[4] * f) * np.exp(-b[5] * f))
@@ -198,6 +228,16 @@ def _peak(fun, hi: float) -> float:
     return 0.5 * (lo + up)
 
 
+def slip_stiffness_pct(fz: float, cfg: AdaptiveConfig) -> float:
+    """The longitudinal slip stiffness C_κ [N per %]: (b3 f² + b4 f) e^(−b5 f) of the 1987 formula (f the
+    load in kN over the size factor, times it), p_kx1 Fz / 100 of a PAC2002 tyre."""
+    if cfg.tyre_model == 1:
+        return cfg.tyre_p[7] * fz / 100.0
+    b, sc = cfg.tyre_b, cfg.tyre_fz_scale
+    f = fz * 1e-3 / sc
+    return sc * (b[3] * f * f + b[4] * f) * np.exp(-b[5] * f)
+
+
 def friction_tables(cfg: AdaptiveConfig) -> dict:
     """Per load knot (made off-line, the ECU's tables): the longitudinal slip compliance 1/Cκ
     [1/N], the friction limit Dx [N], 1/κ_m and 1/α_m (the pure-slip peak slips, κ as a fraction,
@@ -205,11 +245,9 @@ def friction_tables(cfg: AdaptiveConfig) -> dict:
     Q(s) = Fx0(s κ_m) / (Cκ s κ_m) (1 at s = 0). Row 0 (no load) repeats row 1."""
     out = {k: np.empty(N_FZ) for k in ("compliance", "dx", "inv_kappa_m", "inv_alpha_m")}
     out["secant"] = np.empty((N_FZ, N_S))
-    b, sc = cfg.tyre_b, cfg.tyre_fz_scale
     for i in range(N_FZ):
         fz = max(i, 1) * FZ_STEP_N
-        f = fz * 1e-3 / sc
-        c_pct = sc * (b[3] * f * f + b[4] * f) * np.exp(-b[5] * f)   # N per %
+        c_pct = slip_stiffness_pct(fz, cfg)   # N per %
         km = _peak(lambda x, z=fz: longitudinal_force(x, np.full_like(x, z), cfg), 40.0)  # %
         am = _peak(lambda x, z=fz: lateral_force(x, np.full_like(x, z), cfg), 30.0)        # deg
         out["compliance"][i] = 1.0 / (100.0 * c_pct)
@@ -305,9 +343,12 @@ def rls_step(m_hat: float, p: float, phi: float, y: float, r_y: float, forget: f
 
 
 def estimate_mass(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf: tf.SkfConfig,
-                  cfg: AdaptiveConfig, ride: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                  cfg: AdaptiveConfig, ride: np.ndarray | None = None,
+                  balance: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """m̂ and its std per step (held between the 100 Hz updates). ``ride``: (n, 4) the springs'
-    deflections [m] where usable, NaN rows elsewhere (None: no ride-height sensors)."""
+    deflections [m] where usable, NaN rows elsewhere (None: no ride-height sensors). ``balance`` (n,) bool,
+    if given, receives where the balance contradicts the mass: |y_lp − m̂ a_x,lp| > bal_tol + bal_tol_rel
+    |y_lp| with the inputs valid for 5τ, v_x ≥ vx_gate and |a_y| ≤ ay_gate (held otherwise)."""
     n = len(u)
     m0 = skf.m
     ts = skf.ts
@@ -329,6 +370,7 @@ def estimate_mass(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf: tf
     r_ride = (cfg.sigma_ride * m0) ** 2
     ride_min = math.floor(cfg.tau_lp / ts + 0.5)  # the ride heights' low-pass starts at their first sample
     w_lp, ride_run = 0.0, 0
+    bal = False
     for k in range(n):
         if ride_ok[k]:
             assert ride is not None
@@ -355,6 +397,10 @@ def estimate_mass(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf: tf
             valid_run += 1
         else:
             valid_run = 0
+        if balance is not None:
+            if valid_run > 5 * cfg.tau_lp / ts and base.x[k, 0] >= cfg.vx_gate and abs(u.ay[k]) <= cfg.ay_gate:
+                bal = abs(yf - phif * m_hat) > cfg.bal_tol + cfg.bal_tol_rel * abs(yf)
+            balance[k] = bal
         if (k + 1) % cfg.decim == 0:
             gated = (valid_run > 5 * cfg.tau_lp / ts and abs(phif) >= cfg.ax_gate
                      and abs(u.ay[k]) <= cfg.ay_gate and base.x[k, 0] >= cfg.vx_gate)
@@ -389,7 +435,9 @@ def ride_transfer(fz: np.ndarray, axle: np.ndarray, ride: np.ndarray, skf: tf.Sk
     F̄z the right tyre has F̄z + ΔF and the left F̄z − ΔF with
     ΔF = ½ ((k + 2 k_arb/(4t²)) (s_R − s_L) + (h/t) 2 F_y,axle) (the link term: the roll centre's
     vertical forces ∓F_y h/t of both tyres, from the axle force, not the split; dampers and the
-    unsprung dynamics left out)."""
+    unsprung dynamics left out), plus, for a tyre with a lateral compliance K_lt, the patches' shift
+    K_lt F_yi under each load: ΔF += K_lt/(2t) · 2 F_y,axle (F̄z² + ΔF²)/F̄z (the pair split as its loads;
+    ΔF of the springs on the right)."""
     out = fz.copy()
     usable = np.all(np.isfinite(ride), axis=1)
     bars = bar_rates(skf, cfg)
@@ -397,6 +445,10 @@ def ride_transfer(fz: np.ndarray, axle: np.ndarray, ride: np.ndarray, skf: tf.Sk
                                          (2, 3, cfg.spring_rear, skf.hr, skf.tr))):
         mean = 0.5 * (fz[usable, i] + fz[usable, j])
         d = 0.5 * ((k + 2.0 * bars[a]) * (ride[usable, j] - ride[usable, i]) + h / t * 2.0 * axle[usable, a])
+        if cfg.tyre_klt > 0.0:
+            # the contact patches shift by K_lt F_yi under the lateral forces: the loads' moment about the
+            # axle grows by K_lt (F_zL F_yL + F_zR F_yR), with the pair split as its loads, 2 F̄ (F̄z² + d²)/F̄z
+            d = d + cfg.tyre_klt / (2.0 * t) * 2.0 * axle[usable, a] * (mean * mean + d * d) / mean
         out[usable, i], out[usable, j] = mean - d, mean + d
     return out
 
@@ -581,7 +633,8 @@ def estimate_friction(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf
     return out, road
 
 
-def implausible(u: tf.Inputs, mask: np.ndarray, skf: tf.SkfConfig, cfg: AdaptiveConfig) -> np.ndarray:
+def implausible(u: tf.Inputs, mask: np.ndarray, skf: tf.SkfConfig, cfg: AdaptiveConfig,
+                contra: np.ndarray | None = None) -> np.ndarray:
     """(n,) True where the car is outside what the estimator's model describes, and for ``hold_implausible``
     after: slower than vx_gate by its fastest wheel (v = r_w max ω_i), or sliding sideways, the body's
     lateral acceleration relative to its axes v̇_y = a_y − r v_x (the plant's own equation,
@@ -602,7 +655,45 @@ def implausible(u: tf.Inputs, mask: np.ndarray, skf: tf.SkfConfig, cfg: Adaptive
                 left = hold
             elif left > 0:
                 left -= 1
+        if contra is not None and contra[k]:  # a contradiction restarts the hold too
+            left = hold
         out[k] = left > 0
+    return out
+
+
+C_VX, C_MASS, C_BOUNDS, C_BALANCE = 1, 2, 4, 8  # contradictions (vh_tfa.h VH_TFA_C_*)
+
+
+def contradictions(u: tf.Inputs, mask: np.ndarray, base: tf.TireForceRun, mass: np.ndarray, fz: np.ndarray,
+                   side: np.ndarray | None, road: np.ndarray | None, skf: tf.SkfConfig,
+                   cfg: AdaptiveConfig) -> np.ndarray:
+    """(n,) the published states that contradict a measurement, as bits: ``C_VX`` the SKFMEC's v_x outside the
+    wheels' speed range [r_w min ω − tol, r_w max ω + tol], tol = vx_tol + vx_tol_rel r_w max ω (a braking or
+    driving wheel slips by less; held while the inputs are not valid); ``C_MASS`` the mass at its clamp;
+    ``C_BOUNDS`` a normal load below zero, or a friction estimate at its floor. (``C_BALANCE``, the mass
+    against the longitudinal balance, comes from :func:`estimate_mass`.)"""
+    n = len(u)
+    out = np.zeros(n, np.uint8)
+    valid = (mask.astype(int) & int(lib.VH_SKF_ALL_VALID)) == int(lib.VH_SKF_ALL_VALID)
+    v = skf.rw * u.omega
+    lo, hi = v.min(1), v.max(1)
+    tol = cfg.vx_tol + cfg.vx_tol_rel * np.abs(hi)
+    vx = base.x[:, 0]
+    now = (vx > hi + tol) | (vx < lo - tol)
+    held = False
+    for k in range(n):  # held where not evaluated
+        if valid[k]:
+            held = bool(now[k])
+        out[k] = C_VX if held else 0
+    m0 = skf.m
+    at_clamp = (mass <= cfg.mass_range[0] * m0 * (1 + 1e-12)) | (mass >= cfg.mass_range[1] * m0 * (1 - 1e-12))
+    out[at_clamp] |= C_MASS
+    bad = (fz < 0.0).any(1)
+    if side is not None:
+        bad |= (side <= cfg.mu_floor).any(1)
+    if road is not None and cfg.road:
+        bad |= road <= cfg.mu_floor
+    out[bad] |= C_BOUNDS
     return out
 
 
@@ -625,8 +716,9 @@ class AdaptiveSkfmec:
         m = np.full(n, int(lib.VH_SKF_ALL_VALID), np.uint8) if mask is None else np.asarray(mask, np.uint8)
         base = tf.estimator(tf.SKFMEC, skf).run(inputs, m)
         ride_n = _ride(ride, n)
+        balance = np.zeros(n, bool)
         if cfg.mass:
-            mass, std = estimate_mass(inputs, base, m, skf, cfg, ride_n)
+            mass, std = estimate_mass(inputs, base, m, skf, cfg, ride_n, balance)
         else:
             mass, std = np.full(n, skf.m), np.zeros(n)
         k = (mass / skf.m)[:, None]
@@ -634,7 +726,7 @@ class AdaptiveSkfmec:
         fz = base.fz * k
         if cfg.transfer and ride_n is not None:
             fz = ride_transfer(fz, axle, ride_n, skf, cfg)
-        mu = road = None
+        mu = road = side = None
         if cfg.split and (cfg.friction or cfg.combined or cfg.road):
             tabs = friction_tables(cfg)
             fx = wheel_forces(inputs, m, skf)
@@ -651,9 +743,11 @@ class AdaptiveSkfmec:
         health = base.health.copy()
         unconverged = (std > cfg.mass_sigma_ok * skf.m) & (health == H_OK) & cfg.mass
         health[unconverged] = H_DEGRADED
-        health[(health == H_OK) & implausible(inputs, m, skf, cfg)] = H_DEGRADED
+        contra = contradictions(inputs, m, base, mass, fz, side, road, skf, cfg)
+        contra[balance] |= C_BALANCE
+        health[(health == H_OK) & implausible(inputs, m, skf, cfg, contra)] = H_DEGRADED
         return AdaptiveRun(x=base.x, fy=fy, fz=fz, health=health, resets=base.resets, mass=mass, mass_std=std,
-                           mu=mu, road_mu=road)
+                           mu=mu, road_mu=road, contra=contra)
 
 
 STRESS_DIR = "stress"  # firmware_sim/scenarios/tireforce/stress/: scenarios of SKFMEC-A, not in any tuning
@@ -678,13 +772,17 @@ def config_to_c(cfg: AdaptiveConfig):
                  "q_gate", "tau_mu", "tau_mu_forget", "mu_floor", "ellipse_floor", "friction", "combined", "ride",
                  "spring_front", "spring_rear", "sigma_ride", "road", "tau_kin", "ay_kin_gate", "fx_free", "kin_q",
                  "kin_r_deg", "kin_sigma0", "kin_dmu", "kin_dh_max", "kin_side_min", "transfer", "tyre_kz",
-                 "tau_vyd", "vyd_gate", "hold_implausible"):
+                 "tau_vyd", "vyd_gate", "hold_implausible", "vx_tol", "vx_tol_rel", "bal_tol", "bal_tol_rel"):
         setattr(c, name, getattr(cfg, name))
     c.mass_lo, c.mass_hi = cfg.mass_range
     for i, v in enumerate(cfg.tyre_a):
         c.tyre_a[i] = v
     for i, v in enumerate(cfg.tyre_b):
         c.tyre_b[i] = v
+    c.tyre_model = cfg.tyre_model
+    for i, v in enumerate(cfg.tyre_p):
+        c.tyre_p[i] = v
+    c.tyre_klt = cfg.tyre_klt
     return c
 
 
