@@ -20,10 +20,11 @@
 #include <stdint.h>
 #endif
 
-#define VH_ROLL_NX 16  /* UKF states */
+#define VH_ROLL_NX 21  /* UKF states at most: the paper's 16 and the robust variant's five disturbances */
+#define VH_ROLL_NX_PAPER 16 /* the paper's variant runs the first 16 */
 #define VH_ROLL_NZ 14  /* measurements (the paper's 14) */
 #define VH_ROLL_NU 4   /* inputs */
-#define VH_ROLL_NS 33  /* sigma points, 2 NX + 1 (symmetric set, eq. 15) */
+#define VH_ROLL_NS 43  /* sigma points at most, 2 NX + 1 (symmetric set, eq. 15) */
 #define VH_ROLL_NW 4   /* wheels */
 
 enum {
@@ -41,7 +42,15 @@ enum {
     VH_ROLL_X_THETA = 6,  /* pitch [rad] */
     VH_ROLL_X_Q = 7,
     VH_ROLL_X_ZU = 8,     /* 8..11 unsprung heave [m] */
-    VH_ROLL_X_VZU = 12    /* 12..15 */
+    VH_ROLL_X_VZU = 12,   /* 12..15 */
+    VH_ROLL_X_D = 16,     /* robust variant: unknown roll moment on the body [kN m] (eq. 4d), a random walk */
+    VH_ROLL_X_DFZ = 17    /* 17..20 robust variant: unknown tyre load per corner [kN] (eq. 10d), random walks */
+};
+
+/* Variants (vh_roll_params_t.variant). */
+enum {
+    VH_ROLL_V_PAPER = 0,  /* the paper's UKF: 16 states, the nominal car's roll balance */
+    VH_ROLL_V_ROBUST = 1  /* + the roll-moment and tyre-load disturbances (21 states, docs/roll.md) */
 };
 
 /* Measurement layout: the paper's z = [ay, xui, xsi, wr] (eq. below eq. 26) with the unsprung
@@ -109,6 +118,10 @@ typedef struct {
     double phi_max;               /* |roll| above this [rad] -> diverged, reset */
     double conv_sd_phi, conv_sd_p; /* converged (health leaves INIT) once sqrt(P) of roll [rad] and of
                                     * roll rate [rad/s] are both at or below these */
+    uint32_t variant;             /* VH_ROLL_V_*: the paper's 16 states or the robust 17 */
+    uint32_t ay_gravity;          /* 1: the lateral accelerometer is body-fixed and feels gravity,
+                                   * z_ay = ay cos(phi) + g sin(phi) (eq. 20g); 0: it sends the
+                                   * kinematic ay (a node that compensates) */
 } vh_roll_params_t;
 
 /* Sliding-mode controller parameters (eq. 27-35). */
@@ -131,6 +144,8 @@ typedef struct {
     double i_roll;         /* Ix + ms e^2 [kg m^2] */
     double ms_e;           /* ms e [kg m] */
     double kphi, cphi;     /* total roll stiffness [Nm/rad] and damping [Nm s/rad] */
+    double dist_gain;      /* share of the estimated roll-moment disturbance in eq. 27 (robust: 1,
+                            * paper: 0; the disturbance argument of vh_roll_smc_step) */
 } vh_roll_smc_params_t;
 
 /* SMC health bits (.health of the controller; 0 = active, acting on an OK estimate). */

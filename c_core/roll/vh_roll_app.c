@@ -13,6 +13,7 @@
 #define STEP_S ((double)VH_CH_ROLL_SENSORS_CYCLE_TIME_US * 1e-6)
 #define TIMEOUT(MSG) (VH_CH_##MSG##_RX_TIMEOUT_CYCLES * TICKS(VH_CH_##MSG##_CYCLE_TIME_US))
 #define ALL_Z ((1u << VH_ROLL_NZ) - 1u)
+#define RL32(v) ((float)(v))
 
 void vh_roll_app_config_default(vh_roll_app_config_t *cfg)
 {
@@ -20,6 +21,9 @@ void vh_roll_app_config_default(vh_roll_app_config_t *cfg)
     memset(cfg, 0, sizeof *cfg);
     vh_roll_params_default(&cfg->ukf);
     cfg->ukf.dt = STEP_S;
+    /* the robust variant (docs/roll.md); the roll node's lateral accelerometer is body-fixed */
+    cfg->ukf.variant = VH_ROLL_V_ROBUST;
+    cfg->ukf.ay_gravity = 1u;
     /* R: the default is the variance of one 2 kHz sample; the node sends the mean of STEP_TICKS */
     for (i = 0; i < VH_ROLL_NZ; ++i) {
         cfg->ukf.r[i] /= (double)STEP_TICKS;
@@ -280,7 +284,8 @@ void vh_roll_app_step(vh_roll_app_t *a, vh_app_ctx_t *ctx)
                   (a->rx[VH_ROLL_RX_MODE].timed_out ? VH_ROLL_RXF_MODE : 0u) | (a->stuck != 0u ? VH_ROLL_RXF_STUCK : 0u);
     /* the controller acts only on an OK estimate with its inputs and working actuators */
     est = (h == VH_ROLL_H_OK && (!u_ok || !arc_ok)) ? (uint32_t)VH_ROLL_H_DEGRADED : h;
-    (void)vh_roll_smc_step_f32(&a->smc, a->ukf.x[VH_ROLL_X_PHI], a->ukf.x[VH_ROLL_X_P], a->ukf.ay_post, est,
+    (void)vh_roll_smc_step_f32(&a->smc, a->ukf.x[VH_ROLL_X_PHI], a->ukf.x[VH_ROLL_X_P], a->ukf.ay_post,
+                               RL32(1000) * a->ukf.x[VH_ROLL_X_D], est,
                                a->mode_active && !a->rx[VH_ROLL_RX_MODE].timed_out);
 }
 

@@ -35,6 +35,11 @@ void vh_roll_params_default(vh_roll_params_t *prm)
     for (i = 0; i < VH_ROLL_NW; ++i) {
         prm->q[VH_ROLL_X_VZU + i] = 1e-4;
     }
+    /* robust variant: the roll-moment disturbance's random walk per step [kN m]^2 (docs/roll.md) */
+    prm->q[VH_ROLL_X_D] = 1e-5;
+    for (i = 0; i < VH_ROLL_NW; ++i) {
+        prm->q[VH_ROLL_X_DFZ + i] = 1e-3; /* [kN]^2 */
+    }
     /* R: the sensor noise of docs/roll.md */
     prm->r[VH_ROLL_Z_AY] = 0.05 * 0.05;
     for (i = 0; i < VH_ROLL_NW; ++i) {
@@ -55,6 +60,10 @@ void vh_roll_params_default(vh_roll_params_t *prm)
         prm->p0[VH_ROLL_X_ZU + i] = 0.005 * 0.005;
         prm->p0[VH_ROLL_X_VZU + i] = 0.05 * 0.05;
     }
+    prm->p0[VH_ROLL_X_D] = 1.0; /* 1 kN m */
+    for (i = 0; i < VH_ROLL_NW; ++i) {
+        prm->p0[VH_ROLL_X_DFZ + i] = 0.25; /* 0.5 kN */
+    }
     prm->reg_eps = 1e-6;
     prm->nis_max = 1000.0;
     prm->phi_max = 0.3;
@@ -62,6 +71,10 @@ void vh_roll_params_default(vh_roll_params_t *prm)
      * 6 steps at 5 ms; the steady state is 0.0015 deg / 0.026 deg/s (docs/roll.md) */
     prm->conv_sd_phi = 3.5e-4;
     prm->conv_sd_p = 3.5e-3;
+    /* the paper's UKF with a kinematic a_y; the ECU's app runs the robust variant on a body-fixed
+     * accelerometer (vh_roll_app_config_default) */
+    prm->variant = VH_ROLL_V_PAPER;
+    prm->ay_gravity = 0u;
 }
 
 void vh_roll_smc_params_default(vh_roll_smc_params_t *c, const vh_roll_params_t *prm)
@@ -92,6 +105,8 @@ void vh_roll_smc_params_default(vh_roll_smc_params_t *c, const vh_roll_params_t 
     c->ms_e = prm->ms * e;
     c->kphi = prm->kphi_f + prm->kphi_r;
     c->cphi = prm->cphi_f + prm->cphi_r;
+    /* the robust variant's disturbance estimate enters eq. 27 whole; the paper's has none */
+    c->dist_gain = prm->variant == VH_ROLL_V_ROBUST ? 1.0 : 0.0;
 }
 
 /* Every value in (0, 1e12): a parameter that must be positive, and not absurd. */
@@ -127,7 +142,8 @@ int vh_roll_params_check(const vh_roll_params_t *prm)
     ok = ok && prm->kappa >= 0.0 && prm->kappa < 1e6 && prm->hf < prm->h && prm->hr < prm->h &&
          prm->hf >= 0.0 && prm->hr >= 0.0 && prm->cphi_f >= 0.0 && prm->cphi_r >= 0.0 &&
          prm->reg_eps > 0.0 && prm->reg_eps < 1.0 && prm->nis_max >= 0.0 && prm->phi_max > 0.0 &&
-         prm->conv_sd_phi > 0.0 && prm->conv_sd_phi < 1e3 && prm->conv_sd_p > 0.0 && prm->conv_sd_p < 1e3;
+         prm->conv_sd_phi > 0.0 && prm->conv_sd_phi < 1e3 && prm->conv_sd_p > 0.0 && prm->conv_sd_p < 1e3 &&
+         (prm->variant == VH_ROLL_V_PAPER || prm->variant == VH_ROLL_V_ROBUST) && prm->ay_gravity <= 1u;
     if (ok) {
         /* suspension roll stiffness with the tyres in series removed (as the plant,
          * docs/chassis_plant.md): positive. The bar, what the springs leave of it, may be negative */
@@ -150,7 +166,7 @@ int vh_roll_smc_params_check(const vh_roll_smc_params_t *prm)
                   prm->recover_time + 1.0, prm->cphi + 1.0, prm->ay_tau);
     ok = ok && prm->ref_frac >= 0.0 && prm->ref_frac <= 1.0 && prm->front_share >= 0.0 &&
          prm->front_share <= 1.0 && prm->recover_time >= 0.0 && prm->not_ok_debounce >= 0.0 &&
-         prm->not_ok_debounce < 1e3 && prm->cphi >= 0.0 &&
+         prm->not_ok_debounce < 1e3 && prm->cphi >= 0.0 && prm->dist_gain >= 0.0 && prm->dist_gain <= 1.0 &&
          prm->fade_time * prm->rate_max_f >= prm->m_max_f * (1.0 - 1e-9) &&
          prm->fade_time * prm->rate_max_r >= prm->m_max_r * (1.0 - 1e-9); /* the rate limit can follow the fade */
     return ok ? 0 : -1;

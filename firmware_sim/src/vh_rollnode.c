@@ -165,7 +165,9 @@ size_t vh_rln_step(vh_rln_t *n, const vh_v14_t *p, vh_frame_t *out, size_t cap)
     vh_frame_t *f;
     int i;
 
-    phys[VH_RLN_CH_AY] = t->ay;
+    /* the lateral accelerometer is body-fixed: specific force along the rolled body's y axis, as the
+     * chassis node's accel_gravity (docs/roll.md, "The roll node") */
+    phys[VH_RLN_CH_AY] = t->ay * cos(t->phi) + VH_V14_GRAVITY * sin(t->phi);
     for (i = 0; i < VH_V14_NW; ++i) {
         const double vzu = p->x[VH_V14_X_VZU + i];
         const double zs = t->z + p->cy[i] * t->phi - p->cx[i] * t->theta; /* body corner height */

@@ -44,12 +44,15 @@ def test_model_at_rest_stays_at_rest():
         assert np.all(k.h(np.zeros(rn.NX), u) == 0)
 
 
-def test_model_matches_reference_model():
-    prm = rn.default_params()
+@pytest.mark.parametrize("variant", sorted(rn.VARIANTS))
+@pytest.mark.parametrize("gravity", [0, 1])
+def test_model_matches_reference_model(variant, gravity):
+    prm = rn.make_params(variant=rn.VARIANTS[variant], ay_gravity=gravity)
     k, m = rn.Ukf(prm), ref.RollModel(rn.params_dict(prm))
     rng = np.random.default_rng(3)
     for _ in range(20):
         x = rng.normal(0, 1e-2, rn.NX)
+        x[16:] = rng.normal(0, 1.0, rn.NX - 16)   # the disturbances [kN m, kN]; the paper's variant ignores them
         u = np.array([rng.normal(0, 0.05), rng.uniform(5, 30), rng.normal(0, 2000), rng.normal(0, 2000)])
         np.testing.assert_allclose(k.f(x, u), m.f(x, u)[0], rtol=1e-12, atol=1e-15)
         np.testing.assert_allclose(k.h(x, u), m.h(x, u)[0], rtol=1e-10, atol=1e-12)
@@ -74,13 +77,16 @@ def _mask_pattern(n, seed=5):
 
 
 @pytest.mark.parametrize("masked", [False, True])
-def test_c_double_agrees_with_numpy_reference(case72, masked):
+@pytest.mark.parametrize("variant", sorted(rn.VARIANTS))
+def test_c_double_agrees_with_numpy_reference(case72, masked, variant):
     _, u, z, _ = case72
     n = 800
     mask = _mask_pattern(n) if masked else None
-    prm = rn.default_params()
+    prm = rn.make_params(variant=rn.VARIANTS[variant])
     xc, _, _ = rn.Ukf(prm, "f64").run(u[:n], z[:n], mask)
     xr = ref.RefUkf(rn.params_dict(prm)).run(u[:n], z[:n], mask)
+    assert np.all(xc[:, xr.shape[1]:] == 0)            # states the variant does not carry
+    xc = xc[:, : xr.shape[1]]
     rel = np.max(np.abs(xc - xr), axis=0) / np.max(np.abs(xr), axis=0)
     print(f"C double vs numpy reference, {n} steps, masked={masked}: max relative {rel.max():.2e}")
     assert rel.max() <= 1e-6
@@ -141,10 +147,12 @@ def test_indefinite_covariance_is_regularised(prec, case72):
     _, u, z, _ = case72
     k = rn.Ukf(prec=prec)
     k.run(u[:100], z[:100])
+    n = k.c.n
     P = k.P.astype(float)
-    w, V = np.linalg.eigh(P)
+    w, V = np.linalg.eigh(P[:n, :n])
     w[0] = -1e-6 * abs(w).max() * 1e-3   # slightly indefinite: the retry's eps fixes it
-    k.set_state(P=(V * w) @ V.T)
+    P[:n, :n] = (V * w) @ V.T
+    k.set_state(P=P)
     h = k.step(u[100], z[100])
     assert k.c.flags & H.VH_ROLL_F_REGULARISED
     assert h == H.VH_ROLL_H_DEGRADED and k.c.resets == 0 and k.c.regularised >= 1
@@ -160,7 +168,8 @@ def test_failed_factorisation_resets_and_flags(prec, case72):
     h = k.step(u[100], z[100])
     assert h == H.VH_ROLL_H_RESET
     assert k.c.flags & H.VH_ROLL_F_CHOL_RESET and k.c.resets == 1
-    assert np.all(k.x == 0) and np.allclose(np.diag(k.P), np.array(list(k.c.p0)))
+    n = k.c.n
+    assert np.all(k.x == 0) and np.allclose(np.diag(k.P)[:n], np.array(list(k.c.p0))[:n])
     assert k.step(u[101], z[101]) == H.VH_ROLL_H_INIT     # from P0 again: not converged yet
     assert k.c.flags_seen & H.VH_ROLL_F_CHOL_RESET
 
@@ -219,11 +228,12 @@ def test_all_masked_is_prediction_only(case72):
     k = rn.Ukf()
     k.run(u[:100], z[:100])
     m = ref.RollModel(rn.params_dict(k.prm))
-    x0, P0 = k.x.astype(float), k.P.astype(float)
+    n = k.c.n
+    x0, P0 = k.x.astype(float)[:n], k.P.astype(float)[:n, :n]
     h = k.step(u[100], z[100], 0)
-    gamma, w = ref.sigma_weights(rn.NX, k.prm.kappa)
+    gamma, w = ref.sigma_weights(n, k.prm.kappa)
     Xf = m.f(ref.sigma_points(x0, P0, gamma), u[100])
-    np.testing.assert_allclose(k.x, w @ Xf, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(k.x[:n], w @ Xf, rtol=1e-9, atol=1e-12)
     assert h == H.VH_ROLL_H_DEGRADED and k.c.flags & H.VH_ROLL_F_NO_UPDATE
 
 

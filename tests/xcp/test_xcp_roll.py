@@ -30,7 +30,7 @@ def test_roll_tuning_and_internals_are_described_by_their_c_names():
                                           "m_max_f", "m_max_r", "rate_max_f", "rate_max_r", "fade_time",
                                           "recover_time", "not_ok_debounce")} <= chars
     meas = {it.name for it in desc.measurements}
-    assert {"app.roll.ukf.x[4]", "app.roll.ukf.x[5]", "app.roll.ukf.P[68]", "app.roll.ukf.P[255]", "app.roll.ukf.nu[13]",
+    assert {"app.roll.ukf.x[4]", "app.roll.ukf.x[5]", "app.roll.ukf.P[88]", "app.roll.ukf.P[440]", "app.roll.ukf.nu[13]",
             "app.roll.ukf.health", "app.roll.ukf.resets", "app.roll.smc.m_f", "app.roll.smc.m_r", "app.roll.smc.s",
             "app.roll.smc.fade", "app.roll.smc.health", "app.roll.cnt.crc_error", "app.roll.cnt.timeout"} <= meas
     assert desc.item("cal.app.roll.smc.k").address - desc.calibration_address == \

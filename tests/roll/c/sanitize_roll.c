@@ -57,7 +57,7 @@ static double urand(void)
                 f.P[5] = (REAL)NAN;                                                                   \
             }                                                                                         \
             (void)vh_roll_ukf_step_##SFX(&f, u, z, k % 5 == 0 ? 0x3FFFu : mask);                    \
-            (void)vh_roll_smc_step_##SFX(&c, f.x[VH_ROLL_X_PHI], f.x[VH_ROLL_X_P], f.ay_post,        \
+            (void)vh_roll_smc_step_##SFX(&c, f.x[VH_ROLL_X_PHI], f.x[VH_ROLL_X_P], f.ay_post, f.x[VH_ROLL_X_D], \
                                          f.health, k % 300 < 250);                                    \
             if (!(fabs((double)c.m_f) <= sp.m_max_f + 1e-3) || !(fabs((double)c.m_r) <= sp.m_max_r + 1e-3)) { \
                 return 2;                                                                             \

@@ -12,7 +12,10 @@ PRECISIONS = {"f32": np.float32, "f64": np.float64}
 _CTYPE = {"f32": "float", "f64": "double"}
 
 STATE_NAMES = ["vy", "r", "z", "vz", "phi", "p", "theta", "q",
-               "zu_fl", "zu_fr", "zu_rl", "zu_rr", "vzu_fl", "vzu_fr", "vzu_rl", "vzu_rr"]
+               "zu_fl", "zu_fr", "zu_rl", "zu_rr", "vzu_fl", "vzu_fr", "vzu_rl", "vzu_rr", "d_knm",
+               "dfz_fl_kn", "dfz_fr_kn", "dfz_rl_kn", "dfz_rr_kn"]
+#: the variants (vh_roll_params_t.variant): the paper's UKF and the robust one (docs/roll.md)
+VARIANTS = {"paper": lib.VH_ROLL_V_PAPER, "robust": lib.VH_ROLL_V_ROBUST}
 MEAS_NAMES = (["ay"] + [f"azu_{w}" for w in ("fl", "fr", "rl", "rr")]
               + [f"dt_{w}" for w in ("fl", "fr", "rl", "rr")]
               + [f"ds_{w}" for w in ("fl", "fr", "rl", "rr")] + ["r"])
@@ -58,6 +61,15 @@ def write_car(cfg, car) -> None:
         setattr(cfg.ukf, k, v)
     cfg.rw = car.wheel_radius_m
     lib.vh_roll_smc_params_default(ffi.addressof(cfg, "smc"), ffi.addressof(cfg, "ukf"))
+
+
+def configure_variant(cfg, variant: str) -> None:
+    """The UKF variant (``"paper"`` or ``"robust"``) into a ``vh_roll_app_config_t *``; the controller's
+    disturbance share follows it (1 robust, 0 paper: ``vh_roll_smc_params_default``'s rule)."""
+    if variant not in VARIANTS:
+        raise RollError(f"roll variant must be one of {sorted(VARIANTS)}, not {variant!r}")
+    cfg.ukf.variant = VARIANTS[variant]
+    cfg.smc.dist_gain = 1.0 if variant == "robust" else 0.0
 
 
 def make_params(**over):
@@ -166,11 +178,12 @@ class Smc:
         if _fn(prec, "vh_roll_smc_init")(self.c, self.sprm) != 0:
             raise RollError("vh_roll_smc_init refused the parameters")
 
-    def step(self, phi, p, ay, est_health, active=True) -> tuple[float, float, int]:
-        h = _fn(self.prec, "vh_roll_smc_step")(self.c, phi, p, ay, est_health, 1 if active else 0)
+    def step(self, phi, p, ay, est_health, active=True, d=0.0) -> tuple[float, float, int]:
+        """One step; `d` the estimated roll-moment disturbance [N m] (the robust variant's)."""
+        h = _fn(self.prec, "vh_roll_smc_step")(self.c, phi, p, ay, d, est_health, 1 if active else 0)
         return self.c.m_f, self.c.m_r, h
 
-    def run(self, phi, p, ay, est_health, active=True):
+    def run(self, phi, p, ay, est_health, active=True, d=None):
         """Arrays in, (m_f, m_r, health, s) arrays out."""
         n = len(phi)
         out = np.zeros((n, 2))
@@ -178,9 +191,10 @@ class Smc:
         ss = np.zeros(n)
         act = np.broadcast_to(np.asarray(active), (n,))
         eh = np.broadcast_to(np.asarray(est_health), (n,))
+        dd = np.zeros(n) if d is None else np.broadcast_to(np.asarray(d, float), (n,))
         fn = _fn(self.prec, "vh_roll_smc_step")
         for k in range(n):
-            hs[k] = fn(self.c, float(phi[k]), float(p[k]), float(ay[k]), int(eh[k]), int(bool(act[k])))
+            hs[k] = fn(self.c, float(phi[k]), float(p[k]), float(ay[k]), float(dd[k]), int(eh[k]), int(bool(act[k])))
             out[k] = (self.c.m_f, self.c.m_r)
             ss[k] = self.c.s
         return out[:, 0], out[:, 1], hs, ss

@@ -9,7 +9,15 @@ from __future__ import annotations
 import numpy as np
 
 G = 9.81
-NX, NZ, NU = 16, 14, 4
+NX, NZ, NU = 21, 14, 4   # states at most (the robust variant's), measurements, inputs
+NX_PAPER = 16            # the paper's variant carries the first 16
+ROBUST = 1               # vh_roll_params_t.variant of the robust variant
+
+
+def n_states(p: dict) -> int:
+    """States the variant carries: 16 (the paper's) or 21 (+ the roll-moment disturbance [kN m] and the
+    four tyre-load disturbances [kN])."""
+    return NX if int(p.get("variant", 0)) == ROBUST else NX_PAPER
 
 
 class RollModel:
@@ -48,6 +56,8 @@ class RollModel:
         self.mf_d = dpk
         self.mf_b = np.where(front, p["calpha_f"], p["calpha_r"]) / (p["mf_c"] * dpk)
         self.front = front
+        self.n = n_states(p)
+        self.ay_gravity = bool(int(p.get("ay_gravity", 0)))
 
     def deriv(self, X: np.ndarray, u: np.ndarray):
         """dX for states X (k, NX); returns (dX, ay)."""
@@ -69,7 +79,10 @@ class RollModel:
         vxw = np.where(self.front, vxc * cd + vyc * sd, vxc)
         vyw = np.where(self.front, -vxc * sd + vyc * cd, vyc)
         ta = -vyw / np.maximum(np.abs(vxw), p["v_low"])                          # eq. 7
-        fz = np.maximum(self.fz0 - p["kt"] * zu - p["ct"] * vzu, 0.0)             # eq. 10
+        fz = self.fz0 - p["kt"] * zu - p["ct"] * vzu                             # eq. 10
+        if self.n > NX_PAPER:
+            fz = fz + 1000.0 * X[:, 17:21]                                      # eq. 10d [kN]
+        fz = np.maximum(fz, 0.0)
         fy = self.mf_d * fz * np.sin(p["mf_c"] * np.arctan(self.mf_b * ta))       # eq. 11-12
         fxv = np.where(self.front, -fy * sd, 0.0)
         fyv = np.where(self.front, fy * cd, fy)
@@ -77,6 +90,8 @@ class RollModel:
         sfx, sfy = fxv.sum(1), fyv.sum(1)
         smz = (self.cx * fyv - self.cy * fxv).sum(1)
         smx = (self.cy * (fsd + farb + fa)).sum(1) + self.ms * G * self.e * np.sin(phi)
+        if self.n > NX_PAPER:
+            smx = smx + 1000.0 * X[:, 16]                                      # eq. 4d [kN m]
         smy = -(self.cx * fb).sum(1) + self.ms * G * self.hp * np.sin(th)
         rx = sfx + self.m * r * vy - self.b * pr * r
         rq = smy + self.a * r * vy
@@ -93,6 +108,8 @@ class RollModel:
         dX[:, 7] = (self.m * rq - self.a * rx) / self.det_x
         dX[:, 8:12] = vzu
         dX[:, 12:16] = (fz - self.fz0 - fb) / self.mu_c
+        if X.shape[1] > NX_PAPER:
+            dX[:, 16:] = 0.0                                                    # eq. 4d, 10d: random walks
         return dX, dX[:, 0] + r * vx
 
     def f(self, X, u):
@@ -105,6 +122,8 @@ class RollModel:
     def h(self, X, u):
         X = np.atleast_2d(X)
         dX, ay = self.deriv(X, u)
+        if self.ay_gravity:
+            ay = ay * np.cos(X[:, 4]) + G * np.sin(X[:, 4])                     # eq. 20g: body-fixed
         zs = X[:, 2:3] + self.cy * X[:, 4:5] - self.cx * X[:, 6:7]
         return np.column_stack([ay, dX[:, 12:16], -X[:, 8:12], X[:, 8:12] - zs, X[:, 1]])   # eq. 20
 
@@ -129,8 +148,9 @@ class _Filter:
         raise NotImplementedError
 
     def run(self, u, z, mask=None) -> np.ndarray:
-        """States after each step; ``mask`` (bit j: measurement j valid) per step, all valid if None."""
-        xs = np.zeros((len(u), NX))
+        """States after each step (n of the variant's); ``mask`` (bit j: measurement j valid) per step,
+        all valid if None."""
+        xs = np.zeros((len(u), len(self.x)))
         for k in range(len(u)):
             self.step(u[k], z[k], (1 << NZ) - 1 if mask is None else int(mask[k]))
             xs[k] = self.x
@@ -143,14 +163,16 @@ class RefUkf(_Filter):
     def __init__(self, p: dict):
         self.model = RollModel(p)
         self.p = p
-        self.gamma, self.w = sigma_weights(NX, p["kappa"])
-        self.Q = np.diag(p["q"])
+        self.n = n = self.model.n
+        self.gamma, self.w = sigma_weights(n, p["kappa"])
+        self.Q = np.diag(p["q"][:n])
         self.R = np.diag(p["r"])
+        self.nis = 0.0
         self.reset()
 
     def reset(self):
-        self.x = np.zeros(NX)                                                   # eq. 13
-        self.P = np.diag(np.asarray(self.p["p0"], float))                       # eq. 14
+        self.x = np.zeros(self.n)                                               # eq. 13
+        self.P = np.diag(np.asarray(self.p["p0"][: self.n], float))             # eq. 14
 
     def step(self, u, z, mask: int = (1 << NZ) - 1):
         w = self.w
@@ -171,7 +193,9 @@ class RefUkf(_Filter):
         Pzz = (w[:, None] * dZ).T @ dZ + self.R[np.ix_(sel, sel)]
         Pxz = (w[:, None] * dX).T @ dZ
         K = np.linalg.solve(Pzz, Pxz.T).T                                       # eq. 22
-        self.x = xp + K @ (np.asarray(z)[sel] - zp[sel])                        # eq. 25
+        nu = np.asarray(z)[sel] - zp[sel]
+        self.nis = float(nu @ np.linalg.solve(Pzz, nu))
+        self.x = xp + K @ nu                                                    # eq. 25
         self.P = Pp - K @ Pzz @ K.T                                             # eq. 26
         self.P = 0.5 * (self.P + self.P.T)
 
@@ -183,12 +207,13 @@ def filterpy_ukf(p: dict):
     from filterpy.kalman import JulierSigmaPoints, UnscentedKalmanFilter
 
     model = RollModel(p)
-    pts = JulierSigmaPoints(NX, kappa=p["kappa"])
-    ukf = UnscentedKalmanFilter(dim_x=NX, dim_z=NZ, dt=p["dt"], hx=lambda x, u: model.h(x, u)[0],
+    n = model.n
+    pts = JulierSigmaPoints(n, kappa=p["kappa"])
+    ukf = UnscentedKalmanFilter(dim_x=n, dim_z=NZ, dt=p["dt"], hx=lambda x, u: model.h(x, u)[0],
                                 fx=lambda x, dt, u: model.f(x, u)[0], points=pts)
-    ukf.x = np.zeros(NX)
-    ukf.P = np.diag(np.asarray(p["p0"], float))
-    ukf.Q = np.diag(p["q"])
+    ukf.x = np.zeros(n)
+    ukf.P = np.diag(np.asarray(p["p0"][:n], float))
+    ukf.Q = np.diag(p["q"][:n])
     ukf.R = np.diag(p["r"])
     return ukf
 
@@ -207,19 +232,22 @@ class RefEkf(_Filter):
     def __init__(self, p: dict):
         self.model = RollModel(p)
         self.p = p
-        self.Q = np.diag(p["q"])
+        self.n = n = self.model.n
+        self.Q = np.diag(p["q"][:n])
         self.R = np.diag(p["r"])
-        self.hstep = 1e-6 * np.sqrt(np.asarray(p["p0"], float))
+        self.hstep = 1e-6 * np.sqrt(np.asarray(p["p0"][:n], float))
+        self.nis = 0.0
         self.reset()
 
     def reset(self):
-        self.x = np.zeros(NX)
-        self.P = np.diag(np.asarray(self.p["p0"], float))
+        self.x = np.zeros(self.n)
+        self.P = np.diag(np.asarray(self.p["p0"][: self.n], float))
 
     def _jac(self, fn, x, u):
+        n = self.n
         d = np.diag(self.hstep)
         Y = fn(np.vstack([x + d, x - d]), u)
-        return ((Y[:NX] - Y[NX:]) / (2 * self.hstep[:, None])).T
+        return ((Y[:n] - Y[n:]) / (2 * self.hstep[:, None])).T
 
     def step(self, u, z, mask: int = (1 << NZ) - 1):
         F = self._jac(self.model.f, self.x, u)
@@ -233,7 +261,9 @@ class RefEkf(_Filter):
         zp = self.model.h(xp, u)[0][sel]
         S = Hm @ Pp @ Hm.T + self.R[np.ix_(sel, sel)]
         K = np.linalg.solve(S, Hm @ Pp).T
-        self.x = xp + K @ (np.asarray(z)[sel] - zp)
-        IKH = np.eye(NX) - K @ Hm
+        nu = np.asarray(z)[sel] - zp
+        self.nis = float(nu @ np.linalg.solve(S, nu))
+        self.x = xp + K @ nu
+        IKH = np.eye(self.n) - K @ Hm
         self.P = IKH @ Pp @ IKH.T + K @ self.R[np.ix_(sel, sel)] @ K.T   # Joseph form
 

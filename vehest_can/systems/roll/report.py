@@ -67,6 +67,7 @@ def evaluate(session, arc_limits: tuple[tuple[float, float], ...] | None = None)
         "peak_ay_m_s2": float(np.abs(tr["ay"]).max()),
         "ukf_roll_rms_deg": float(np.degrees(err_phi)), "ukf_roll_rate_rms_deg_s": float(np.degrees(err_p)),
         "ukf_roll_rms_pct_of_peak": 100 * err_phi / peak_phi, "ukf_roll_rate_rms_pct_of_peak": 100 * err_p / peak_p,
+        "steady_turn_rate_bias_deg_s": steady_turn_bias(session, e),
         "estimates": int(on.size), "ukf_health_ok_pct": 100 * float(np.mean(e["RollUkf_Health"] == 1)) if k.size else 0.0,
         "ukf_resets": int(np.nanmax(e["RollCntReset"])) if k.size else 0,
         "moment_peak_nm": [float(x) for x in np.abs(m).max(axis=0)],
@@ -81,6 +82,27 @@ def evaluate(session, arc_limits: tuple[tuple[float, float], ...] | None = None)
     return out
 
 
+def steady_turn_bias(session, e: dict | None = None) -> float:
+    """The roll-rate estimate's bias in steady turning [deg/s]: |mean(p_hat - p)| over the published
+    estimates where the true roll rate stayed within 0.3 deg/s for 0.25 s either side and |a_y| > 2 m/s^2;
+    NaN when the run has no such stretch."""
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    tr = session.truth
+    e = estimates(session) if e is None else e
+    ok = ~np.isnan(e["RollEstRate"])
+    k, pe = e["tick"][ok], e["RollEstRate"][ok]
+    w = 50  # estimate frames (10 ms): 0.5 s
+    if len(k) < w:
+        return float("nan")
+    pt = tr["p"][k]
+    calm = np.zeros(len(k), bool)
+    still = sliding_window_view(np.abs(pt), w).max(axis=1) < np.radians(0.3)
+    calm[w // 2: w // 2 + len(still)] = still
+    sel = calm & (np.abs(tr["ay"][k]) > 2.0)
+    return float(np.degrees(abs(np.mean(pe[sel] - pt[sel])))) if sel.any() else float("nan")
+
+
 def compare(active: dict, passive: dict) -> dict:
     """Active against its passive twin: the peak roll's reduction, the changes the paper notes."""
     return {
@@ -90,6 +112,17 @@ def compare(active: dict, passive: dict) -> dict:
         "passive_peak_roll_deg": passive["peak_roll_deg"],
         "passive_moment_total_variation_nm": passive["moment_total_variation_nm"],
     }
+
+
+def lines_met(m: dict) -> dict[str, float]:
+    """The estimate's acceptance lines of one run, 1.0 met / 0.0 not: roll RMS <= max(5 % of peak,
+    0.05 deg), roll rate RMS <= max(10 % of peak, 0.25 deg/s), steady-turn rate bias <= 0.2 deg/s
+    (met when the run has no steady turn); ``all`` every one of them."""
+    roll = m["ukf_roll_rms_deg"] <= max(100 * TARGET_PHI / 100 * m["peak_roll_deg"], 0.05)
+    rate = m["ukf_roll_rate_rms_deg_s"] <= max(TARGET_P * m["peak_roll_rate_deg_s"], 0.25)
+    b = m["steady_turn_rate_bias_deg_s"]
+    bias = bool(np.isnan(b) or b <= 0.2)
+    return {"roll": float(roll), "rate": float(rate), "bias": float(bias), "all": float(roll and rate and bias)}
 
 
 def acceptance(m: dict) -> list[tuple[str, str, bool]]:

@@ -30,6 +30,23 @@ class Roll(Registration):
 
         write_car(app.roll, car)
 
+    def configure_ecu(self, app, part: dict | None) -> None:
+        """``{"variant": "paper" | "robust", "smc": {field: value}, "ukf": {...}}``: which UKF the ECU runs (default: the
+        robust one; docs/roll.md) and the controller's tuning. The controller takes the disturbance
+        estimate with the robust variant only."""
+        from .api import configure_variant
+
+        if part:
+            configure_variant(app.roll, part.get("variant", "robust"))
+            for key, value in part.get("smc", {}).items():  # the controller's tuning, by vh_roll_smc_params_t field
+                setattr(app.roll.smc, key, float(value))
+            for key, value in part.get("ukf", {}).items():  # the filter's, by vh_roll_params_t field
+                if isinstance(value, (list, tuple)):
+                    for i, v in enumerate(value):
+                        getattr(app.roll.ukf, key)[i] = float(v)
+                else:
+                    setattr(app.roll.ukf, key, float(value))
+
     def metrics(self, scenario, session, out_dir: Path, setup: Setup) -> dict:
         """Against the plant, from the bus: the ECU's float32 UKF estimates (VEHEST_RollEst), the
         actuators' moments; an active run also against its passive twin (in-process)."""
