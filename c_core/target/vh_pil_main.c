@@ -5,6 +5,7 @@
  * vh_ecu_config_t, byte for byte), received frames, ticks and resets; the image answers a tick with
  * the frames it transmits and the SysTick counts of each runnable. Polled, no interrupts, one stack.
  */
+#include <math.h>
 #include <stddef.h>
 #include <string.h>
 
@@ -22,8 +23,10 @@ enum {
     MSG_TX = 'T',     /* u32 tick, u8 n, n x (u32 id, u8 flags, u8 len, data[len]), u8 m, m x u32 counts */
     MSG_RESET = 'Z',  /* -> -; <- 'Z' */
     MSG_READ = 'M',   /* -> u32 offset, u32 len in vh_ecu_t; <- the bytes */
+    MSG_WRITE = 'P',  /* -> u32 offset, bytes into vh_ecu_t (a calibration the host applied to its copy); <- 'P' */
     MSG_STACK = 'W',  /* -> -; <- u32 deepest since the last 'W' (or init), u32 main's depth, u32 size; repaints */
     MSG_CAL = 'K',    /* -> u32 n; <- u32 SysTick counts of a loop of n x 2 instructions */
+    MSG_LIBM = 'Q',   /* -> u8 function, floats; <- the function of each (pairs for atan2f): newlib against the host's libm */
     MSG_HELLO = 'H',  /* -> -; <- u32 sizeof vh_ecu_config_t, u32 sizeof vh_ecu_t, u16 runnables, their owners */
     MSG_ERROR = 'E'   /* <- a message it did not understand: its type */
 };
@@ -157,6 +160,17 @@ static void do_hello(void)
     send(MSG_HELLO, out, pos);
 }
 
+static void do_write(size_t len)
+{
+    uint32_t off;
+    if (len < 4u || (off = get_u32(in.raw)) > sizeof ecu || len - 4u > sizeof ecu - off) {
+        send(MSG_ERROR, "P", 1);
+        return;
+    }
+    memcpy((uint8_t *)&ecu + off, in.raw + 4, len - 4u);
+    send(MSG_WRITE, NULL, 0);
+}
+
 static void do_read(size_t len)
 {
     uint32_t off, n;
@@ -187,6 +201,25 @@ static void do_cal(size_t len)
     t1 = vh_systick_now();
     put_u32(r, elapsed(t0, t1));
     send(MSG_CAL, r, sizeof r);
+}
+
+/* The float32 functions the firmware calls from newlib, on the target's own build of them */
+static void do_libm(size_t len)
+{
+    static float v[(MAX_PAYLOAD - 1u) / sizeof(float)];
+    size_t i, n = (len - 1u) / sizeof(float);
+    const uint8_t fn = in.raw[0];
+    memcpy(v, in.raw + 1, n * sizeof(float));
+    for (i = 0; i < n; ++i) {
+        switch (fn) {
+        case 0: v[i] = sinf(v[i]); break;
+        case 1: v[i] = cosf(v[i]); break;
+        case 2: v[i] = atanf(v[i]); break;
+        case 3: v[i / 2u] = atan2f(v[i], v[i + 1u]); ++i; break;
+        default: v[i] = sqrtf(v[i]); break;
+        }
+    }
+    send(MSG_LIBM, v, (fn == 3 ? n / 2u : n) * sizeof(float));
 }
 
 int main(void)
@@ -222,6 +255,9 @@ int main(void)
         case MSG_READ:
             do_read(len);
             break;
+        case MSG_WRITE:
+            do_write(len);
+            break;
         case MSG_STACK: {
             uint8_t r[12];
             put_u32(r, vh_stack_used() - main_depth);
@@ -231,6 +267,11 @@ int main(void)
             send(MSG_STACK, r, sizeof r);
             break;
         }
+        case MSG_LIBM:
+            if (len >= 1u) {
+                do_libm(len);
+            }
+            break;
         case MSG_CAL:
             do_cal(len);
             break;

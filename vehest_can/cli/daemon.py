@@ -91,14 +91,17 @@ def run(args) -> int:
     if args.target == "qemu" and args.mode != "lockstep":
         raise ConfigError("--target qemu needs --mode lockstep: an emulator's time is not the target's, it cannot "
                           "keep a 2 kHz wall clock")
-    refuse_on_qemu(args, **{"--camber-cal": "the calibration is loaded into a host ECU only",
-                            "--xcp": "the emulated board has no AES backend for the slave's seed & key",
+    refuse_on_qemu(args, **{"--xcp": "the emulated board has no AES backend for the slave's seed & key",
                             "--secoc-keys": "the emulated board has no AES backend"})
     sdnotify.apply_log_level(args.log_level)
     ecu = make_ecu(args, replace(EcuConfig.default(), rx_burst_frames=args.rx_burst_limit,
                                  car=car_from_args(args, plant=False)))
     if args.camber_cal:
-        load_into_ecu(ecu, load_calibrations(args.camber_cal))
+        cals = load_calibrations(args.camber_cal)
+        if hasattr(ecu, "apply"):  # the emulated ECU: set on the host's copy of its state, written back
+            ecu.apply(lambda e: load_into_ecu(e, cals))
+        else:
+            load_into_ecu(ecu, cals)
     xcp = xcp_ecu.from_args(args, ecu)
     xcp_config = xcp_ecu.bus_config(args, xcp)  # checked before any bus opens
     secoc = secoc_from_args(args, "VEHEST")

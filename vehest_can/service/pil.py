@@ -282,6 +282,20 @@ class PilEcu(Ecu):
             buf += self._link.answer(b"M")
         ffi.memmove(self.c, bytes(buf), len(buf))
 
+    def write_state(self) -> None:
+        """Copy the host mirror's vh_ecu_t (up to the XCP slave) into the target."""
+        data = bytes(ffi.buffer(self.c, self._state_end))
+        for at in range(0, len(data), 0xF000):
+            self._link.queue(b"P", struct.pack("<I", at) + data[at:at + 0xF000])
+            self._link.answer(b"P")
+
+    def apply(self, change) -> None:
+        """``change(ecu)`` on the target's state: read back, changed on the host's copy (e.g. by a flashed
+        setter such as the camber calibration's), written to the target."""
+        self.read_state()
+        change(self)
+        self.write_state()
+
     def poll_counters(self) -> None:
         self.read_state()
         for w in self._wide:
@@ -405,7 +419,7 @@ def run_pil(car, ecu: PilEcu):
         if m == len(frames):
             frames = np.concatenate((frames, np.zeros(len(frames), FRAME_DTYPE)))
             ticks = np.concatenate((ticks, np.zeros(len(ticks), np.uint32)))
-        ffi.memmove(ffi.from_buffer(frames[m:m + 1]), f, ffi.sizeof("vh_frame_t"))
+        ffi.memmove(ffi.from_buffer(frames[m:m + 1]), ffi.addressof(f), ffi.sizeof("vh_frame_t"))
         ticks[m] = k
         m += 1
 
@@ -417,7 +431,7 @@ def run_pil(car, ecu: PilEcu):
         for i in range(ncar):
             keep(buf[i], k)
         for f in out:
-            lib.vh_car_rx(car.c, f)
+            lib.vh_car_rx(car.c, ffi.addressof(f))
             keep(f, k)
         ffi.memmove(raw_b + k * size, lib.vh_car_truth(car.c), size)
         if (k + 1) % 2000 == 0 and k + 1 < n:
