@@ -1,0 +1,111 @@
+"""The cost of a tick on the Cortex-M4F: every shipped scenario through the emulated ECU with QEMU's
+instruction counting (``-icount shift=0``), per system the instructions of its runnables per tick
+(median and worst over its own scenarios), the tick's RX and the whole tick, as cycles at 168 MHz
+for a range of cycles per instruction; the painted stack's high-water mark. ``vehest-can bench``
+prints it (skipped, with the reason, where QEMU or the cross compiler is missing);
+``python -m vehest_can.tools.pil_bench [--duration S]`` alone.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+
+#: the clock of the part the budget is for (an STM32F4-class Cortex-M4F) and the tick
+CLOCK_HZ = 168_000_000
+TICK_CYCLES = CLOCK_HZ // 2000  # 84,000
+#: cycles per instruction of this code on a Cortex-M4F at 168 MHz (docs/firmware.md says why): 1.25 with
+#: flash reads hidden by the prefetch (the TRM's timings: loads 2, taken branches 2-4, most others 1),
+#: 2.0 where branches miss the flash accelerator (5 wait states at 168 MHz)
+CPI = (1.25, 2.0)
+SYSTEMS = {"drv": "driveline", "camber": "camber", "tf": "tireforce", "roll": "roll"}
+
+
+def measure(duration_s: float | None = 1.0, scenarios: list | None = None) -> dict:
+    """{"systems": {name: {"median", "worst", "scenarios"}}, "rx", "tick", "overhead", "stack", "calibration"}:
+    instructions per tick, each system over the ticks of its own scenarios."""
+    from ..service.pil import PilEcu, calibrate, run_pil
+    from ..systems import load_any_scenario, shipped_scenarios
+
+    runs = [load_any_scenario(p) for p in (scenarios or shipped_scenarios())]
+    per: dict[str, list[np.ndarray]] = {k: [] for k in SYSTEMS}
+    names: dict[str, list[str]] = {k: [] for k in SYSTEMS}
+    rx, tick, overhead = [], [], []
+    deepest = 0
+    with PilEcu(icount=True, measure=True) as ecu:
+        cal = calibrate(ecu)
+        ecu.stack()  # from here: the ticks' and frames' depth
+        for system, sc in runs:
+            ecu.reset()
+            ecu.costs.rows.clear()
+            run_pil(system.car(sc, duration_s), ecu)
+            c = ecu.costs.per_system()
+            key = next(k for k, v in SYSTEMS.items() if v == system.name)
+            per[key].append(c[key])
+            names[key].append(sc.name)
+            rx.append(c["rx"])
+            tick.append(c["tick"])
+            overhead.append(c["xcp"])
+            deepest = max(deepest, ecu.stack()["ticks"])
+        stack = ecu.stack() | {"ticks": deepest}
+    out = {"systems": {}, "calibration": cal, "stack": stack}
+    for key, arrays in per.items():
+        if arrays:
+            a = np.concatenate(arrays)
+            out["systems"][SYSTEMS[key]] = {"median": float(np.median(a)), "worst": int(a.max()),
+                                            "scenarios": names[key]}
+    for name, arrays in (("rx", rx), ("tick", tick), ("scheduler", overhead)):
+        a = np.concatenate(arrays)
+        out[name] = {"median": float(np.median(a)), "worst": int(a.max())}
+    return out
+
+
+def table(res: dict) -> str:
+    lo, hi = CPI
+    lines = [f"Cortex-M4F (QEMU mps2-an386, -icount shift=0; {res['calibration']:.0f} instructions per SysTick count): "
+             f"instructions per 500 µs tick, cycles at {CLOCK_HZ / 1e6:.0f} MHz for CPI {lo}..{hi}, share of "
+             f"{TICK_CYCLES:,} cycles",
+             f"{'':<12} {'median':>8} {'worst':>8}  {'median cycles':>15}  {'% of tick':>11}  {'worst % of tick':>15}"]
+
+    def row(name: str, med: float, worst: int) -> str:
+        return (f"{name:<12} {med:>8.0f} {worst:>8d}  {med * lo:>7.0f}..{med * hi:<7.0f}  "
+                f"{100 * med * lo / TICK_CYCLES:>4.1f}..{100 * med * hi / TICK_CYCLES:<5.1f}  "
+                f"{100 * worst * lo / TICK_CYCLES:>6.1f}..{100 * worst * hi / TICK_CYCLES:<6.1f}")
+
+    for name, r in res["systems"].items():
+        lines.append(row(name, r["median"], r["worst"]))
+    lines.append(row("rx", res["rx"]["median"], res["rx"]["worst"]))
+    lines.append(row("scheduler", res["scheduler"]["median"], res["scheduler"]["worst"]))
+    every_med = sum(r["median"] for r in res["systems"].values()) + res["rx"]["median"] + res["scheduler"]["median"]
+    every_worst = sum(r["worst"] for r in res["systems"].values()) + res["rx"]["worst"] + res["scheduler"]["worst"]
+    lines.append(row("every system", every_med, every_worst))
+    lines.append(f"(every system: the sum of each system's figures over its own scenarios, all active in one tick; "
+                 f"{'within' if every_med * hi <= TICK_CYCLES / 2 else 'OVER'} 50 % of the tick at the median, CPI {hi})")
+    s = res["stack"]
+    lines.append(f"stack below main: ticks and frames {s['ticks']} B, init {s['init']} B (painted; of {s['size']} B)")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--duration", type=float, default=None, metavar="S",
+                    help="seconds of each scenario (default: all of it)")
+    ap.add_argument("scenarios", nargs="*", help="scenario files (default: every shipped one)")
+    args = ap.parse_args(argv)
+    from ..service.pil import missing_tools
+
+    why = missing_tools()
+    if why:
+        print(f"processor-in-the-loop unavailable: {why}", file=sys.stderr)
+        return 1
+    res = measure(args.duration, args.scenarios or None)
+    print(table(res))
+    import json
+
+    print(json.dumps(res, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
