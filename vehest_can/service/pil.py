@@ -96,6 +96,7 @@ class _Link:
         self.proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         srv.settimeout(30.0)
         try:
+            self.sock: socket.socket | None
             self.sock, _ = srv.accept()
         except OSError as exc:
             self.close()
@@ -117,6 +118,7 @@ class _Link:
 
     def flush(self) -> None:
         if self._out:
+            assert self.sock is not None, "the link is closed"
             try:
                 self.sock.sendall(self._out)
             except OSError as exc:
@@ -125,6 +127,7 @@ class _Link:
 
     def _read(self, n: int) -> bytes:
         while len(self._buf) < n:
+            assert self.sock is not None, "the link is closed"
             try:
                 chunk = self.sock.recv(1 << 16)
             except OSError as exc:
@@ -148,9 +151,9 @@ class _Link:
         return payload
 
     def close(self) -> None:
-        if getattr(self, "sock", None) is not None:
-            self.sock.close()
-            self.sock = None
+        sock, self.sock = getattr(self, "sock", None), None
+        if sock is not None:
+            sock.close()
         if self.proc.poll() is None:
             self.proc.terminate()
             try:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import Any
 
 import numpy as np
 
@@ -49,7 +50,7 @@ def measure(duration_s: float | None = 1.0, scenarios: list | None = None) -> di
             overhead.append(c["xcp"])
             deepest = max(deepest, ecu.stack()["ticks"])
         stack = ecu.stack() | {"ticks": deepest}
-    out = {"systems": {}, "calibration": cal, "stack": stack}
+    out: dict[str, Any] = {"systems": {}, "calibration": cal, "stack": stack}
     for key, arrays in per.items():
         if arrays:
             a = np.concatenate(arrays)
