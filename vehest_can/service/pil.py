@@ -80,7 +80,7 @@ def _frame_bytes(f) -> bytes:
 class _Link:
     """QEMU with the image, its UART0 on a Unix socket: messages of type, u16 length, payload."""
 
-    def __init__(self, image: Path, *, icount: bool):
+    def __init__(self, image: Path, *, icount: bool, profile: Path | None = None):
         why = missing_tools()
         if why:
             raise PilError(f"processor-in-the-loop unavailable: {why}")
@@ -93,6 +93,8 @@ class _Link:
                "-kernel", str(image)]
         if icount:
             cmd += ["-icount", "shift=0"]
+        if profile is not None:
+            cmd += ["-plugin", f"{insn_profile_plugin()},out={profile}"]
         self.proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         srv.settimeout(30.0)
         try:
@@ -196,7 +198,7 @@ class PilEcu(Ecu):
     image's per-runnable counts when ``measure`` is on (meaningful as instructions with ``icount``)."""
 
     def __init__(self, config: EcuConfig | None = None, *, icount: bool = False, measure: bool = False,
-                 image: Path | None = None):
+                 image: Path | None = None, profile: Path | None = None):
         self.config = config or EcuConfig.default()
         cfg = self.config.to_c()
         if lib.vh_ecu_config_complete(cfg) != lib.VH_OK and self.config.car is not None:
@@ -206,7 +208,11 @@ class PilEcu(Ecu):
         super().__init__(self.config)  # the host's ECU: the state mirror (and the same checks)
         self.icount = icount
         self.measure = measure
-        self._link = _Link(image or firmware_image(), icount=icount)
+        self.image = image or firmware_image()
+        #: with a file: the instructions QEMU executed per function, written there when the ECU is closed
+        #: (function_profile reads it)
+        self.profile = profile
+        self._link = _Link(self.image, icount=icount, profile=profile)
         try:
             hello = self._link_hello()
             if hello["config_size"] != ffi.sizeof("vh_ecu_config_t"):
@@ -389,6 +395,43 @@ class PilEcu(Ecu):
         self.close()
 
 
+def insn_profile_plugin() -> Path:
+    """QEMU's TCG plugin that counts the instructions executed per block (c_core/target/qemu_plugin), built
+    for this host once."""
+    sys.path.insert(0, str(C_CORE))
+    import cbuild  # type: ignore[import-not-found]
+
+    src = C_CORE / "target" / "qemu_plugin" / "vh_insn_profile.c"
+    import hashlib
+
+    out = C_CORE.parent / "build" / "qemu-plugin" / f"vh_insn_profile-{hashlib.sha256(src.read_bytes()).hexdigest()[:12]}.so"
+    if not out.exists():
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = out.with_suffix(f".{os.getpid()}.tmp")
+        subprocess.run([*cbuild.cc(), "-std=c11", "-O2", "-Wall", "-Wextra", "-Werror", "-shared", "-fPIC",
+                        "-fvisibility=hidden", str(src), "-o", str(tmp)], check=True, capture_output=True)
+        tmp.replace(out)
+    return out
+
+
+def function_profile(image: Path, profile: Path) -> dict[str, int]:
+    """Instructions executed per function of the image (the plugin's blocks, by their start address)."""
+    nm = subprocess.run(["arm-none-eabi-nm", "-S", "--defined-only", str(image)], check=True, capture_output=True,
+                        text=True).stdout
+    funcs = sorted((int(a, 16) & ~1, int(sz, 16), name) for a, sz, kind, name in
+                   (ln.split() for ln in nm.splitlines() if len(ln.split()) == 4) if kind in "tTwW")
+    starts = [f[0] for f in funcs]
+    import bisect
+
+    out: dict[str, int] = {}
+    for line in profile.read_text().splitlines():
+        addr, n = (int(v, 16) if i == 0 else int(v) for i, v in enumerate(line.split()))
+        i = bisect.bisect_right(starts, addr) - 1
+        name = funcs[i][2] if i >= 0 and addr < funcs[i][0] + max(funcs[i][1], 2) else f"0x{addr:x}"
+        out[name] = out.get(name, 0) + n
+    return dict(sorted(out.items(), key=lambda kv: -kv[1]))
+
+
 def calibrate(ecu: PilEcu, iterations: int = 100_000) -> float:
     """Instructions per SysTick count, measured: the image runs a loop of 2 instructions per iteration
     between two SysTick reads ('K'). 40 with ``-icount shift=0`` (25 MHz SysTick, 1 ns per instruction)."""
@@ -446,4 +489,5 @@ def run_pil(car, ecu: PilEcu):
                           "health": ecu.health()})
 
 
-__all__ = ["PilEcu", "PilError", "TickCosts", "calibrate", "firmware_image", "missing_tools", "run_pil"]
+__all__ = ["PilEcu", "PilError", "TickCosts", "calibrate", "firmware_image", "function_profile", "insn_profile_plugin",
+           "missing_tools", "run_pil"]

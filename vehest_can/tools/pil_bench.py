@@ -62,6 +62,36 @@ def measure(duration_s: float | None = 1.0, scenarios: list | None = None) -> di
     return out
 
 
+#: the frame link's own code: not the ECU's cost
+LINK_FUNCTIONS = frozenset({"main", "vh_uart_get", "vh_uart_put", "vh_uart_read", "vh_uart_write", "do_step", "do_rx",
+                            "send", "put_u32", "get_u32", "vh_target_probe", "memcpy"})
+
+
+def profile(scenario, duration_s: float | None = 0.5, top: int = 12) -> tuple[int, list[tuple[str, float]]]:
+    """(ticks, [(function, instructions per tick)]) of one scenario through the emulated ECU, counted per
+    function by QEMU's TCG plugin (c_core/target/qemu_plugin): where a system's instructions go. The
+    frame link's functions are left out; init's (the gear models' matrix exponential) are spread
+    over the ticks."""
+    import tempfile
+    from pathlib import Path
+
+    from ..service.pil import PilEcu, function_profile, run_pil
+    from ..systems import load_any_scenario
+
+    system, sc = load_any_scenario(scenario)
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "profile.txt"
+        ecu = PilEcu(profile=out)
+        try:
+            run_pil(system.car(sc, duration_s), ecu)
+            ticks = ecu.tick
+        finally:
+            ecu.close()
+        counts = function_profile(ecu.image, out)
+    rows = [(f, n / ticks) for f, n in counts.items() if f not in LINK_FUNCTIONS]
+    return ticks, rows[:top]
+
+
 def table(res: dict) -> str:
     lo, hi = CPI
     lines = [f"Cortex-M4F (QEMU mps2-an386, -icount shift=0; {res['calibration']:.0f} instructions per SysTick count): "
@@ -92,6 +122,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration", type=float, default=None, metavar="S",
                     help="seconds of each scenario (default: all of it)")
+    ap.add_argument("--profile", action="store_true",
+                    help="instead: the instructions per tick of each function, per scenario (QEMU's TCG plugin)")
     ap.add_argument("scenarios", nargs="*", help="scenario files (default: every shipped one)")
     args = ap.parse_args(argv)
     from ..service.pil import missing_tools
@@ -100,6 +132,15 @@ def main(argv: list[str] | None = None) -> int:
     if why:
         print(f"processor-in-the-loop unavailable: {why}", file=sys.stderr)
         return 1
+    if args.profile:
+        from ..systems import shipped_scenarios
+
+        for path in args.scenarios or shipped_scenarios():
+            ticks, rows = profile(path, args.duration or 0.5)
+            print(f"{path} ({ticks} ticks): instructions per tick")
+            for fn, n in rows:
+                print(f"  {fn:<28} {n:>9.0f}")
+        return 0
     res = measure(args.duration, args.scenarios or None)
     print(table(res))
     import json
