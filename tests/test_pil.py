@@ -209,3 +209,38 @@ def test_instruction_counts_and_stack(tmp_path):
     assert len(costs["tick"]) == 600 and all(costs[s].min() > 0 for s in ("drv", "camber", "tf", "roll", "rx"))
     assert np.all(costs["tick"] >= costs["tf"] + costs["roll"])
     assert 0 < stack["ticks"] < stack["size"] and 0 < stack["init"] < stack["size"]
+
+
+# -- the daemon over a bus -----------------------------------------------------------------------------
+@pytest.mark.multicast
+def test_daemon_with_the_emulated_ecu_in_lockstep_over_the_bus(tmp_path):
+    """`vehest-can daemon --target qemu --mode lockstep`: the roll loop closed over udp_multicast through
+    the emulated ECU, bit for bit the host's in-process run (0.3 s: its float32 path is identical there);
+    the session log replays identically on the host ECU; the daemon's summary is the target's state."""
+    import can
+    from daemonproc import start_daemon, stop_daemon
+
+    from vehest_can.bus.bus import open_bus, private_multicast
+    from vehest_can.sim.session import SimMaster
+    from vehest_can.systems.roll.scenario import RollCar, load_roll_scenario
+
+    require_pil()
+    sc = load_roll_scenario("roll_paper_72kph_active")
+    config = private_multicast()
+    proc = start_daemon(config, "--mode", "lockstep", "--target", "qemu", "--idle-timeout", "120", tmp_path=tmp_path)
+    try:
+        bus = open_bus(config)
+        try:
+            with can.Logger(str(tmp_path / "sim.log")) as writer:
+                session = SimMaster(bus, RollCar(sc, 0.3), log_writer=writer).run_lockstep()
+        finally:
+            bus.shutdown()
+    finally:
+        rc, err = stop_daemon(proc)
+    assert rc == 0, err
+    local = run_inprocess(RollCar(sc, 0.3), Ecu())
+    assert len(session.frames) == len(local.frames) > 1000
+    assert np.array_equal(session.frames, local.frames) and np.array_equal(session.truth, local.truth)
+    r = replay(read_log(tmp_path / "sim.log"))
+    assert r.paced_by == "sync" and r.identical
+    assert "health: " in err and "roll_ukf=OK" in err
