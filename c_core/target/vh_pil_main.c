@@ -203,23 +203,29 @@ static void do_cal(size_t len)
     send(MSG_CAL, r, sizeof r);
 }
 
-/* The float32 functions the firmware calls from newlib, on the target's own build of them */
+/* The float32 functions the firmware calls from newlib, on the target's own build of them; in place */
 static void do_libm(size_t len)
 {
-    static float v[(MAX_PAYLOAD - 1u) / sizeof(float)];
-    size_t i, n = (len - 1u) / sizeof(float);
+    size_t i, m = 0u;
+    const size_t n = (len - 1u) / sizeof(float);
     const uint8_t fn = in.raw[0];
-    memcpy(v, in.raw + 1, n * sizeof(float));
+    uint8_t *v = in.raw + 1;
     for (i = 0; i < n; ++i) {
+        float x, y = 0.0f, r;
+        memcpy(&x, v + 4u * i, sizeof x);
         switch (fn) {
-        case 0: v[i] = sinf(v[i]); break;
-        case 1: v[i] = cosf(v[i]); break;
-        case 2: v[i] = atanf(v[i]); break;
-        case 3: v[i / 2u] = atan2f(v[i], v[i + 1u]); ++i; break;
-        default: v[i] = sqrtf(v[i]); break;
+        case 0: r = sinf(x); break;
+        case 1: r = cosf(x); break;
+        case 2: r = atanf(x); break;
+        case 3:
+            memcpy(&y, v + 4u * ++i, sizeof y);
+            r = atan2f(x, y);
+            break;
+        default: r = sqrtf(x); break;
         }
+        memcpy(v + 4u * m++, &r, sizeof r);
     }
-    send(MSG_LIBM, v, (fn == 3 ? n / 2u : n) * sizeof(float));
+    send(MSG_LIBM, v, m * sizeof(float));
 }
 
 int main(void)
