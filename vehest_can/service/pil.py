@@ -201,9 +201,9 @@ class PilEcu(Ecu):
                  image: Path | None = None, profile: Path | None = None):
         self.config = config or EcuConfig.default()
         cfg = self.config.to_c()
-        if lib.vh_ecu_config_complete(cfg) != lib.VH_OK and self.config.car is not None:
-            check_car(self.config.car, plant=False)
-        if lib.vh_ecu_config_complete(cfg) != lib.VH_OK:
+        if lib.vh_ecu_config_complete(cfg) != lib.VH_OK:  # completed in place: the calibration block
+            if self.config.car is not None:
+                check_car(self.config.car, plant=False)  # names the car's key when it is the car
             raise ConfigError("ECU configuration: invalid configuration value")
         super().__init__(self.config)  # the host's ECU: the state mirror (and the same checks)
         self.icount = icount
