@@ -166,6 +166,27 @@ def test_roll_golden_record_on_the_emulated_ecu(target):
     assert lines == golden and len(golden) == 150  # the record's first 0.5 s
 
 
+def test_a_calibration_set_on_the_host_copy_reaches_the_target(target):
+    """The camber calibration (--camber-cal) on the emulated ECU: set by the flashed setter on the host's
+    copy of the target's state, written back (longer than one message), read back the same."""
+    from vehest_can.systems.camber.api import WHEELS, Calibration, load_into_ecu
+
+    cals = {w: Calibration.identity(0.002 + 0.001 * i) for i, w in enumerate(WHEELS)}
+    target.reset()
+    target.apply(lambda e: load_into_ecu(e, cals))
+
+    def windows(ecu) -> bytes:  # the four devices' windows, their calibrations in them
+        return bytes(ffi.buffer(ffi.addressof(ecu.c.app.camber, "cmb")))
+
+    expected = windows(target)
+    ffi.memmove(ffi.addressof(target.c.app.camber, "cmb"), bytes(len(expected)), len(expected))  # forget the copy
+    target.read_state()
+    assert windows(target) == expected
+    host = Ecu()
+    load_into_ecu(host, cals)
+    assert windows(host) == expected
+
+
 def test_newlib_float_functions_against_the_hosts(target):
     """The float32 functions the firmware takes from libm, newlib's (on the target) against the host's:
     sqrtf is exact on both; sinf, cosf, atanf, atan2f differ by one ulp at most, in a measured share of

@@ -294,8 +294,9 @@ class PilEcu(Ecu):
     def write_state(self) -> None:
         """Copy the host mirror's vh_ecu_t (up to the XCP slave) into the target."""
         data = bytes(ffi.buffer(self.c, self._state_end))
-        for at in range(0, len(data), 0xF000):
-            self._link.queue(b"P", struct.pack("<I", at) + data[at:at + 0xF000])
+        chunk = ffi.sizeof("vh_ecu_config_t") - 4  # the image takes messages up to its calibration block's size
+        for at in range(0, len(data), chunk):
+            self._link.queue(b"P", struct.pack("<I", at) + data[at:at + chunk])
             self._link.answer(b"P")
 
     def apply(self, change) -> None:
