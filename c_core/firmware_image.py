@@ -5,7 +5,8 @@ support of ``c_core/target/`` (startup, linker script, the UART frame link, main
 ``cbuild.TARGET_CC`` and ``cbuild.TARGET_FLAGS`` (``-ffp-contract=off`` as on the host), linked
 with newlib (nano) and libgcc into an ELF the emulator loads with ``-kernel``. Host-only code cannot
 reach the image: it is not compiled, so a flashed call into it is an undefined reference and the
-link fails. The scheduler is built with its timing probe (``VH_ECU_PROBE``).
+link fails. Each application's runnables are linked through ``--wrap`` (``c_core/target/vh_probe.c``) so
+the image can time each application's share of a tick without a line in the scheduler.
 
 ``python c_core/firmware_image.py [--out DIR]`` (``make firmware-image``) builds it and prints its
 flash and RAM from the map file, per folder. ``image()`` is what the processor-in-the-loop host
@@ -57,6 +58,17 @@ def sources(gen_dir: Path) -> tuple[list[Path], list[Path]]:
     return fw, sorted(vehest_build.TARGET_DIR.glob("*.c"))
 
 
+def runnables() -> list[str]:
+    """Every application's runnable functions (``vh_<m>_app_<fn>`` of VH_APP_STEP / VH_APP_TX), from the
+    descriptors the scheduler is expanded from (c_core/ecu/vh_ecu_apps.inc)."""
+    inc = (HERE / "ecu" / "vh_ecu_apps.inc").read_text()
+    out = []
+    for name in re.findall(r'#include "(\w+\.def)"', inc):
+        text = vehest_build.firmware_path(name).read_text()
+        out += [f"vh_{m}_app_{fn}" for m, fn in re.findall(r"^VH_APP_(?:STEP|TX)\((\w+),\s*(\w+)", text, re.M)]
+    return out
+
+
 def _inputs_digest(opt: str) -> str:
     h = hashlib.sha256()
     files = [p for d in (*vehest_build.FIRMWARE_DIRS, vehest_build.TARGET_DIR) for p in sorted(d.iterdir())
@@ -83,8 +95,7 @@ def build(out_dir: Path, opt: str = OPT) -> Path:
         obj = out_dir / "obj" / folder / (src.stem + ".o")
         obj.parent.mkdir(parents=True, exist_ok=True)
         inc = fw_inc + ([f"-I{vehest_build.TARGET_DIR}"] if src in board else [])
-        probe = ["-DVH_ECU_PROBE=vh_target_probe"] if src.name == "vh_ecu.c" else []
-        r = subprocess.run([*base, *probe, *inc, "-c", str(src), "-o", str(obj)], capture_output=True, text=True)
+        r = subprocess.run([*base, *inc, "-c", str(src), "-o", str(obj)], capture_output=True, text=True)
         if r.returncode:
             raise RuntimeError(f"{CC} failed on {src.name}:\n{r.stderr}")
         return obj
@@ -92,7 +103,8 @@ def build(out_dir: Path, opt: str = OPT) -> Path:
     with ThreadPoolExecutor(2) as pool:
         objs = list(pool.map(compile_one, fw + board))
     elf = out_dir / IMAGE_NAME
-    r = subprocess.run([CC, *cbuild.TARGET_FLAGS, *LINK_FLAGS, "-T", str(LINKER_SCRIPT),
+    wraps = [f"-Wl,--wrap={fn}" for fn in runnables()]
+    r = subprocess.run([CC, *cbuild.TARGET_FLAGS, *LINK_FLAGS, *wraps, "-T", str(LINKER_SCRIPT),
                         f"-Wl,-Map={elf.with_suffix('.map')}", *map(str, objs), "-lm", "-o", str(elf)],
                        capture_output=True, text=True)
     if r.returncode:

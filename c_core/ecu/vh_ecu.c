@@ -98,33 +98,6 @@ static const struct {
 #undef VH_APP_STEP
 #undef VH_APP_TX
 
-/* A target build's timing probe (c_core/target: -DVH_ECU_PROBE=<function>): called with i as
- * runnable i starts, and once more after the last (before SecOC's and XCP's TX);
- * vh_ecu_probe_owner[i] names runnable i's application. Nothing on the host. */
-#ifdef VH_ECU_PROBE
-void VH_ECU_PROBE(size_t i);
-extern const char *const vh_ecu_probe_owner[];
-extern const size_t vh_ecu_probe_runnables;
-#define VH_APP(m, order)
-#define VH_APP_RX(m, id)
-#define VH_APP_STEP(m, fn, period) #m,
-#define VH_APP_TX(m, fn, MSG, period) #m,
-const char *const vh_ecu_probe_owner[] = {
-    "xcp",
-#include "vh_ecu_apps.inc"
-    "xcp", "xcp", "xcp",
-};
-typedef char vh_ecu_probe_owner_check[(sizeof vh_ecu_probe_owner / sizeof vh_ecu_probe_owner[0]
-                                       == sizeof RUNNABLES / sizeof RUNNABLES[0]) ? 1 : -1];
-const size_t vh_ecu_probe_runnables = sizeof RUNNABLES / sizeof RUNNABLES[0];
-#undef VH_APP
-#undef VH_APP_RX
-#undef VH_APP_STEP
-#undef VH_APP_TX
-#else
-#define VH_ECU_PROBE(i) ((void)0)
-#endif
-
 static vh_app_ctx_t ctx_of(vh_ecu_t *ecu)
 {
     vh_app_ctx_t c;
@@ -197,7 +170,6 @@ size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap)
     size_t i, n = 0u;
     vh_app_ctx_t ctx = ctx_of(ecu);
     for (i = 0; i < sizeof RUNNABLES / sizeof RUNNABLES[0]; ++i) {
-        VH_ECU_PROBE(i);
         if (ecu->tick % RUNNABLES[i].period_ticks != 0u) {
             continue;
         }
@@ -211,7 +183,6 @@ size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap)
             }
         }
     }
-    VH_ECU_PROBE(i);
     if (ecu->secoc != NULL) { /* the applications' frames secured, sync frames when due */
         n = vh_secoc_bus_tx(ecu->secoc, tx, n, cap);
     }

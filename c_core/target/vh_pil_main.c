@@ -10,28 +10,25 @@
 #include <string.h>
 
 #include "vh_ecu.h"
+#include "vh_probe.h"
 #include "vh_target.h"
-
-void vh_target_probe(size_t i);
-extern const char *const vh_ecu_probe_owner[];
-extern const size_t vh_ecu_probe_runnables;
 
 enum {
     MSG_INIT = 'I',   /* -> config bytes; <- i32 status, u32 sizeof config, u32 init stack depth */
     MSG_RX = 'R',     /* -> u32 id, u8 flags, u8 len, data[len]; no answer */
     MSG_STEP = 'S',   /* -> -; <- 'T' */
-    MSG_TX = 'T',     /* u32 tick, u8 n, n x (u32 id, u8 flags, u8 len, data[len]), u8 m, m x u32 counts */
+    MSG_TX = 'T',     /* u32 tick, u8 n, n x (u32 id, u8 flags, u8 len, data[len]), u8 m, m x u32 counts:
+                         each application's, the whole vh_ecu_step, the tick's vh_ecu_rx calls */
     MSG_RESET = 'Z',  /* -> -; <- 'Z' */
     MSG_READ = 'M',   /* -> u32 offset, u32 len in vh_ecu_t; <- the bytes */
     MSG_WRITE = 'P',  /* -> u32 offset, bytes into vh_ecu_t (a calibration the host applied to its copy); <- 'P' */
     MSG_STACK = 'W',  /* -> -; <- u32 deepest since the last 'W' (or init), u32 main's depth, u32 size; repaints */
     MSG_CAL = 'K',    /* -> u32 n; <- u32 SysTick counts of a loop of n x 2 instructions */
     MSG_LIBM = 'Q',   /* -> u8 function, floats; <- the function of each (pairs for atan2f): newlib against the host's libm */
-    MSG_HELLO = 'H',  /* -> -; <- u32 sizeof vh_ecu_config_t, u32 sizeof vh_ecu_t, u16 runnables, their owners */
+    MSG_HELLO = 'H',  /* -> -; <- u32 sizeof vh_ecu_config_t, u32 sizeof vh_ecu_t, u16 applications, their names */
     MSG_ERROR = 'E'   /* <- a message it did not understand: its type */
 };
 
-#define MAX_PROBES 48
 #define MAX_PAYLOAD sizeof(vh_ecu_config_t)
 
 static vh_ecu_t ecu;
@@ -39,20 +36,10 @@ static union {
     vh_ecu_config_t cfg;
     uint8_t raw[MAX_PAYLOAD];
 } in;
-static uint8_t out[4u + 1u + VH_ECU_MAX_TX * (6u + VH_FRAME_MAX_LEN) + 1u + 4u * MAX_PROBES];
+static uint8_t out[4u + 1u + VH_ECU_MAX_TX * (6u + VH_FRAME_MAX_LEN) + 1u + 4u * (VH_PROBE_MAX_APPS + 2u)];
 static vh_frame_t tx[VH_ECU_MAX_TX];
-static uint32_t probe[MAX_PROBES];
 static uint32_t rx_counts; /* SysTick counts in vh_ecu_rx since the last tick */
 static uint32_t main_depth;
-
-typedef char vh_probe_room[(MAX_PROBES >= 24) ? 1 : -1];
-
-void vh_target_probe(size_t i)
-{
-    if (i < MAX_PROBES) {
-        probe[i] = vh_systick_now();
-    }
-}
 
 static uint32_t elapsed(uint32_t from, uint32_t to) { return (from - to) & 0xFFFFFFu; } /* a down-counter */
 
@@ -80,9 +67,9 @@ static void send(uint8_t type, const void *payload, size_t n)
 static void do_step(void)
 {
     size_t n, i, k, pos = 5u;
-    const size_t runnables = vh_ecu_probe_runnables;
     uint32_t t0, t1;
     put_u32(out, ecu.tick);
+    memset(vh_probe_counts, 0, sizeof vh_probe_counts);
     t0 = vh_systick_now();
     n = vh_ecu_step(&ecu, tx, VH_ECU_MAX_TX);
     t1 = vh_systick_now();
@@ -94,15 +81,13 @@ static void do_step(void)
         memcpy(out + pos + 6, tx[i].data, tx[i].len);
         pos += 6u + tx[i].len;
     }
-    /* each runnable's counts, then SecOC's and XCP's TX, the whole step, the tick's RX */
-    out[pos++] = (uint8_t)(runnables + 3u);
-    for (k = 0; k < runnables; ++k, pos += 4) {
-        put_u32(out + pos, elapsed(probe[k], probe[k + 1]));
+    out[pos++] = (uint8_t)(VH_ECU_N_APPS + 2u);
+    for (k = 0; k < VH_ECU_N_APPS; ++k, pos += 4) {
+        put_u32(out + pos, vh_probe_counts[k]);
     }
-    put_u32(out + pos, elapsed(probe[runnables], t1));
-    put_u32(out + pos + 4, elapsed(t0, t1));
-    put_u32(out + pos + 8, rx_counts);
-    pos += 12u;
+    put_u32(out + pos, elapsed(t0, t1));
+    put_u32(out + pos + 4, rx_counts);
+    pos += 8u;
     rx_counts = 0u;
     send(MSG_TX, out, pos);
 }
@@ -147,14 +132,11 @@ static void do_hello(void)
     size_t k, pos = 10u;
     put_u32(out, (uint32_t)sizeof(vh_ecu_config_t));
     put_u32(out + 4, (uint32_t)sizeof(vh_ecu_t));
-    out[8] = (uint8_t)vh_ecu_probe_runnables;
-    out[9] = (uint8_t)(vh_ecu_probe_runnables >> 8);
-    for (k = 0; k < vh_ecu_probe_runnables; ++k) {
-        const size_t n = strlen(vh_ecu_probe_owner[k]) + 1u;
-        if (pos + n > sizeof out) {
-            break;
-        }
-        memcpy(out + pos, vh_ecu_probe_owner[k], n);
+    out[8] = (uint8_t)VH_ECU_N_APPS;
+    out[9] = 0u;
+    for (k = 0; k < VH_ECU_N_APPS; ++k) {
+        const size_t n = strlen(vh_probe_app_name[k]) + 1u;
+        memcpy(out + pos, vh_probe_app_name[k], n);
         pos += n;
     }
     send(MSG_HELLO, out, pos);

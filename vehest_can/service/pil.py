@@ -170,25 +170,23 @@ class _Link:
 
 @dataclass
 class TickCosts:
-    """SysTick counts the image measured, one row per tick: each runnable (named by its application),
-    then SecOC's and XCP's TX, the whole vh_ecu_step, and the tick's vh_ecu_rx calls."""
+    """SysTick counts the image measured, one row per tick: each application's runnables (its step and
+    its TX frames), the whole vh_ecu_step, and the tick's vh_ecu_rx calls."""
     owners: list[str]
     rows: list = field(default_factory=list)
 
     def array(self) -> np.ndarray:
-        return np.array(self.rows, dtype=np.int64).reshape(-1, len(self.owners) + 3)
+        return np.array(self.rows, dtype=np.int64).reshape(-1, len(self.owners) + 2)
 
     def per_system(self) -> dict[str, np.ndarray]:
-        """Instructions per tick (with icount): each application's runnables, the RX of the tick's
-        frames, the scheduler's own (XCP's hooks, SecOC and XCP TX, the loop) and the whole tick."""
+        """Instructions per tick (with icount): each application, the RX of the tick's frames, the
+        scheduler's own (the loop, XCP's hooks, SecOC and XCP TX) and the whole tick."""
         a = self.array() * INSNS_PER_COUNT
         n = len(self.owners)
-        out: dict[str, np.ndarray] = {}
-        for i, owner in enumerate(self.owners):
-            out[owner] = out.get(owner, 0) + a[:, i]
-        out["xcp"] = out.get("xcp", 0) + a[:, n]
-        out["rx"] = a[:, n + 2]
-        out["tick"] = a[:, n + 1] + a[:, n + 2]
+        out = {owner: a[:, i] for i, owner in enumerate(self.owners)}
+        out["scheduler"] = a[:, n] - a[:, :n].sum(axis=1)
+        out["rx"] = a[:, n + 1]
+        out["tick"] = a[:, n] + a[:, n + 1]
         return out
 
 

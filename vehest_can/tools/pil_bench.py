@@ -50,7 +50,7 @@ def measure(duration_s: float | None = 1.0, scenarios: list | None = None) -> di
             rx.append(c["rx"])
             tick.append(c["tick"])
             busiest.append((float(np.median(c["tick"])), int(c["tick"].max()), sc.name))
-            overhead.append(c["xcp"])
+            overhead.append(c["scheduler"])
             deepest = max(deepest, ecu.stack()["ticks"])
         stack = ecu.stack() | {"ticks": deepest, "reset": reset_depth}
     out: dict[str, Any] = {"systems": {}, "calibration": cal, "stack": stack}
@@ -69,7 +69,7 @@ def measure(duration_s: float | None = 1.0, scenarios: list | None = None) -> di
 
 #: the frame link's own code: not the ECU's cost
 LINK_FUNCTIONS = frozenset({"main", "vh_uart_get", "vh_uart_put", "vh_uart_read", "vh_uart_write", "do_step", "do_rx",
-                            "send", "put_u32", "get_u32", "vh_target_probe", "memcpy"})
+                            "send", "put_u32", "get_u32", "memcpy"})
 
 
 def profile(scenario, duration_s: float | None = 0.5, top: int = 12) -> tuple[int, list[tuple[str, float]]]:
