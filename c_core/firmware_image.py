@@ -120,11 +120,14 @@ def image(opt: str = OPT) -> Path:
     out = CACHE / _inputs_digest(opt)
     elf = out / IMAGE_NAME
     if not elf.exists():
-        with tempfile.TemporaryDirectory(dir=CACHE.parent if CACHE.parent.exists() else None) as tmp:
+        CACHE.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(dir=CACHE) as tmp:
             built = build(Path(tmp) / "img", opt)
-            out.parent.mkdir(parents=True, exist_ok=True)
-            shutil.rmtree(out, ignore_errors=True)
-            shutil.move(str(built.parent), str(out))
+            try:
+                built.parent.rename(out)  # atomic: a process building the same image at once keeps its own
+            except OSError:
+                if not elf.exists():
+                    raise
     return elf
 
 
