@@ -128,6 +128,28 @@ def test_the_calibration_block_and_the_state_have_one_layout_on_host_and_target(
     assert kinds - fixed <= {"int"}, kinds - fixed
 
 
+def test_the_image_holds_no_host_code_and_the_extension_no_board_code(tmp_path):
+    """The build boundary both ways: no function of a *_host.c (nor OpenSSL's AES) is in the image, which
+    links the target's AES backend instead; no file of c_core/target is in the host's extension."""
+    import re
+
+    sys.path.insert(0, str(ROOT / "c_core"))
+    import firmware_image
+
+    assert not {p.name for p in vehest_build.TARGET_DIR.glob("*.c")} & \
+        {p.name for p in vehest_build.firmware_sources(tmp_path / "gen")}
+    require_pil(firmware_image.missing_toolchain())
+    host = {name for d in vehest_build.FIRMWARE_DIRS for p in d.glob(vehest_build.HOST_ONLY_GLOB)
+            for name in re.findall(r"^[a-z][\w ]*?\b(vh_\w+)\(", p.read_text(), re.M)}
+    host -= {"vh_aes128_setkey", "vh_aes128_encrypt"}  # the driver interface: the target's own backend
+    assert {"vh_ecu_init", "vh_ecu_config_complete", "vh_skfq_params_from_config"} <= host
+    nm = subprocess.run(["arm-none-eabi-nm", "--defined-only", str(firmware_image.image())], check=True,
+                        capture_output=True, text=True).stdout
+    defined = {ln.split()[-1] for ln in nm.splitlines()}
+    assert not host & defined and "AES_encrypt" not in defined
+    assert {"vh_ecu_init_params", "vh_ecu_step", "vh_secoc_bus_rx", "vh_reset_handler"} <= defined
+
+
 # -- the same bits ----------------------------------------------------------------------------------
 def test_golden_log_on_the_emulated_ecu_gives_the_golden_frames(target):
     """tests/tireforce/data/chassis_golden.log through the image: every ECU frame (600 ticks: SKFMEC,
