@@ -8,7 +8,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 SOURCES := $(shell find c_core firmware_sim dbc -type f \( -name '*.c' -o -name '*.h' -o -name '*.inc' -o -name '*.def' -o -name '*.dbc' -o -name '*.py' \)) pyproject.toml setup.py
 
-.PHONY: demo test check bench install clean firmware-size
+.PHONY: demo test check bench install clean firmware-size firmware-image
 
 demo: $(STAMP)
 	$(BIN)/vehest-can demo $(ARGS)
@@ -27,6 +27,11 @@ install: $(STAMP)
 # Each system's flash (text/data/bss) and worst-case stack for a Cortex-M4F (arm-none-eabi-gcc -Os).
 firmware-size: $(STAMP)
 	$(BIN)/python c_core/firmware_size.py $(ARGS)
+
+# The ECU as an image for QEMU's mps2-an386 (Cortex-M4F; docs/firmware.md, "Processor in the loop"):
+# built into build/firmware-image/<hash>/, its flash and RAM from the map file.
+firmware-image: $(STAMP)
+	$(BIN)/python c_core/firmware_image.py $(ARGS)
 
 $(STAMP): $(SOURCES)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)

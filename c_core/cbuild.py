@@ -14,8 +14,15 @@ from pathlib import Path
 
 STRICT_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
 # -O3: lets the compiler vectorise the 4x4 products of the filter step (~25% faster than -O2); no
-# -ffast-math and no FMA contraction on plain x86-64, so every build gives the same numbers
-OPT_FLAGS = ["-O3"]
+# -ffast-math. -ffp-contract=off on the host and the target alike (-std=c99 implies it, said here so
+# that no other mode brings it back): a*b+c fused into one FMA rounds once, so a Cortex-M4F
+# (VFMA.F32) or an x86-64 with FMA would give other float bits than the plain build
+FP_FLAGS = ["-ffp-contract=off"]
+OPT_FLAGS = ["-O3", *FP_FLAGS]
+
+#: the Cortex-M4F the firmware is written for (firmware_size.py, firmware_image.py)
+TARGET_CC = "arm-none-eabi-gcc"
+TARGET_FLAGS = ["-mcpu=cortex-m4", "-mthumb", "-mfloat-abi=hard", "-mfpu=fpv4-sp-d16", *FP_FLAGS]
 
 
 def cc() -> list[str]:

@@ -24,12 +24,13 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
+import cbuild  # noqa: E402
 import dbcgen  # noqa: E402
 import vehest_build  # noqa: E402
 
-CC = "arm-none-eabi-gcc"
+CC = cbuild.TARGET_CC
 SIZE = "arm-none-eabi-size"
-TARGET = ["-mcpu=cortex-m4", "-mthumb", "-mfloat-abi=hard", "-mfpu=fpv4-sp-d16", "-Os"]
+TARGET = [*cbuild.TARGET_FLAGS, "-Os"]
 
 _NODE = re.compile(r'node: \{ title: "([^"]+)" label: "([^"]*)"( shape : ellipse)?')
 _FRAME = re.compile(r"(\d+) bytes \((\w+)\)")

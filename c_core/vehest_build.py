@@ -39,6 +39,9 @@ FIRMWARE_DIRS = [HERE / "common", *(HERE / s for s in SYSTEMS), HERE / "xcp", HE
 LINK_FLAGS = ["-lm", libcrypto()]
 SIM_SRC_DIR = ROOT / "firmware_sim" / "src"
 SIM_INCLUDE_DIR = ROOT / "firmware_sim" / "include"
+#: the board support of the firmware image for an emulated Cortex-M4F (startup, linker script, the
+#: frame link, main: c_core/firmware_image.py); never in the extension
+TARGET_DIR = HERE / "target"
 #: built into the extension but never flashed (host-side calibration helpers)
 HOST_ONLY_GLOB = "*_host.c"
 

@@ -46,6 +46,9 @@ typedef struct {
  * application completes first (vh_<m>_app_config_host, e.g. fixed-point constants; VH_EINVAL if
  * it does not fit). */
 void vh_ecu_config_default(vh_ecu_config_t *cfg);
+/* What vh_ecu_init does before the flashed init: each application completes cfg in place (the
+ * calibration block a target is sent); VH_EINVAL if one does not fit. */
+int vh_ecu_config_complete(vh_ecu_config_t *cfg);
 int vh_ecu_init(vh_ecu_t *ecu, const vh_ecu_config_t *cfg);
 /* The flashed init: the configuration comes complete (on a target, a calibration block).
  * VH_OK, or VH_EINVAL for an invalid configuration (nothing changed). */

@@ -15,13 +15,21 @@ void vh_ecu_config_default(vh_ecu_config_t *cfg)
     cfg->rx_burst_frames = VH_ECU_BURST_FRAMES;
 }
 
-int vh_ecu_init(vh_ecu_t *ecu, const vh_ecu_config_t *cfg)
+int vh_ecu_config_complete(vh_ecu_config_t *cfg)
 {
-    vh_ecu_config_t c = *cfg; /* completed here, the caller's left as it is */
-#define HOST(m) || vh_##m##_app_config_host(&c.app.m) != VH_OK
+#define HOST(m) || vh_##m##_app_config_host(&cfg->app.m) != VH_OK
     if (0 VH_ECU_APPS(HOST)) {
         return VH_EINVAL;
     }
 #undef HOST
+    return VH_OK;
+}
+
+int vh_ecu_init(vh_ecu_t *ecu, const vh_ecu_config_t *cfg)
+{
+    vh_ecu_config_t c = *cfg; /* completed here, the caller's left as it is */
+    if (vh_ecu_config_complete(&c) != VH_OK) {
+        return VH_EINVAL;
+    }
     return vh_ecu_init_params(ecu, &c);
 }

@@ -22,6 +22,7 @@ from ._common import (
     open_session_log,
     secoc_from_args,
 )
+from ._target import add_target_argument, make_ecu, refuse_on_qemu
 
 if TYPE_CHECKING:  # annotations only: the verb's parser loads none of it
     from ..systems.ecu import Ecu
@@ -59,6 +60,7 @@ def add_subparser(subparsers) -> None:
                         "each, each frame sent on its DBC's bus; instead of the python-can bus flags")
     add_car_argument(p, "the car the ECU is calibrated for (a car file, docs/car.md, or a shipped car's name: "
                         "paper, commonroad_vehicle1 .. 3); default: the paper's")
+    add_target_argument(p)
     sdnotify.add_log_level(p)
     add_xcp_arguments(p)  # the XCP slave in the ECU (its own flags, docs/xcp.md)
     add_secoc_arguments(p)
@@ -69,7 +71,7 @@ def add_subparser(subparsers) -> None:
 def run(args) -> int:
     from ..service import sdnotify
     from ..systems.camber.api import load_calibrations, load_into_ecu
-    from ..systems.ecu import Ecu, EcuConfig
+    from ..systems.ecu import EcuConfig
     from ..xcp import ecu as xcp_ecu
 
     for flag, value in (("--duration", args.duration), ("--idle-timeout", args.idle_timeout),
@@ -86,10 +88,20 @@ def run(args) -> int:
     elif args.report:
         raise ConfigError("--report applies to --mode realtime (a lockstep daemon's time is the simulator's)")
     check_log_arguments(args)
+    if args.target == "qemu" and args.mode != "lockstep":
+        raise ConfigError("--target qemu needs --mode lockstep: an emulator's time is not the target's, it cannot "
+                          "keep a 2 kHz wall clock")
+    refuse_on_qemu(args, **{"--xcp": "the emulated board has no AES backend for the slave's seed & key",
+                            "--secoc-keys": "the emulated board has no AES backend"})
     sdnotify.apply_log_level(args.log_level)
-    ecu = Ecu(replace(EcuConfig.default(), rx_burst_frames=args.rx_burst_limit, car=car_from_args(args, plant=False)))
+    ecu = make_ecu(args, replace(EcuConfig.default(), rx_burst_frames=args.rx_burst_limit,
+                                 car=car_from_args(args, plant=False)))
     if args.camber_cal:
-        load_into_ecu(ecu, load_calibrations(args.camber_cal))
+        cals = load_calibrations(args.camber_cal)
+        if hasattr(ecu, "apply"):  # the emulated ECU: set on the host's copy of its state, written back
+            ecu.apply(lambda e: load_into_ecu(e, cals))
+        else:
+            load_into_ecu(ecu, cals)
     xcp = xcp_ecu.from_args(args, ecu)
     xcp_config = xcp_ecu.bus_config(args, xcp)  # checked before any bus opens
     secoc = secoc_from_args(args, "VEHEST")
@@ -102,6 +114,8 @@ def run(args) -> int:
     finally:
         if ecu.secoc is not None:
             ecu.secoc.close()  # the exact state of a clean end (a kill -9 leaves the last second's)
+        if hasattr(ecu, "close"):
+            ecu.close()  # the emulator
 
 
 def _serve(args, ecu: Ecu, xcp, xcp_config) -> int:

@@ -15,9 +15,10 @@ from typing import TYPE_CHECKING
 
 from ..bus import bus as busmod
 from ..bus.formats import FORMATS
-from ..errors import VehestError
+from ..errors import ConfigError, VehestError
 from ..sim import PLANTS
 from ._common import CAR_HELP, add_car_argument, car_from_args, check_seconds, ecu_car, has_car, with_car
+from ._target import add_target_argument
 
 if TYPE_CHECKING:  # annotations only: the verb's parser loads none of it
     from ..systems import System
@@ -52,6 +53,7 @@ def add_subparser(subparsers) -> None:
                    help="one session log per bus (session-pt.log, session-ch.log) instead of one with a channel per bus")
     add_car_argument(p, CAR_HELP + "; the ECU daemon and the references of the metrics are calibrated for the "
                                    "same car (scenarios naming different cars need --car)")
+    add_target_argument(p)
     busmod.add_arguments(p)
     p.set_defaults(func=run)
 
@@ -66,6 +68,12 @@ def run(args, systems: list[System] | None = None) -> int:
     from ..systems import Setup, load_any_scenario, registered, shipped_scenarios
 
     check_seconds(args.realtime, "--realtime", zero=True)
+    if getattr(args, "target", "host") == "qemu":
+        if args.realtime:
+            raise ConfigError("--realtime with --target qemu: the emulated ECU runs in lockstep only")
+        if args.secoc == "on":
+            print("SecOC: off (--target qemu: the emulated board has no AES backend)")
+            args.secoc = "off"
     systems = registered() if systems is None else systems
     paths = [Path(p) for p in args.scenarios] or shipped_scenarios(systems)
     runs = [load_any_scenario(p, systems) for p in paths]
@@ -88,6 +96,7 @@ def run(args, systems: list[System] | None = None) -> int:
     for st in setups.values():
         st.car = car
     daemon_args = [a for st in setups.values() for a in st.daemon_args] + (["--car", car_spec(car)] if car else [])
+    daemon_args += ["--target", args.target] if getattr(args, "target", "host") != "host" else []
     with tempfile.TemporaryDirectory(prefix="vehest-secoc-") as keydir:
         keys = _dev_keys(Path(keydir)) if args.secoc == "on" else None
         secoc_args = []

@@ -7,6 +7,7 @@ from ..bus import bus as busmod
 from ..bus.formats import MAX_GAP_S, TABLE_FORMATS
 from ..errors import ConfigError
 from ._common import add_car_argument, car_from_args, check_range
+from ._target import add_target_argument, make_ecu
 
 _BUS_FLAGS = ("interface", "channel", "bitrate", "fd", "data_bitrate", "timing", "bus_kwargs", "bus_config", "bus_context")
 
@@ -38,6 +39,7 @@ def add_subparser(subparsers) -> None:
     add_car_argument(p, "the car the ECU is calibrated for (a car file, docs/car.md, or a shipped car's name: "
                         "paper, commonroad_vehicle1 .. 3); default: the paper's. A log recorded with an ECU "
                         "calibrated for another car replays DIFFERENT")
+    add_target_argument(p)
     busmod.add_arguments(p)
     p.set_defaults(func=run)
 
@@ -45,23 +47,33 @@ def add_subparser(subparsers) -> None:
 def run(args) -> int:
     # a gap shorter than a tick is no gap; an hour of idle ticks is 7.2 M steps of the ECU
     from ..bus.frames import TICK_S
-    from ..bus.log import SessionLog, check_log_file, check_log_path
-    from ..progress import Progress
-    from ..service.estimates import EstimateTable, check_table_path
-    from ..service.replay import ECU_TX, replay_file
-    from ..systems.ecu import Ecu, EcuConfig
+    from ..bus.log import check_log_file
+    from ..systems.ecu import EcuConfig
 
     check_range(args.max_gap, "--max-gap", TICK_S, 3600.0, "seconds")
     if args.play:
-        if args.car:
-            raise ConfigError("--car calibrates the offline replay's ECU; --play only sends the log onto a bus")
+        if args.car or args.target != "host":
+            raise ConfigError("--car and --target choose the offline replay's ECU; --play only sends the log onto a bus")
         return _play(args)
     given = [f for f in _BUS_FLAGS if getattr(args, f, None) not in (None, False, [], {})]  # python-can's: absent if not given
     if given:
         raise ConfigError(f"bus options ({', '.join('--' + f.replace('_', '-') for f in given)}) apply to --play only: "
                           "the offline replay uses no bus")
     check_log_file(args.log)
-    ecu = Ecu(EcuConfig(car=car_from_args(args, plant=False)))
+    ecu = make_ecu(args, EcuConfig(car=car_from_args(args, plant=False)))
+    try:
+        return _replay(args, ecu)
+    finally:
+        if hasattr(ecu, "close"):
+            ecu.close()  # the emulator
+
+
+def _replay(args, ecu) -> int:
+    from ..bus.log import SessionLog, check_log_path
+    from ..progress import Progress
+    from ..service.estimates import EstimateTable, check_table_path
+    from ..service.replay import ECU_TX, replay_file
+
     table_path = check_table_path(args.table) if args.table else None
     writer = SessionLog(check_log_path(args.output), {"VEHEST"}) if args.output else None
     table = None
