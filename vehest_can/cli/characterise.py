@@ -5,10 +5,8 @@ import json
 from pathlib import Path
 
 from ..errors import ConfigError
+from ..sim import PLANTS
 from ._common import check_range
-
-_PLANTS = ("veh14", "commonroad_mb")  # as vehest_can.sim.characteristics.PLANTS (kept out of the import)
-
 
 #: the verb's one line in `vehest-can --help` (read without building its parser)
 HELP = "the plants' roll and understeer gradients and load transfer, side by side"
@@ -29,8 +27,8 @@ def add_subparser(subparsers) -> None:
                     "The car is the paper's, with the [vehicle] table of --scenario over it; each payload "
                     "is one run per plant. Exit status 0, or 1 on an error.",
     )
-    parser.add_argument("--plant", nargs="+", choices=_PLANTS, default=list(_PLANTS), metavar="PLANT",
-                        help=f"plants to run, of {', '.join(_PLANTS)} (default: both)")
+    parser.add_argument("--plant", nargs="+", choices=PLANTS, default=list(PLANTS), metavar="PLANT",
+                        help=f"plants to run, of {', '.join(PLANTS)} (default: both)")
     parser.add_argument("--mass-delta-kg", nargs="+", type=float, default=[0.0, 200.0], metavar="KG",
                         help="payloads at the sprung CG, one run each (default: 0 200)")
     parser.add_argument("--car", nargs="+", metavar="FILE_OR_NAME",

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
-from .car import PLANTS
+from . import PLANTS
 
 G = 9.81
 #: a run's tick [s]

@@ -138,7 +138,7 @@ def compiled():
     classes = {grp: collections.namedtuple(f"P_{grp or 'top'}", fields) for grp, fields in groups.items()}
     top = collections.namedtuple("P", groups[""] + [grp for grp in groups if grp])
     args = [f"a[{i}]" for i in range(len(groups[""]))]
-    i, src = len(args), []
+    i = len(args)
     for grp, fields in groups.items():
         if not grp:
             continue
@@ -148,9 +148,9 @@ def compiled():
             inner.append(f"{scale}a[{i}]")
             i += 1
         args.append(f"C_{grp}({', '.join(inner)})")
-    src.append(f"def unpack(a, mu):\n    return P({', '.join(args)})\n")
+    src = f"def unpack(a, mu):\n    return P({', '.join(args)})\n"
     ns = {"P": top, **{f"C_{g}": c for g, c in classes.items() if g}}
-    exec(src[0], ns)  # noqa: S102 - generated from the package's field names only
+    exec(src, ns)  # noqa: S102 - generated from the package's field names only
     unpack = numba.njit(ns["unpack"])
     n_par = i
 
