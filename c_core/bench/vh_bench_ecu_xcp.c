@@ -77,12 +77,13 @@ static int connect_unlocked(vh_ecu_t *ecu)
 }
 
 #define M(member, size) {offsetof(vh_ecu_t, member), size}
+#define MS(member) M(member, (uint8_t)sizeof(((vh_ecu_t *)0)->member)) /* the member as it is (the filters are float32) */
 static const struct { size_t off; uint8_t size; } ODT0[] = {
     M(tick, 4), M(app.drv.dkf[0].health, 1), M(app.drv.dkf[1].health, 1), M(cnt.crc_error, 2), M(cnt.counter_repeat, 2),
     M(cnt.counter_skip, 2), M(cnt.dlc_error, 2), M(cnt.timeout, 2), M(cnt.unknown_id, 2), M(cnt.signal_invalid, 2),
-    M(cnt.input_invalid, 2), M(cnt.filter_reset, 2), M(cnt.deadline_miss, 2), M(cnt.rx_burst, 2), M(app.drv.dkf[0].x[2], 8)};
+    M(cnt.input_invalid, 2), M(cnt.filter_reset, 2), M(cnt.deadline_miss, 2), M(cnt.rx_burst, 2), MS(app.drv.dkf[0].x[2])};
 static const struct { size_t off; uint8_t size; } ODT1[] = {
-    M(app.drv.dkf[0].x[0], 8), M(app.drv.dkf[0].innov[2], 8), M(app.drv.dkf[0].p[10], 8), M(app.drv.dkf[1].x[2], 8),
+    MS(app.drv.dkf[0].x[0]), MS(app.drv.dkf[0].innov[2]), MS(app.drv.dkf[0].p[10]), MS(app.drv.dkf[1].x[2]),
     M(app.drv.dls.to, 8)};
 
 /* Dynamic DAQ (ASAM sequence: FREE, ALLOC_DAQ, ALLOC_ODT, ALLOC_ODT_ENTRY, SET_DAQ_PTR,
