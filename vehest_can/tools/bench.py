@@ -36,24 +36,37 @@ def _data(n: int, seed: int = 0):
     return np.full(n, 170.0), z
 
 
+def _build_run(sources, include_dirs, args=(), generated=None) -> str | None:
+    """Compile c_core/bench sources with the extension's compiler and flags, run the program and give its
+    output; None without a compiler. `generated(dir)`: writes the generated sources first and gives
+    their list."""
+    sys.path.insert(0, str(ROOT / "c_core"))
+    import cbuild
+    import vehest_build
+
+    cc = cbuild.cc()
+    if shutil.which(cc[0]) is None:
+        return None
+    with tempfile.TemporaryDirectory() as tmp:
+        srcs = [*(generated(Path(tmp) / "generated") if generated else []), *sources]
+        exe = Path(tmp) / "bench"
+        subprocess.run([*cc, *vehest_build.STRICT_FLAGS, *vehest_build.OPT_FLAGS,
+                        *(f"-I{d}" for d in include_dirs(Path(tmp) / "generated")), *map(str, srcs),
+                        *vehest_build.LINK_FLAGS, "-o", str(exe)], check=True, capture_output=True, text=True)
+        return subprocess.run([str(exe), *args], check=True, capture_output=True, text=True).stdout
+
+
 def c_loop(bench: str = "vh_bench.c") -> dict[str, tuple[float, float]] | None:
     """Build c_core/bench/<bench> with the extension's flags and run it: {name: (median_ns, p99_ns)}."""
     src = ROOT / "c_core" / "bench" / bench
-    cc = shutil.which("cc") or shutil.which("gcc")
-    if not src.exists() or cc is None:
+    if not src.exists():
         return None
     sys.path.insert(0, str(ROOT / "c_core"))
     import vehest_build
 
-    with tempfile.TemporaryDirectory() as tmp:
-        gen = Path(tmp) / "generated"
-        sources = [str(s) for s in vehest_build.firmware_sources(gen)] + [str(src)]
-        inc = [f"-I{d}" for d in vehest_build.bench_include_dirs(gen)]
-        exe = Path(tmp) / "vh_bench"
-        subprocess.run([cc, *vehest_build.STRICT_FLAGS, *vehest_build.OPT_FLAGS, *inc, *sources,
-                        *vehest_build.LINK_FLAGS, "-o", str(exe)],
-                       check=True, capture_output=True, text=True)
-        out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout
+    out = _build_run([src], vehest_build.bench_include_dirs, generated=vehest_build.firmware_sources)
+    if out is None:
+        return None
     rows = {}
     for line in out.splitlines():
         name, _, med, p99 = line.split()
@@ -341,7 +354,7 @@ def table(res: dict, lockstep: dict[str, tuple[float, float]] | None = None) -> 
     return "\n".join(lines)
 
 
-def bench_c_loop(cc: str | None = None, samples: int = 40000) -> dict[str, tuple[float, float]] | None:
+def bench_c_loop(samples: int = 40000) -> dict[str, tuple[float, float]] | None:
     """Build and run ``c_core/bench/vh_bench_skf.c`` with the extension's flags.
 
     Returns {name: (median_ns, p99_ns)} for ``skfmec_double_step``, ``ekf_double_step``,
@@ -349,21 +362,17 @@ def bench_c_loop(cc: str | None = None, samples: int = 40000) -> dict[str, tuple
     {name: (value, 0)} for the fixed-point filters' saturation counts and final-state checksums
     (``skfmec_fixed_checksum``, ...), or None without a compiler.
     """
-    root = ROOT
-    src = root / "c_core" / "bench" / "vh_bench_skf.c"
-    cc = cc or shutil.which("cc") or shutil.which("gcc")
-    if not src.exists() or cc is None:
+    src = ROOT / "c_core" / "bench" / "vh_bench_skf.c"
+    if not src.exists():
         return None
-    sys.path.insert(0, str(root / "c_core"))
+    sys.path.insert(0, str(ROOT / "c_core"))
     import vehest_build
 
     sources = [src] + [vehest_build.firmware_path(f) for f in ("vh_skf.c", "vh_skfq.c", "vh_skfq_host.c",
                                                                      "vh_tfa.c", "vh_tfa_host.c", "vh_fix.c")]
-    with tempfile.TemporaryDirectory() as tmp:
-        exe = Path(tmp) / "vh_bench_skf"
-        subprocess.run([cc, *vehest_build.STRICT_FLAGS, *vehest_build.OPT_FLAGS, *(f"-I{d}" for d in vehest_build.FIRMWARE_DIRS),
-                        *map(str, sources), "-lm", "-o", str(exe)], check=True, capture_output=True, text=True)
-        out = subprocess.run([str(exe), str(samples)], check=True, capture_output=True, text=True).stdout
+    out = _build_run(sources, lambda _gen: vehest_build.FIRMWARE_DIRS, args=(str(samples),))
+    if out is None:
+        return None
     rows = {}
     for line in out.splitlines():
         name, count, med, p99 = line.split()
