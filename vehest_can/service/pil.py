@@ -398,7 +398,7 @@ def insn_profile_plugin() -> Path:
     """QEMU's TCG plugin that counts the instructions executed per block (c_core/target/qemu_plugin), built
     for this host once."""
     sys.path.insert(0, str(C_CORE))
-    import cbuild  # type: ignore[import-not-found]
+    import cbuild
 
     src = C_CORE / "target" / "qemu_plugin" / "vh_insn_profile.c"
     import hashlib
