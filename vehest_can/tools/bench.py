@@ -133,9 +133,11 @@ def run(quick: bool = False) -> dict:
 
 
 def roll(steps: int = 1200, ref_steps: int = 60, repeats: int = 7) -> dict:
-    """Seed-003 roll UKF step (n = 16, 33 sigma points): the C float32 and double builds through the
-    array API (one call per run) against filterpy's UnscentedKalmanFilter on the same model and
-    sigma points (ref.filterpy_ukf), on the paper's 72 km/h case at the ECU's 5 ms step."""
+    """Seed-003 roll UKF step, the paper's variant (n = 16, 33 sigma points) and the robust one (n = 21,
+    43): the C float32 and double builds through the array API (one call per run) against filterpy's
+    UnscentedKalmanFilter on the paper's model and sigma points (ref.filterpy_ukf); the robust model as
+    the numpy reference UKF and as its EKF (same model, Q, R, P0), both numpy, for the cost of one
+    against the other; on the paper's 72 km/h case at the ECU's 5 ms step."""
     from ..systems.roll import api as rn
     from ..systems.roll import evaluate as ev
     from ..systems.roll import reference as ref
@@ -146,21 +148,27 @@ def roll(steps: int = 1200, ref_steps: int = 60, repeats: int = 7) -> dict:
     u, z, _ = ev.synthesise(truth, decim=10, prm=prm)
     u, z = u[:steps], z[:steps]
     out: dict = {"steps": len(u)}
-    for prec in ("f32", "f64"):
-        k = rn.Ukf(prm, prec)
+    m = min(ref_steps, len(u))
+    for variant, tag in (("paper", ""), ("robust", "robust_")):
+        prm.variant = rn.VARIANTS[variant]
+        for prec in ("f32", "f64"):
+            k = rn.Ukf(prm, prec)
 
-        def run_c(k=k):
-            k.reset()
-            k.run(u, z)
+            def run_c(k=k):
+                k.reset()
+                k.run(u, z)
 
-        out[f"c_{prec}_ns"] = _median_time(run_c, repeats) / len(u) * 1e9
+            out[f"c_{tag}{prec}_ns"] = _median_time(run_c, repeats) / len(u) * 1e9
+    p = rn.params_dict(prm)  # the robust variant's
+    for name, cls in (("ref_robust_ukf_ns", ref.RefUkf), ("ref_robust_ekf_ns", ref.RefEkf)):
+        out[name] = _median_time(lambda cls=cls: cls(p).run(u[:m], z[:m]), max(1, repeats // 3)) / m * 1e9
+    prm.variant = rn.VARIANTS["paper"]
     try:
         p = rn.params_dict(prm)
         ref.filterpy_ukf(p)
     except ImportError:
         out["filterpy_ns"] = None
         return out
-    m = min(ref_steps, len(u))
 
     def run_fp():
         f = ref.filterpy_ukf(p)
@@ -325,12 +333,19 @@ def table(res: dict, lockstep: dict[str, tuple[float, float]] | None = None) -> 
     if rl:
         fpu = rl.get("filterpy_ns")
         for key, name in (("c_f32_ns", "roll UKF step, C float32 (array API)"),
-                          ("c_f64_ns", "roll UKF step, C double (array API)")):
-            vs = f"   {fpu / rl[key]:.0f}x filterpy UKF (target >= 100x)" if fpu else ""
-            lines.append(f"{name:<44}{rl[key] / 1000:>9.2f} µs/step{vs}")
+                          ("c_f64_ns", "roll UKF step, C double (array API)"),
+                          ("c_robust_f32_ns", "roll robust UKF step, C float32"),
+                          ("c_robust_f64_ns", "roll robust UKF step, C double")):
+            if key in rl:
+                vs = f"   {fpu / rl[key]:.0f}x filterpy UKF (target >= 100x)" if fpu else ""
+                lines.append(f"{name:<44}{rl[key] / 1000:>9.2f} µs/step{vs}")
         if fpu:
             lines.append(f"{'roll UKF step, filterpy UnscentedKalmanFilter':<44}{fpu / 1000:>9.0f} µs/step")
         lines.append(f"roll UKF float32 / double step time: {rl['c_f32_ns'] / rl['c_f64_ns']:.2f}")
+        if "ref_robust_ekf_ns" in rl:
+            lines.append(f"{'roll robust model, numpy UKF step':<44}{rl['ref_robust_ukf_ns'] / 1000:>9.0f} µs/step")
+            lines.append(f"{'roll robust model, numpy EKF step (FD Jac.)':<44}{rl['ref_robust_ekf_ns'] / 1000:>9.0f} µs/step"
+                         f"   {rl['ref_robust_ukf_ns'] / rl['ref_robust_ekf_ns']:.2f}x the UKF's speed")
     if "ecu_tick_all" in c:
         mx = f", longest {c['ecu_all_roll'][1] / 1000:.1f} µs (target <= 100 µs)" if "ecu_all_roll" in c else ""
         lines.append(f"{'ECU tick, every system (+ roll UKF + SMC)':<44}{c['ecu_tick_all'][0] / 1000:>9.2f} µs/tick"
