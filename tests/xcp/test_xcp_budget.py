@@ -53,7 +53,7 @@ def test_busload_counts_the_xcp_bus_and_every_bus_is_within_60_percent(capsys):
     paths = [str(p) for p in sorted(dbc_dir().glob("vehest_*.dbc"))] + [str(ecu_desc.SHIPPED_DBC)]
     assert main(["busload", *paths, "--json"]) == 0
     buses = {b["bus"]: b for b in json.loads(capsys.readouterr().out)["buses"]}
-    assert set(buses) == {"vehest_pt", "vehest_ch", "vehest_xcp"}
+    assert set(buses) == {"vehest_pt", "vehest_ch", "vehest_sim", "vehest_xcp"}
     assert all(b["worst_pct"] <= 60.0 for b in buses.values()), {k: b["worst_pct"] for k, b in buses.items()}
     assert 35.0 < buses["vehest_xcp"]["worst_pct"] <= 60.0  # 39.2 %: one 48-byte frame per tick
 
