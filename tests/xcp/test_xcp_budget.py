@@ -73,4 +73,4 @@ def test_the_ecu_tick_bench_runs_the_daq_within_its_budget():
     assert {"ecu_tick_no_xcp", "ecu_tick_xcp_idle", "ecu_tick_xcp_daq"} <= set(rows)
     assert rows["xcp_daq_dtos"] == (40000.0, 0.0)  # 2 DTOs per 1 ms = one per tick, none dropped
     text = bench.table({"array_api_ns": 1.0, "single_cffi_ns": 1.0, "numpy_ref_ns": 1.0, "ecu_xcp": rows})
-    assert "ECU tick, XCP 20-signal DAQ at 1 ms" in text
+    assert "ECU tick, XCP 18-signal DAQ at 1 ms" in text
