@@ -7,7 +7,7 @@ import re
 from pathlib import Path
 
 import can
-from hypothesis import given
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 from vehest_can.bus.frames import frame_id, message
@@ -19,11 +19,15 @@ U32_MAX = 2**32 - 1
 
 
 @given(st.integers(0, U32_MAX), st.integers(0, U32_MAX))
+@example(U32_MAX, 1)
+@example(U32_MAX - 2, 7)
 def test_sat_add_u32_is_the_sum_stopped_at_its_maximum(a, b):
     assert lib.vh_sat_add_u32(a, b) == min(a + b, U32_MAX)
 
 
 @given(st.integers(0, U32_MAX), st.sampled_from([0xFFF, 0xFFFF]))
+@example(0xFFFF, 0xFFFF)
+@example(0xFFFE, 0xFFFF)
 def test_a_field_holds_the_count_or_its_maximum_and_says_so(count, top):
     sat = ffi.new("uint8_t *")
     assert lib.vh_sat_field_u32(count, top, sat) == min(count, top)
