@@ -269,7 +269,7 @@ def _tick_rows(res: dict, rows: tuple[tuple[str, str], ...], feature: str) -> li
 _FEATURE_RUNS = (
     ("ecu_xcp", "XCP", (("ecu_tick_no_xcp", "ECU tick, XCP off (same run)"),
                         ("ecu_tick_xcp_idle", "ECU tick, XCP on, connected, idle"),
-                        ("ecu_tick_xcp_daq", "ECU tick, XCP 20-signal DAQ at 1 ms")),
+                        ("ecu_tick_xcp_daq", "ECU tick, XCP 18-signal DAQ at 1 ms")),
      # "xcp_daq_dtos ticks dtos overruns": the DAQ ran within its budget
      ("xcp_daq_dtos", "  XCP DAQ in that run", "DTOs", "samples dropped")),
     ("ecu_secoc", "SecOC", (("ecu_tick_secoc_off", "ECU tick, every system, SecOC off (same run)"),
