@@ -69,7 +69,7 @@ def configure_variant(cfg, variant: str) -> None:
     if variant not in VARIANTS:
         raise RollError(f"roll variant must be one of {sorted(VARIANTS)}, not {variant!r}")
     cfg.ukf.variant = VARIANTS[variant]
-    cfg.smc.dist_gain = 1.0 if variant == "robust" else 0.0
+    lib.vh_roll_smc_params_default(ffi.addressof(cfg, "smc"), ffi.addressof(cfg, "ukf"))
 
 
 def make_params(**over):
