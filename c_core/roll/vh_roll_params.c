@@ -129,7 +129,9 @@ void vh_roll_smc_law_robust(vh_roll_smc_params_t *c)
     c->law = VH_ROLL_L_ROBUST;
     c->lambda = 1.0;  /* the surface's corner far below the roll mode (~14 rad/s): the layer damps */
     c->k = 5.0;
-    c->p = 0.5;       /* slope k/p = 10 /s, a third of the actuator's bandwidth 1/(30 ms) */
+    c->p = 0.75;      /* slope k/p = 6.7 /s, a fifth of the actuator's bandwidth 1/(30 ms): the
+                       * estimated rate lags ~40 ms on MB, and the layer's damping through that lag,
+                       * the actuator's and its rate limit must not turn into negative damping */
     c->ki = 200.0;
     c->ay_tau = 0.05; /* the feedforward's a_y: the estimate carries a plant's roll mode (MB) */
     c->ref_tau = 0.1; /* the reference lags a_y: the feedforward leads in a transient */
