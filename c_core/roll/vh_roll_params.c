@@ -125,7 +125,8 @@ void vh_roll_smc_params_default(vh_roll_smc_params_t *c, const vh_roll_params_t 
 
 void vh_roll_smc_law_robust(vh_roll_smc_params_t *c)
 {
-    /* gains chosen on the design cases (roll_paper_{36,72}kph_active, both plants; docs/roll.md) */
+    /* chosen on the design cases (roll_paper_{36,72}kph_active and control_table.DESIGN, both plants;
+     * docs/roll.md, "The robust law") */
     c->law = VH_ROLL_L_ROBUST;
     c->lambda = 1.0;  /* the surface's corner far below the roll mode (~14 rad/s): the layer damps */
     c->k = 5.0;
