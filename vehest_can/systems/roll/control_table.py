@@ -10,13 +10,13 @@ import sys
 import numpy as np
 
 from ...carfile import car_of
+from ...sim import PLANTS
 from ...sim.scenario import DT
 from ...sim.session import run_inprocess
 from ..ecu import Ecu, EcuConfig
 from . import report
 from .scenario import RollCar, load_roll_scenario, roll_scenario_from_dict
 
-PLANTS = ("veh14", "commonroad_mb")
 #: the paper's law with its own constants (the baseline; vh_roll_smc_params_default for the paper's UKF)
 PAPER_LAW = {"smc": {"law": 0, "lambda": 10.0, "k": 5.0, "p": 0.1, "ay_tau": 0.02, "ref_tau": 0.05,
                      "dist_gain": 1.0}}
