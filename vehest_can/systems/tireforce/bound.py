@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...errors import ConfigError
 from . import adaptive as A
 from . import api as tf
 from . import report as tr
@@ -92,6 +93,8 @@ def coverage(truth, run: A.AdaptiveRun, settle_s: float = tr.SETTLE_S) -> dict:
     s = (t - t[0] >= settle_s - 1e-9) & (run.health != A.H_INIT)
     ok = s & (run.health == A.H_OK)
     err = np.abs(run.fy - fy)
+    if run.bound is None:
+        raise ConfigError("the run has no bound (an SKFMEC-A run has)")
     inside = err <= run.bound
     return {"coverage": 100.0 * inside[s].mean(0), "coverage_ok": 100.0 * inside[ok].mean(0) if ok.any() else None,
             "width": 100.0 * run.bound[s].mean(0) / peak, "rms": 100.0 * np.sqrt((err[s] ** 2).mean(0)) / peak,
