@@ -678,7 +678,7 @@ void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uns
             c |= VH_TFA_C_BOUNDS;
         }
         if (c != 0u && a->contra == 0u) {
-            ++a->n_contra;
+            a->n_contra = vh_sat_add_u32(a->n_contra, 1u);
         }
         if (c != 0u) {
             a->implausible = k->hold_implausible;
