@@ -247,6 +247,8 @@ static int report(const vh_tf_app_t *c, uint8_t health, uint8_t *health_sig, uin
 #define TYRES(X) X(0, 1) X(1, 2) X(2, 3) X(3, 4)
 #define FY(k, n) TYRE(vehest_tire_force_est, VEHEST_TIRE_FORCE_EST, fy##n, FY##n, f->fy[k])
 #define FYA(k, n) TYRE(vehest_tire_force_adaptive, VEHEST_TIRE_FORCE_ADAPTIVE, fy_a##n, FY_A##n, a->fy[k])
+/* each tyre's bound (Q.FN -> raw, round half up; the signal's range clamps a wider one) */
+#define FYB(k, n) TYRE(vehest_tire_force_adaptive, VEHEST_TIRE_FORCE_ADAPTIVE, fy_a##n##_bound, FY_A##n##_BOUND, a->bound[k])
 
 int vh_tf_app_fill_est(vh_tf_app_t *c, vh_app_ctx_t *ctx, uint8_t *data)
 {
@@ -302,6 +304,7 @@ int vh_tf_app_fill_adaptive(vh_tf_app_t *c, vh_app_ctx_t *ctx, uint8_t *data)
     }
     ok = report(c, a->health, &m.skfmec_a_health, &m.skfmec_a_valid);
     TYRES(FYA)
+    TYRES(FYB)
     /* the mass ratio k (Q.FK) and its std sqrt(P) (Q.FP/2) times m = m_num / m_den: exact, integer */
     m.est_mass = ok ? vh_ch_vehest_tire_force_adaptive_est_mass_encode_qs(a->k, VH_TFA_FK, a->prm.m_den, a->prm.m_num)
                     : VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_EST_MASS_SNA_CHOICE;
