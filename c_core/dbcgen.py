@@ -6,6 +6,8 @@ For each ``dbc/vehest_<bus>.dbc`` this writes into the output folder:
   (never edited by hand, never committed: regenerated on every build, so never stale);
 * ``vh_<bus>_meta.h``: per message the E2E data ID, the cycle time in microseconds and the
   RX timeout in cycles, read from the DBC's attributes (one source of truth for the frames);
+  cantools' own ``*_CYCLE_TIME_MS`` defines are dropped from ``vh_<bus>.h`` (a 0.5 ms FLOAT has no
+  C literal);
 * ``vh_<bus>_e2e.h`` and a table appended to ``vh_<bus>.c``: per message its AUTOSAR E2E
   configuration (``vh_e2e_cfg_t``, c_core/common/vh_e2e.h) from the attributes ``E2EProfile``
   (P01, P02, P05 or empty), ``E2EDataID``, ``E2EDataIDMode`` (P01: BOTH, ALT, LOW, NIBBLE) and
@@ -57,11 +59,15 @@ def db_name(dbc_path: Path) -> str:
 
 
 def cycle_time_us(message) -> int:
-    """Cycle time in µs: ``CycleTimeUs`` where given (sub-ms frames), else ``GenMsgCycleTime`` ms."""
+    """Cycle time in µs: ``CycleTimeUs`` (exact) where given, else ``GenMsgCycleTime`` (ms, a FLOAT
+    here: 0.5 for the 2 kHz frames). Where both are given they must agree, or the firmware would run a
+    schedule that the DBC tools (cantools, canmatrix, the bus load) do not show."""
+    if error := cyclic.cycle_mismatch_error(message):
+        raise DbcError(error)
     attrs = message.dbc.attributes if message.dbc else {}
     if "CycleTimeUs" in attrs and attrs["CycleTimeUs"].value:
         return int(attrs["CycleTimeUs"].value)
-    return int(message.cycle_time or 0) * 1000
+    return round(float(message.cycle_time or 0) * 1000)
 
 
 def _attr(message, name, default):
@@ -334,6 +340,12 @@ def secoc_table_header(dbs: list) -> str:
     return "\n".join(lines)
 
 
+_CANTOOLS_CYCLE_MS = re.compile(r"^#define \w+_CYCLE_TIME_MS \([^)]*\)\n", re.M)
+#: the simulator's lockstep frames (vehest_sim.dbc): the ECU core knows their IDs (VH_SIM_KNOWN_ID), the
+#: daemon answers them; the firmware image never packs one, so it is built without this codec
+SIM = "vh_sim"
+
+
 def generate_all(out_dir: Path, dbc_dir: Path = DBC_DIR) -> list[str]:
     """Regenerate everything for every DBC; returns the bus database names."""
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -342,6 +354,8 @@ def generate_all(out_dir: Path, dbc_dir: Path = DBC_DIR) -> list[str]:
         name = db_name(dbc_path)
         db = cantools.database.load_file(str(dbc_path), strict=True)
         header, source, _, _ = generate(db, name, f"{name}.h", f"{name}.c", f"{name}_fuzzer.c")
+        # cantools writes GenMsgCycleTime as "(<ms>u)": no C literal for a FLOAT (0.5u); the µs are in _meta.h
+        header = _CANTOOLS_CYCLE_MS.sub("", header)
         _write(out_dir / f"{name}.h", header)
         _write(out_dir / f"{name}_e2e.h", e2e_header(db, name))
         _write(out_dir / f"{name}.c", source + e2e_source(db, name))

@@ -54,7 +54,7 @@ def missing_toolchain() -> str | None:
 def sources(gen_dir: Path) -> tuple[list[Path], list[Path]]:
     """(flashed firmware sources with the codec generated into gen_dir, the board support's)."""
     names = dbcgen.generate_all(gen_dir)
-    fw = vehest_build.ecu_sources(gen_dir, host=False) + [gen_dir / f"{n}.c" for n in names]
+    fw = vehest_build.ecu_sources(gen_dir, host=False) + [gen_dir / f"{n}.c" for n in names if n != dbcgen.SIM]
     return fw, sorted(vehest_build.TARGET_DIR.glob("*.c"))
 
 

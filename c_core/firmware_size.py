@@ -42,7 +42,7 @@ def units(gen_dir: Path) -> dict[str, list[Path]]:
     names = dbcgen.generate_all(gen_dir)
     rows = {d.name: [p for p in sorted(d.glob("*.c")) if not p.match(vehest_build.HOST_ONLY_GLOB)]
             for d in vehest_build.FIRMWARE_DIRS}
-    rows["codec (generated)"] = [gen_dir / f"{n}.c" for n in names]
+    rows["codec (generated)"] = [gen_dir / f"{n}.c" for n in names if n != dbcgen.SIM]
     return rows
 
 

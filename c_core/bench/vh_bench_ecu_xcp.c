@@ -76,19 +76,20 @@ static int connect_unlocked(vh_ecu_t *ecu)
     return 1;
 }
 
-#define M(member, size) {offsetof(vh_ecu_t, member), size}
-#define MS(member) M(member, (uint8_t)sizeof(((vh_ecu_t *)0)->member)) /* the member as it is (the filters are float32) */
+/* each element its whole size (the counters are uint32); an ODT fits MAX_DTO 48 less the PID, the
+ * first less the 4-byte timestamp too: 42 + 44 bytes */
+#define M(member) {offsetof(vh_ecu_t, member), (uint8_t)sizeof(((vh_ecu_t *)0)->member)}
 static const struct { size_t off; uint8_t size; } ODT0[] = {
-    M(tick, 4), M(app.drv.dkf[0].health, 1), M(app.drv.dkf[1].health, 1), M(cnt.crc_error, 2), M(cnt.counter_repeat, 2),
-    M(cnt.counter_skip, 2), M(cnt.dlc_error, 2), M(cnt.timeout, 2), M(cnt.unknown_id, 2), M(cnt.signal_invalid, 2),
-    M(cnt.input_invalid, 2), M(cnt.filter_reset, 2), M(cnt.deadline_miss, 2), M(cnt.rx_burst, 2), MS(app.drv.dkf[0].x[2])};
+    M(tick), M(app.drv.dkf[0].health), M(app.drv.dkf[1].health), M(cnt.crc_error), M(cnt.counter_repeat),
+    M(cnt.counter_skip), M(cnt.dlc_error), M(cnt.timeout), M(cnt.unknown_id), M(cnt.signal_invalid),
+    M(cnt.input_invalid), M(cnt.filter_reset)};
 static const struct { size_t off; uint8_t size; } ODT1[] = {
-    MS(app.drv.dkf[0].x[0]), MS(app.drv.dkf[0].innov[2]), MS(app.drv.dkf[0].p[10]), MS(app.drv.dkf[1].x[2]),
-    M(app.drv.dls.to, 8)};
+    M(cnt.deadline_miss), M(app.drv.dkf[0].x[2]), M(app.drv.dkf[0].x[0]), M(app.drv.dkf[0].innov[2]),
+    M(app.drv.dkf[0].p[10]), M(app.drv.dkf[1].x[2])};
 
 /* Dynamic DAQ (ASAM sequence: FREE, ALLOC_DAQ, ALLOC_ODT, ALLOC_ODT_ENTRY, SET_DAQ_PTR,
- * WRITE_DAQ, SET_DAQ_LIST_MODE, START_STOP_DAQ_LIST): 20 measurements, 2 ODTs, event 1. */
-static int daq_20_at_1ms(vh_ecu_t *ecu)
+ * WRITE_DAQ, SET_DAQ_LIST_MODE, START_STOP_DAQ_LIST): 18 measurements, 2 ODTs, event 1. */
+static int daq_18_at_1ms(vh_ecu_t *ecu)
 {
     static const uint8_t free_daq[] = {0xD6}, alloc_daq[] = {0xD5, 0, 1, 0}, alloc_odt[] = {0xD4, 0, 0, 0, 2};
     static const uint8_t mode[] = {0xE0, 0x10, 0, 0, 1, 0, 1, 0}, start[] = {0xDE, 0x01, 0, 0};
@@ -153,7 +154,7 @@ int main(void)
     }
     if (vh_ecu_init(&none, &ecfg) != VH_OK || vh_ecu_init(&idle, &ecfg) != VH_OK || vh_ecu_init(&daq, &ecfg) != VH_OK ||
         vh_ecu_xcp_enable(&idle, &xcfg) != VH_OK || vh_ecu_xcp_enable(&daq, &xcfg) != VH_OK ||
-        !connect_unlocked(&idle) || !connect_unlocked(&daq) || !daq_20_at_1ms(&daq)) {
+        !connect_unlocked(&idle) || !connect_unlocked(&daq) || !daq_18_at_1ms(&daq)) {
         fprintf(stderr, "XCP setup failed\n");
         return 1;
     }

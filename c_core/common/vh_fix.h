@@ -19,6 +19,8 @@
 
 #include <stdint.h>
 
+#include "vh_types.h" /* vh_sat_add_u32 */
+
 /* A constant of any magnitude with full 31-bit precision: value = m * 2^-e, |m| in [2^30, 2^31)
  * (or m = 0). Made off-line (vh_skfq_params_from_config); the ECU only multiplies by it. */
 typedef struct {
@@ -28,9 +30,7 @@ typedef struct {
 
 static inline void vh_fix_count(uint32_t *sat)
 {
-    if (*sat < UINT32_MAX) {
-        ++*sat;
-    }
+    *sat = vh_sat_add_u32(*sat, 1u);
 }
 
 /* floor(x / 2^s) for 0 <= s <= 62, portable arithmetic shift. */

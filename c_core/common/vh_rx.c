@@ -3,9 +3,9 @@
 
 #include "vh_rx.h"
 
-void vh_rx_count(uint16_t *c)
+void vh_rx_count(uint32_t *c)
 {
-    *c = (uint16_t)(*c + 1u); /* wraps: see vh_ecu_counters_t */
+    *c = vh_sat_add_u32(*c, 1u);
 }
 
 void vh_rx_init(vh_ecu_rxmsg_t *m)

@@ -1,5 +1,5 @@
 /* vh_rx.h - what every ECU application shares on the bus: the RX checks of one cyclic message
- * (length, AUTOSAR E2E, burst, timeout), the wrapping fault counters and a TX slot.
+ * (length, AUTOSAR E2E, burst, timeout), the saturating fault counters and a TX slot.
  *
  * Each application owns its messages' vh_ecu_rxmsg_t and counts into the counters of its bus;
  * the checks and their order are the same for every message.
@@ -15,24 +15,23 @@
  * look: their CRC and counters are fine). Two allows one late frame plus the on-time one. */
 #define VH_ECU_BURST_FRAMES 2u
 
-/* Fault counters, uint16 as on the bus, wrapping modulo 2^16 (never stuck at a limit): a reader
- * takes the difference of two readings modulo 65536, which is exact while fewer than 65536 counts
- * happen between them; the host accumulates those differences into wide totals
- * (vehest_can.systems.ecu). */
+/* Fault counters, uint32, saturating at UINT32_MAX (vh_sat_add_u32: never wrapping). On the bus
+ * each is a 16-bit field that saturates at 65535, and the status frame's CntSaturated bit says a
+ * counter of it reached its field's maximum (vh_sat_field_u32); XCP and the host read all 32 bits. */
 typedef struct {
-    uint16_t crc_error;
-    uint16_t counter_repeat;
-    uint16_t counter_skip;
-    uint16_t dlc_error;
-    uint16_t timeout;
-    uint16_t unknown_id;
-    uint16_t signal_invalid;
-    uint16_t input_invalid;
-    uint16_t filter_reset;
-    uint16_t deadline_miss;
-    uint16_t rx_burst;
-    uint16_t saturation; /* fixed-point SKFMEC steps that saturated (chassis only) */
-    uint16_t secoc_reject; /* secured frames that failed SecOC (both buses; powertrain counters only) */
+    uint32_t crc_error;
+    uint32_t counter_repeat;
+    uint32_t counter_skip;
+    uint32_t dlc_error;
+    uint32_t timeout;
+    uint32_t unknown_id;
+    uint32_t signal_invalid;
+    uint32_t input_invalid;
+    uint32_t filter_reset;
+    uint32_t deadline_miss;
+    uint32_t rx_burst;
+    uint32_t saturation; /* fixed-point SKFMEC steps that saturated (chassis only) */
+    uint32_t secoc_reject; /* secured frames that failed SecOC (both buses; powertrain counters only) */
 } vh_ecu_counters_t;
 
 /* Reception state of one cyclic message: E2E, freshness, timeout. */
@@ -45,8 +44,8 @@ typedef struct {
     uint8_t timed_out; /* no good frame for the message's timeout (set at start) */
 } vh_ecu_rxmsg_t;
 
-/* Add one to a counter, modulo 2^16. */
-void vh_rx_count(uint16_t *c);
+/* Add one to a counter, saturating (vh_sat_add_u32). */
+void vh_rx_count(uint32_t *c);
 /* Nothing received yet: timed out (not counted as a fault). */
 void vh_rx_init(vh_ecu_rxmsg_t *m);
 /* Length and E2E checks of one received frame, counted; 1 if its data may be used. */

@@ -35,4 +35,22 @@ typedef struct {
 /* Fixed ECU tick: 500 us (2 kHz), the rate of the torque transducer in seed 001. */
 #define VH_TICK_US 500u
 
+/* a + b, stopping at UINT32_MAX: every counter of the firmware counts through this, because a
+ * wrapped count reads as "few faults" (uint32 at 2 kHz takes 24 days of one count per tick). */
+static inline uint32_t vh_sat_add_u32(uint32_t a, uint32_t b)
+{
+    return (a > UINT32_MAX - b) ? UINT32_MAX : a + b;
+}
+
+/* A counter put in a bus field whose largest value is `max` (0xFFFF for 16 bits): the count, or
+ * `max` when it is that large or larger, and then *saturated = 1 (the field reads "max or more"). */
+static inline uint32_t vh_sat_field_u32(uint32_t count, uint32_t max, uint8_t *saturated)
+{
+    if (count >= max) {
+        *saturated = 1u;
+        return max;
+    }
+    return count;
+}
+
 #endif /* VH_TYPES_H */

@@ -268,8 +268,8 @@ int vh_drv_app_fill_est(vh_drv_app_t *a, vh_app_ctx_t *ctx, uint8_t *data)
     return 1;
 }
 
-/* The fault counters VEHEST_Status carries, each as its field cnt_<name> (saturation is the
- * chassis estimator's, in its own status) */
+/* The fault counters VEHEST_Status carries, each as its 16-bit field cnt_<name>, saturated there
+ * (CntSaturated: one of them is at 65535); saturation is the chassis estimator's, in its own status */
 #define STATUS_COUNTERS(X)                                                               \
     X(crc_error) X(counter_repeat) X(counter_skip) X(dlc_error) X(timeout) X(unknown_id) \
     X(signal_invalid) X(input_invalid) X(filter_reset) X(deadline_miss) X(rx_burst) X(secoc_reject)
@@ -280,14 +280,16 @@ int vh_drv_app_fill_status(vh_drv_app_t *a, vh_app_ctx_t *ctx, uint8_t *data)
     const vh_ecu_counters_t *cnt = ctx->cnt;
     const uint32_t tick = ctx->tick;
     struct vh_pt_vehest_status_t st;
+    uint8_t saturated = 0u;
     const vh_ecu_dls_t *d = &a->dls;
     memset(&st, 0, sizeof st);
     st.dkf_t_health_sts = dkf[VH_ECU_DKF_T].health;
     st.dkf_s_health_sts = dkf[VH_ECU_DKF_S].health;
     st.ecu_tick = tick;
-#define COPY(name) st.cnt_##name = cnt->name;
+#define COPY(name) st.cnt_##name = (uint16_t)vh_sat_field_u32(cnt->name, UINT16_MAX, &saturated);
     STATUS_COUNTERS(COPY)
 #undef COPY
+    st.cnt_saturated = saturated;
     st.rx_fault_active = (uint8_t)((d->rx.timed_out ? 1u : 0u) | (((d->valid & 0x3Fu) != 0x3Fu) ? 2u : 0u) |
                                    (a->ti_valid ? 0u : 4u) | (cnt->secoc_reject != a->secoc_seen ? 8u : 0u));
     a->secoc_seen = cnt->secoc_reject;

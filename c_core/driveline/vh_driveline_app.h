@@ -60,7 +60,7 @@ typedef struct {
     uint8_t ti_valid;
     uint8_t gear;     /* gear the filters are discretised for */
     uint8_t tx_counter[2]; /* E2E counters: DrivelineEst, Status */
-    uint16_t secoc_seen;   /* ctx->cnt->secoc_reject at the last VEHEST_Status (RxFaultActive bit 3) */
+    uint32_t secoc_seen;   /* ctx->cnt->secoc_reject at the last VEHEST_Status (RxFaultActive bit 3) */
     /* each filter's discrete model per usable gear, computed at reset: a gear change in the tick
      * is a copy, not a matrix exponential (ri = 0: gear not usable) */
     vh_dkf_gear_model_t gears[VH_ECU_N_DKF][VH_ECU_N_GEARS];

@@ -7,6 +7,7 @@
 #include "vh_ecu.h"
 #include "vh_pt.h"
 #include "vh_pt_meta.h"
+#include "vh_sim_meta.h"
 
 /* Ticks per cycle of a message; the meta headers refuse a cycle that is not whole ticks. */
 #define TICKS(cycle_us) ((cycle_us) / VH_TICK_US)
@@ -158,9 +159,9 @@ void vh_ecu_rx(vh_ecu_t *ecu, const vh_frame_t *frame)
             taken = 1;
         }
     }
-    /* a known frame that is not the ECU's input (its own TX, the lockstep sync, SecOC sync frames
-     * when SecOC is off); the XCP CRO identifier is configuration, not in the DBC */
-    if (!taken && !VH_PT_KNOWN_ID(frame->id) && !VH_CH_KNOWN_ID(frame->id) && !vh_ecu_xcp_rx(ecu, frame)) {
+    /* a known frame not the ECU's input (its own TX, the lockstep frames: vehest_sim.dbc, SecOC sync
+     * frames when SecOC is off); the XCP CRO identifier is configuration, not in the DBC */
+    if (!taken && !VH_PT_KNOWN_ID(frame->id) && !VH_CH_KNOWN_ID(frame->id) && !VH_SIM_KNOWN_ID(frame->id) && !vh_ecu_xcp_rx(ecu, frame)) {
         vh_rx_count(&ecu->cnt.unknown_id);
     }
 }
@@ -193,7 +194,4 @@ size_t vh_ecu_step(vh_ecu_t *ecu, vh_frame_t *tx, size_t cap)
 
 void vh_ecu_set_secoc(vh_ecu_t *ecu, vh_secoc_bus_t *s) { ecu->secoc = s; }
 
-void vh_ecu_note_deadline_miss(vh_ecu_t *ecu, uint32_t n)
-{
-    ecu->cnt.deadline_miss = (uint16_t)(ecu->cnt.deadline_miss + n); /* modulo 2^16, like every counter */
-}
+void vh_ecu_note_deadline_miss(vh_ecu_t *ecu, uint32_t n) { ecu->cnt.deadline_miss = vh_sat_add_u32(ecu->cnt.deadline_miss, n); }

@@ -146,7 +146,19 @@ typedef struct {
     double kphi, cphi;     /* total roll stiffness [Nm/rad] and damping [Nm s/rad] */
     double dist_gain;      /* share of the estimated roll-moment disturbance in eq. 27 (robust: 1,
                             * paper: 0; the disturbance argument of vh_roll_smc_step) */
+    uint32_t law;          /* VH_ROLL_L_*: the paper's equivalent control or the robust law (docs/roll.md) */
+    /* the robust law only */
+    double eta;            /* actuator effectiveness: steady roll per moment relative to eq. 27's, the
+                            * moment acts against the suspension alone (sum share_i k_phi,i / k_susp,i) */
+    double ki;             /* integral gain on the roll error [1/s^3] (M_i = -I_p ki integral e dt) */
+    double i_frac;         /* the integral's moment bound, a fraction of m_max_f + m_max_r */
 } vh_roll_smc_params_t;
+
+/* Control laws of the SMC (vh_roll_smc_params_t.law). */
+enum {
+    VH_ROLL_L_PAPER = 0,  /* eq. 31-35: the equivalent control cancels the model's roll stiffness */
+    VH_ROLL_L_ROBUST = 1  /* stiffness at the reference (feedforward), bandwidth-sized layer, integral */
+};
 
 /* SMC health bits (.health of the controller; 0 = active, acting on an OK estimate). */
 enum {
@@ -161,6 +173,8 @@ enum {
 
 void vh_roll_params_default(vh_roll_params_t *prm);
 void vh_roll_smc_params_default(vh_roll_smc_params_t *c, const vh_roll_params_t *prm);
+/* The robust law and its gains into c (vh_roll_smc_params_default does it for the robust variant). */
+void vh_roll_smc_law_robust(vh_roll_smc_params_t *c);
 /* 0, or -1 for missing pointers or non-finite / non-physical parameters: what the inits refuse,
  * checked without an instance (an ECU checks its configuration before it touches its state). */
 int vh_roll_params_check(const vh_roll_params_t *prm);

@@ -107,6 +107,38 @@ void vh_roll_smc_params_default(vh_roll_smc_params_t *c, const vh_roll_params_t 
     c->cphi = prm->cphi_f + prm->cphi_r;
     /* the robust variant's disturbance estimate enters eq. 27 whole; the paper's has none */
     c->dist_gain = prm->variant == VH_ROLL_V_ROBUST ? 1.0 : 0.0;
+    /* the actuator acts between body and axle, so a steady moment turns the body against the
+     * suspension alone (the tyres carry no net moment): per axle k_phi,i / k_susp,i of what eq. 27
+     * says (docs/roll.md, "The robust law") */
+    {
+        const double ksf = 1.0 / (1.0 / prm->kphi_f - 1.0 / (2.0 * prm->kt * prm->tf * prm->tf));
+        const double ksr = 1.0 / (1.0 / prm->kphi_r - 1.0 / (2.0 * prm->kt * prm->tr * prm->tr));
+        c->eta = c->front_share * prm->kphi_f / ksf + (1.0 - c->front_share) * prm->kphi_r / ksr;
+    }
+    c->ki = 0.0;
+    c->i_frac = 0.25;
+    c->law = VH_ROLL_L_PAPER;
+    if (prm->variant == VH_ROLL_V_ROBUST) {
+        vh_roll_smc_law_robust(c);
+    }
+}
+
+void vh_roll_smc_law_robust(vh_roll_smc_params_t *c)
+{
+    /* chosen on the design cases (roll_paper_{36,72}kph_active and control_table.DESIGN, both plants;
+     * docs/roll.md, "The robust law") */
+    c->law = VH_ROLL_L_ROBUST;
+    c->lambda = 1.0;  /* the surface's corner far below the roll mode (~14 rad/s): the layer damps */
+    c->k = 5.0;
+    c->p = 0.75;      /* slope k/p = 6.7 /s, a fifth of the actuator's bandwidth 1/(30 ms): the
+                       * estimated rate lags ~40 ms on MB, and the layer's damping through that lag,
+                       * the actuator's and its rate limit must not turn into negative damping */
+    c->ki = 200.0;
+    c->ay_tau = 0.05; /* the feedforward's a_y: the estimate carries a plant's roll mode (MB) */
+    c->ref_tau = 0.1; /* the reference lags a_y: the feedforward leads in a transient */
+    /* no disturbance feedforward: on a foreign plant d carries the plant's unmodelled roll dynamics
+     * and closes a second loop through the UKF (docs/roll.md); the integral takes the steady part */
+    c->dist_gain = 0.0;
 }
 
 /* Every value in (0, 1e12): a parameter that must be positive, and not absurd. */
@@ -168,6 +200,8 @@ int vh_roll_smc_params_check(const vh_roll_smc_params_t *prm)
          prm->front_share <= 1.0 && prm->recover_time >= 0.0 && prm->not_ok_debounce >= 0.0 &&
          prm->not_ok_debounce < 1e3 && prm->cphi >= 0.0 && prm->dist_gain >= 0.0 && prm->dist_gain <= 1.0 &&
          prm->fade_time * prm->rate_max_f >= prm->m_max_f * (1.0 - 1e-9) &&
-         prm->fade_time * prm->rate_max_r >= prm->m_max_r * (1.0 - 1e-9); /* the rate limit can follow the fade */
+         prm->fade_time * prm->rate_max_r >= prm->m_max_r * (1.0 - 1e-9) && /* the rate limit can follow the fade */
+         (prm->law == VH_ROLL_L_PAPER || prm->law == VH_ROLL_L_ROBUST) && prm->eta > 0.0 && prm->eta <= 1.0 &&
+         prm->ki >= 0.0 && prm->ki < 1e6 && prm->i_frac >= 0.0 && prm->i_frac <= 1.0;
     return ok ? 0 : -1;
 }

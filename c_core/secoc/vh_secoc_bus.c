@@ -8,9 +8,7 @@ typedef char vh_secoc_nodes_fit[(VH_SECOC_N_NODES <= VH_SECOC_MAX_NODES) ? 1 : -
 
 static void count(uint32_t *c)
 {
-    if (*c != UINT32_MAX) {
-        ++*c;
-    }
+    *c = vh_sat_add_u32(*c, 1u);
 }
 
 static const vh_secoc_msg_t *find(uint32_t id)
@@ -172,6 +170,6 @@ size_t vh_secoc_bus_tx(vh_secoc_bus_t *s, vh_frame_t *tx, size_t n, size_t cap)
     }
     memmove(tx + ns, tx, k * sizeof *tx);
     memcpy(tx, sync, ns * sizeof *tx);
-    s->cnt.sync_sent += (uint32_t)ns;
+    s->cnt.sync_sent = vh_sat_add_u32(s->cnt.sync_sent, (uint32_t)ns);
     return k + ns;
 }

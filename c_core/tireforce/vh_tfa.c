@@ -19,6 +19,7 @@
 #define FC VH_TFA_FC
 #define FG VH_TFA_FG
 #define FH VH_TFA_FH
+#define FB VH_TFA_FB
 #define FO VH_SKFQ_FO
 #define FW VH_SKFQ_FW
 #define FV 21 /* speeds [m/s] of the differential slip */
@@ -61,6 +62,8 @@ int vh_tfa_check(const vh_tfa_params_t *prm)
                        prm->ride_phi <= 0 || prm->ride_unsprung < 0)) ||
         !k_ok(prm->k_roll[0]) || !k_ok(prm->k_roll[1]) || !k_ok(prm->k_wheelbase) || !k_ok(prm->k_knot) || !k_ok(prm->k_kin) || !k_ok(prm->k_kin_dh) ||
         prm->alpha_vyd <= 0 || prm->alpha_vyd > ONE30 || prm->vyd_gate <= 0 ||
+        prm->bound_z <= 0 || prm->bound_axle_abs < 0 || prm->bound_axle_rel < 0 || prm->bound_lt_abs < 0 ||
+        prm->bound_lt_rel < 0 || prm->bound_max <= 0 ||
         (prm->klt && (!k_ok(prm->k_klt[0]) || !k_ok(prm->k_klt[1]) || prm->k_klt[0].m <= 0 || prm->k_klt[1].m <= 0)) ||
         (prm->road && (prm->alpha_kin <= 0 || prm->alpha_kin > ONE30 || prm->ay_kin_gate < 0 || prm->fx_free < 0 ||
                        prm->k_wheelbase.m <= 0 || prm->k_knot.m <= 0 || prm->k_kin.m <= 0 || prm->k_kin_dh.m <= 0 ||
@@ -112,6 +115,7 @@ void vh_tfa_reset(vh_tfa_t *a)
     for (i = 0; i < 4; ++i) {
         a->fy[i] = 0;
         a->fz[i] = 0;
+        a->bound[i] = 0;
     }
     for (i = 0; i < 2; ++i) {
         a->slip_e[i] = 0;
@@ -501,6 +505,65 @@ static void ride_lowpass(vh_tfa_t *a, const vh_skfq_t *f, const int32_t *ride, u
     }
 }
 
+/* sqrt(v0^2 + ... ) of n standard deviations in FB: the squares summed in 64 bits, each |v| clamped to
+ * 2^29 (counted) so that four of them fit. */
+static int32_t hypot_fb(const int32_t *v, int n, uint32_t *sat)
+{
+    int64_t acc = 0;
+    int i;
+    for (i = 0; i < n; ++i) {
+        int32_t x = abs32(v[i]);
+        if (x > (INT32_C(1) << 29)) {
+            x = INT32_C(1) << 29;
+            ++*sat;
+        }
+        acc += (int64_t)x * x;
+    }
+    return isqrt64(acc);
+}
+
+/* Each tyre's bound (adaptive.tyre_bounds; docs/tireforce.md, "Per-tyre bound"): the axle mean's std
+ *   sigma_a^2 = k^2 P*_F / s_F^2 + F^2 sigma_k^2 + axle_abs^2 + (axle_rel F_axle)^2
+ * (F the SKFMEC's axle mean, F_axle = k F), through the split's share g_i = F_i / F_axle, and the split's own
+ *   sigma_i^2 = g_i^2 sigma_a^2 + (F_axle sigma_dFz / Fz_mean)^2,  sigma_dFz = lt_abs + lt_rel |dFz|;
+ * bound_i = z sigma_i. */
+static void bounds(vh_tfa_t *a, const vh_skfq_t *f, const int32_t *two, uint32_t *sat)
+{
+    const vh_tfa_params_t *k = &a->prm;
+    const int32_t sk = vh_tfa_mass_std(a); /* sigma_k, Q(FP / 2) */
+    int ax, i;
+    for (ax = 0; ax < 2; ++ax) {
+        const int l = 2 * ax, r = l + 1, j = VH_SKF_FYF + ax;
+        const int32_t fax = vh_fix_rshift_rnd(two[ax], 1, sat);                      /* F_axle, FN */
+        const int32_t mag = abs32(fax);
+        const int32_t f0 = vh_fix_rshift_rnd((int64_t)f->fy[l] + f->fy[r], 1, sat); /* F, FN */
+        /* sqrt(P*) in FX: P* (FP) shifted to 2 FX */
+        const int32_t sp = isqrt64((int64_t)f->p[j * VH_SKFQ_NX + j] * ((int64_t)1 << (2 * FX - VH_SKFQ_FP)));
+        const int32_t mean = vh_fix_rshift_rnd((int64_t)a->fz[l] + a->fz[r], 1, sat);
+        const int32_t dz = vh_fix_rshift_rnd((int64_t)a->fz[r] - a->fz[l], 1, sat);
+        const int32_t sdz = ADD(k->bound_lt_abs, MUL(k->bound_lt_rel, 30, abs32(dz), FN, FN));
+        int32_t t[4], sa;
+        t[0] = MUL(KM(f->prm.k_inv_sf[ax], sp, FX, FN), FN, a->k, FK, FB);
+        t[1] = MUL(f0, FN, sk, FP / 2, FB);
+        t[2] = k->bound_axle_abs;
+        t[3] = MUL(k->bound_axle_rel, 30, mag, FN, FB);
+        sa = hypot_fb(t, 4, sat);
+        /* the split's: |F_axle| sigma_dFz / Fz_mean, the ratio at most 1 (a pair without load: anything) */
+        t[1] = MUL(mag, FN, mean > sdz ? vh_fix_div(sdz, mean, 29, sat) : INT32_C(1) << 29, 29, FB);
+        for (i = l; i <= r; ++i) {
+            /* g_i in [0, 2] (Q29); 1 below 1 N of axle force, where the share is the loads' and sigma_a its floor */
+            int32_t g = INT32_C(1) << 29;
+            if (mag >= (INT32_C(1) << FN)) {
+                const int32_t same = fax < 0 ? -a->fy[i] : a->fy[i]; /* F_i with F_axle's sign: the divisor > 0 */
+                g = (int64_t)abs32(a->fy[i]) > 2 * (int64_t)mag ? INT32_C(1) << 30 : vh_fix_div(same, mag, 29, sat);
+                g = g < 0 ? 0 : g;
+            }
+            t[0] = MUL(sa, FB, g, 29, FB);
+            a->bound[i] = MUL(k->bound_z, 29, hypot_fb(t, 2, sat), FB, FN);
+        }
+    }
+}
+
 void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask, const int32_t *ride)
 {
     const vh_tfa_params_t *k = &a->prm;
@@ -595,6 +658,7 @@ void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uns
         split(k, &a->fz[0], &mu4[0], &cap[0], two[0], &a->fy[0], &a->alpha[0], NULL, sat);
         split(k, &a->fz[2], &mu4[2], &cap[2], two[1], &a->fy[2], &a->alpha[1], NULL, sat);
     }
+    bounds(a, f, two, sat);
     {
         /* contradictions: v_x against the wheels (held while the inputs are not valid), the mass at its clamp,
          * a load below zero or a friction at its floor; each starts the hold of DEGRADED */
@@ -614,7 +678,7 @@ void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uns
             c |= VH_TFA_C_BOUNDS;
         }
         if (c != 0u && a->contra == 0u) {
-            ++a->n_contra;
+            a->n_contra = vh_sat_add_u32(a->n_contra, 1u);
         }
         if (c != 0u) {
             a->implausible = k->hold_implausible;
@@ -625,6 +689,11 @@ void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uns
     if (a->health == VH_HEALTH_OK && (a->p > k->p_ok || a->implausible > 0u || a->contra != 0u)) {
         a->health = VH_HEALTH_DEGRADED; /* the mass estimate has not converged, or the car is outside the model */
     }
+    for (i = 0; i < 4; ++i) {
+        if (a->health == VH_HEALTH_OK && a->bound[i] > k->bound_max) {
+            a->health = VH_HEALTH_DEGRADED; /* a force too uncertain to be used */
+        }
+    }
 }
 
 int32_t vh_tfa_mass_std(const vh_tfa_t *a)
@@ -634,7 +703,7 @@ int32_t vh_tfa_mass_std(const vh_tfa_t *a)
 
 void vh_tfa_run(vh_tfa_t *a, vh_skfq_t *f, size_t n, const int32_t *u, const uint8_t *mask, const int32_t *ride,
                 const uint8_t *ride_ok, int32_t *fy_out, int32_t *fz_out, int32_t *k_out, int32_t *p_out,
-                uint8_t *health_out)
+                uint8_t *health_out, int32_t *bound_out)
 {
     size_t t;
     int i;
@@ -646,6 +715,9 @@ void vh_tfa_run(vh_tfa_t *a, vh_skfq_t *f, size_t n, const int32_t *u, const uin
         for (i = 0; i < 4; ++i) {
             fy_out[t * 4 + (size_t)i] = a->fy[i];
             fz_out[t * 4 + (size_t)i] = a->fz[i];
+            if (bound_out != NULL) {
+                bound_out[t * 4 + (size_t)i] = a->bound[i];
+            }
         }
         k_out[t] = a->k;
         p_out[t] = a->p;

@@ -16,8 +16,11 @@
  * L r / v (v from a free-rolling axle's wheels) against the split's at that friction, used where it is
  * lower than a side's while neither side has seen a split; (7) where the ride heights are usable, each
  * axle's lateral load transfer from them: (1/2)((k + 2 k_arb / 4t^2)(s_R - s_L) + (h/t) 2 F_axle).
- * Health: the SKFMEC's, DEGRADED until the mass has converged and while the car is outside the model
- * (its fastest wheel slower than vx_gate, or a_y - r v beyond vyd_gate: sliding sideways).
+ * Each tyre's force carries a bound: z sigma_i from the SKFMEC's covariance of the axle force and the
+ * mass's, propagated through the split, and the split's model term from the load transfer's uncertainty.
+ * Health: the SKFMEC's, DEGRADED until the mass has converged, while the car is outside the model
+ * (its fastest wheel slower than vx_gate, or a_y - r v beyond vyd_gate: sliding sideways) and while a
+ * bound is wider than bound_max.
  * The same algorithm as vehest_can/systems/tireforce/adaptive.py (double); the constants come
  * from there (host side).
  *
@@ -43,6 +46,7 @@
 #define VH_TFA_FC 40 /* longitudinal slip compliance 1/C_kappa [1/N] */
 #define VH_TFA_FG 24 /* Q7.24 knot positions (slip angle, normalised slip) and normalised slips */
 #define VH_TFA_FH 29 /* Q2.29 spring deflections from the free length [m] (ride heights) */
+#define VH_TFA_FB 4  /* Q27.4 the bound's standard deviations [N] (their squares summed in 64 bits) */
 
 /* Contradictions (vh_tfa_t.contra): the SKFMEC's v_x outside the wheels' speed range, the mass at its
  * clamp, a load below zero or a friction at its floor, the balance against the mass. Each makes the health DEGRADED. */
@@ -120,6 +124,14 @@ typedef struct {
     int32_t bal_tol_rel;        /* Q30 */
     int32_t klt;                /* 1: the tyres' lateral compliance shifts the loads (item 10) */
     vh_fix_k_t k_klt[2];        /* K_lt / (2 t) front, rear [1/N]: 2 F_axle (FN) -> a fraction (Q30) */
+    /* each tyre's bound (docs/tireforce.md, "Per-tyre bound"): z sigma_i, sigma_i^2 = (F_i / F_axle)^2 sigma_axle^2
+     * + (F_axle sigma_dFz / Fz_mean)^2 */
+    int32_t bound_z;            /* the interval's multiple of sigma, Q29 */
+    int32_t bound_axle_abs;     /* the axle model's std floor [N], FB */
+    int32_t bound_axle_rel;     /* and its part proportional to |F_axle|, Q30 */
+    int32_t bound_lt_abs;       /* the lateral load transfer's std floor [N], FN */
+    int32_t bound_lt_rel;       /* and its part proportional to |dFz|, Q30 */
+    int32_t bound_max;          /* a bound wider than this makes the health DEGRADED [N], FN */
 } vh_tfa_params_t;
 
 typedef struct {
@@ -144,6 +156,7 @@ typedef struct {
     uint32_t contra;            /* the published states that contradict a measurement now (VH_TFA_C_*) */
     uint32_t n_contra;          /* how often a contradiction began since init */
     uint32_t bal;               /* VH_TFA_C_BALANCE while the balance contradicts the mass (held when not gated) */
+    int32_t bound[4];           /* each tyre's 95 % half-width of fy (bound_z sigma) [N], FN */
     uint32_t sat;               /* saturations since init */
     uint8_t health;             /* vh_health_t */
 } vh_tfa_t;
@@ -161,9 +174,9 @@ void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uns
 int32_t vh_tfa_mass_std(const vh_tfa_t *a);
 /* The array API: n steps of both filters from their current state, inputs as vh_skfq_run; ride (n x 4,
  * FH) with ride_ok (n: 1 usable) or both NULL (no ride-height sensors). Per step: fy, fz (4 each, FN),
- * k, p, health. */
+ * k, p, health and, when non-NULL, bound (4, FN). */
 void vh_tfa_run(vh_tfa_t *a, vh_skfq_t *f, size_t n, const int32_t *u, const uint8_t *mask, const int32_t *ride,
                 const uint8_t *ride_ok, int32_t *fy_out, int32_t *fz_out, int32_t *k_out, int32_t *p_out,
-                uint8_t *health_out);
+                uint8_t *health_out, int32_t *bound_out);
 
 #endif /* VH_TFA_H */

@@ -36,6 +36,11 @@ void vh_tfa_config_default(vh_tfa_config_t *c)
     }
     c->vx_tol = 1.0; c->vx_tol_rel = 0.1;
     c->bal_tol = 1000.0; c->bal_tol_rel = 0.25;
+    /* the bound's model terms, chosen on the design runs (docs/tireforce.md, "Per-tyre bound") */
+    c->bound_z = 1.96;
+    c->bound_axle_abs = 150.0; c->bound_axle_rel = 0.08;
+    c->bound_lt_abs = 200.0; c->bound_lt_rel = 0.1;
+    c->bound_max = 2000.0;
 }
 
 /* A PAC2002 pure-slip curve with load-proportional slip stiffness (adaptive._pac): D = mu Fz,
@@ -139,6 +144,10 @@ int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t 
           c->tyre_klt >= 0.0 && c->tyre_klt < 1e-3 && c->vx_tol > 0.0 && c->vx_tol < 100.0 &&
           c->vx_tol_rel >= 0.0 && c->vx_tol_rel < 1.0 && c->bal_tol > 0.0 && c->bal_tol / c->sigma_y < 1000.0 &&
           c->bal_tol_rel >= 0.0 && c->bal_tol_rel < 1.0 &&
+          /* the bound's: z in Q2.29, the fractions in Q30, the stds within 10^5 N */
+          c->bound_z > 0.0 && c->bound_z < 4.0 && c->bound_axle_abs >= 0.0 && c->bound_axle_abs < 1e5 &&
+          c->bound_axle_rel >= 0.0 && c->bound_axle_rel < 1.0 && c->bound_lt_abs >= 0.0 && c->bound_lt_abs < 1e5 &&
+          c->bound_lt_rel >= 0.0 && c->bound_lt_rel < 1.0 && c->bound_max > 0.0 && c->bound_max < 1e5 &&
           /* the normalised derivative and 1 + H P H in the RLS's formats (Q10.21, Q15.16) */
           c->kin_dh_max / c->kin_r_deg <= 1000.0 &&
           c->kin_sigma0 * c->kin_sigma0 * (c->kin_dh_max / c->kin_r_deg) * (c->kin_dh_max / c->kin_r_deg) <= 16000.0)) {
@@ -261,6 +270,12 @@ int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t 
     z.vx_tol_rel = vh_skfq_qconst(c->vx_tol_rel, 30, &ok);
     z.bal_tol = vh_skfq_qconst(c->bal_tol / c->sigma_y, VH_TFA_FN, &ok);
     z.bal_tol_rel = vh_skfq_qconst(c->bal_tol_rel, 30, &ok);
+    z.bound_z = vh_skfq_qconst(c->bound_z, 29, &ok);
+    z.bound_axle_abs = vh_skfq_qconst(c->bound_axle_abs, VH_TFA_FB, &ok);
+    z.bound_axle_rel = vh_skfq_qconst(c->bound_axle_rel, 30, &ok);
+    z.bound_lt_abs = vh_skfq_qconst(c->bound_lt_abs, VH_SKFQ_FN, &ok);
+    z.bound_lt_rel = vh_skfq_qconst(c->bound_lt_rel, 30, &ok);
+    z.bound_max = vh_skfq_qconst(c->bound_max, VH_SKFQ_FN, &ok);
     z.klt = c->tyre_klt > 0.0;
     z.k_klt[0] = vh_skfq_kconst(c->tyre_klt / (2.0 * skf->tf), &ok);
     z.k_klt[1] = vh_skfq_kconst(c->tyre_klt / (2.0 * skf->tr), &ok);

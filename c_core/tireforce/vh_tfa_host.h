@@ -52,6 +52,10 @@ typedef struct {
     double vx_tol, vx_tol_rel;   /* v_x outside the wheels' speed range by more than vx_tol [m/s] + vx_tol_rel v:
                                   * a contradiction */
     double bal_tol, bal_tol_rel; /* the balance's residual |y - m^ a_x| beyond bal_tol [N] + bal_tol_rel |y|: one */
+    double bound_z;              /* each tyre's bound is bound_z sigma (1.96: a 95 % interval) */
+    double bound_axle_abs, bound_axle_rel; /* the axle model's std: [N] + a fraction of |F_axle| */
+    double bound_lt_abs, bound_lt_rel;     /* the lateral load transfer's std: [N] + a fraction of |dFz| */
+    double bound_max;            /* a bound wider than this [N] makes the health DEGRADED */
 } vh_tfa_config_t;
 
 void vh_tfa_config_default(vh_tfa_config_t *c);

@@ -247,6 +247,8 @@ static int report(const vh_tf_app_t *c, uint8_t health, uint8_t *health_sig, uin
 #define TYRES(X) X(0, 1) X(1, 2) X(2, 3) X(3, 4)
 #define FY(k, n) TYRE(vehest_tire_force_est, VEHEST_TIRE_FORCE_EST, fy##n, FY##n, f->fy[k])
 #define FYA(k, n) TYRE(vehest_tire_force_adaptive, VEHEST_TIRE_FORCE_ADAPTIVE, fy_a##n, FY_A##n, a->fy[k])
+/* each tyre's bound (Q.FN -> raw, round half up; the signal's range clamps a wider one) */
+#define FYB(k, n) TYRE(vehest_tire_force_adaptive, VEHEST_TIRE_FORCE_ADAPTIVE, fy_a##n##_bound, FY_A##n##_BOUND, a->bound[k])
 
 int vh_tf_app_fill_est(vh_tf_app_t *c, vh_app_ctx_t *ctx, uint8_t *data)
 {
@@ -268,19 +270,21 @@ int vh_tf_app_fill_est(vh_tf_app_t *c, vh_app_ctx_t *ctx, uint8_t *data)
 int vh_tf_app_fill_status(vh_tf_app_t *c, vh_app_ctx_t *ctx, uint8_t *data)
 {
     struct vh_ch_vehest_chassis_status_t m;
-    /* the sum of two wrapping counters wraps the same way: differences stay exact */
-    const uint16_t cnt_err = (uint16_t)(c->cnt.counter_repeat + c->cnt.counter_skip);
+    uint8_t sat = 0u; /* CntSaturated: a counter field at 65535 */
     (void)ctx; /* its own counters */
     if (!begin(c, &m, sizeof m)) {
         return 0;
     }
     m.skfmec_q_health_sts = skf_health(c);
-    m.cnt_rx_crc_error = c->cnt.crc_error;
-    m.cnt_rx_counter_error = cnt_err;
-    m.cnt_rx_timeout = c->cnt.timeout;
-    m.cnt_signal_invalid = c->cnt.signal_invalid;
-    m.cnt_saturation = c->cnt.saturation;
-    m.cnt_filter_reset = c->cnt.filter_reset;
+#define FIELD(count) (uint16_t)vh_sat_field_u32((count), UINT16_MAX, &sat)
+    m.cnt_rx_crc_error = FIELD(c->cnt.crc_error);
+    m.cnt_rx_counter_error = FIELD(vh_sat_add_u32(c->cnt.counter_repeat, c->cnt.counter_skip));
+    m.cnt_rx_timeout = FIELD(c->cnt.timeout);
+    m.cnt_signal_invalid = FIELD(c->cnt.signal_invalid);
+    m.cnt_saturation = FIELD(c->cnt.saturation);
+    m.cnt_filter_reset = FIELD(c->cnt.filter_reset);
+#undef FIELD
+    m.cnt_saturated = sat;
     m.rx_fault_active = (uint8_t)((c->rx.timed_out || c->rx.resync ? 1u : 0u) |
                                   ((c->valid & 0x1FFFu) != 0x1FFFu ? 2u : 0u) |
                                   (c->ride_heard && (c->ride_rx.timed_out || c->ride_rx.resync || !c->ride_valid) ? 4u : 0u));
@@ -300,6 +304,7 @@ int vh_tf_app_fill_adaptive(vh_tf_app_t *c, vh_app_ctx_t *ctx, uint8_t *data)
     }
     ok = report(c, a->health, &m.skfmec_a_health, &m.skfmec_a_valid);
     TYRES(FYA)
+    TYRES(FYB)
     /* the mass ratio k (Q.FK) and its std sqrt(P) (Q.FP/2) times m = m_num / m_den: exact, integer */
     m.est_mass = ok ? vh_ch_vehest_tire_force_adaptive_est_mass_encode_qs(a->k, VH_TFA_FK, a->prm.m_den, a->prm.m_num)
                     : VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_EST_MASS_SNA_CHOICE;
@@ -307,7 +312,10 @@ int vh_tf_app_fill_adaptive(vh_tf_app_t *c, vh_app_ctx_t *ctx, uint8_t *data)
                                                                                   a->prm.m_den, a->prm.m_num)
                         : VH_CH_VEHEST_TIRE_FORCE_ADAPTIVE_EST_MASS_STD_SNA_CHOICE;
     m.skfmec_a_contradiction = (uint8_t)a->contra;
-    m.cnt_contradiction = (uint16_t)(a->n_contra & 0xFFFu);
+    {
+        uint8_t at_max = 0u; /* the 12-bit field says 4095 for "4095 or more" */
+        m.cnt_contradiction = (uint16_t)vh_sat_field_u32(a->n_contra, 0xFFFu, &at_max);
+    }
     SEND(vehest_tire_force_adaptive, VEHEST_TIRE_FORCE_ADAPTIVE, 2);
     return 1;
 }

@@ -208,8 +208,10 @@ def test_project_bus_within_60_percent_at_documented_rates():
     assert by_name["DLS_Sensors"].cycle_us == 500 and by_name["DLS_Sensors"].cycle_source == "CycleTimeUs"
     assert by_name["DLS_Sensors"].fd and by_name["DLS_Sensors"].brs
     assert by_name["VEHEST_Status"].cycle_us == 10_000      # CycleTimeUs wins over GenMsgCycleTime 10 ms
-    assert {f.name for f in load.frames if f.event} == {"SIM_Sync", "VEHEST_SyncAck"}
-    assert not by_name["SIM_Sync"].fd and by_name["SIM_Sync"].bits_worst == (135, 0)
+    assert not any(f.event for f in load.frames)  # the car's bus: the lockstep frames are vehest_sim.dbc's
+    sim = {f.name: f for f in bus_load(dbc_path("sim"), 500_000).frames}
+    assert {n for n, f in sim.items() if f.event} == {"SIM_Sync", "VEHEST_SyncAck"}
+    assert not sim["SIM_Sync"].fd and sim["SIM_Sync"].bits_worst == (135, 0)
     # The total is the sum of the cyclic frames' wire time over their cycle time.
     expected = sum(100 * f.wire_us_worst / f.cycle_us for f in load.frames if not f.event)
     assert load.worst_pct == pytest.approx(expected)
@@ -283,11 +285,11 @@ BO_ 292 Odd: 13 ECU
  SG_ B : 0|8@1+ (1,0) [0|255] "" Vector__XXX
 
 BA_DEF_ BO_ "CycleTimeUs" INT 0 100000000;
-BA_DEF_ BO_ "GenMsgCycleTime" INT 0 65535;
+BA_DEF_ BO_ "GenMsgCycleTime" FLOAT 0 65535;
 BA_DEF_DEF_ "CycleTimeUs" 0;
 BA_DEF_DEF_ "GenMsgCycleTime" 0;
 BA_ "CycleTimeUs" BO_ 291 500;
-BA_ "GenMsgCycleTime" BO_ 291 1;
+BA_ "GenMsgCycleTime" BO_ 291 0.5;
 BA_ "GenMsgCycleTime" BO_ 292 100;
 """
 
@@ -305,6 +307,20 @@ def test_cycle_time_us_and_odd_lengths(tmp_path):
     assert odd.bits_worst == (sum(fd_expected(16, False, True)), 0)
 
 
+def test_cycle_attributes_that_disagree_are_an_error(tmp_path):
+    """GenMsgCycleTime 1 ms (what cantools and canmatrix show) beside CycleTimeUs 500 (what the firmware
+    runs): refused by the bus load and by the firmware build alike."""
+    path = tmp_path / "fast.dbc"
+    path.write_text(DBC_2KHZ_CLASSIC.replace('BO_ 291 0.5;', 'BO_ 291 1;'))
+    why = r"Fast \(0x123\): GenMsgCycleTime = 1 ms and CycleTimeUs = 500 us disagree"
+    with pytest.raises(ConfigError, match=why):
+        bus_load(path, 500_000)
+    code = ("import sys; sys.path.insert(0, 'c_core'); import dbcgen, cantools; "
+            f"dbcgen.meta_header(cantools.database.load_file({str(path)!r}), 'vh_x')")
+    r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 1 and re.search(rf"DbcError: {why}", r.stderr), r.stderr
+
+
 # --- cyclic frames without a cycle time ---------------------------------------------------------------
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -313,14 +329,16 @@ ROOT = Path(__file__).resolve().parents[2]
 def zero_cycle_pt(tmp_path) -> Path:
     """The project's powertrain DBC with the 2 kHz DLS_Sensors given cycle time 0."""
     text = dbc_path("pt").read_text()
-    line = 'BA_ "CycleTimeUs" BO_ 256 500;'
-    assert line in text
+    for line in ('BA_ "CycleTimeUs" BO_ 256 500;', 'BA_ "GenMsgCycleTime" BO_ 256 0.5;'):
+        assert line in text
+        text = text.replace(line, line.rsplit(" ", 1)[0] + " 0;")
     path = tmp_path / "zero.dbc"
-    path.write_text(text.replace(line, line.replace("500", "0")))
+    path.write_text(text)
     return path
 
 
-ZERO_CYCLE = r"DLS_Sensors \(0x100\) is cyclic \(GenMsgSendType = Cyclic; CycleTimeUs = 0; RxTimeoutCycles = 4: " \
+ZERO_CYCLE = r"DLS_Sensors \(0x100\) is cyclic \(GenMsgSendType = Cyclic; CycleTimeUs = 0; GenMsgCycleTime = 0.0; " \
+             r"RxTimeoutCycles = 4: " \
              r"received with a timeout\) but has no cycle time"
 
 

@@ -174,3 +174,76 @@ def test_closed_loop_fades_on_a_forced_estimator_fault():
     env = np.clip(1.0 - (j + 1) * DT / sp.fade_time, 0.0, 1.0) * sp.m_max_f + sp.rate_max_f * DT
     assert np.all(np.abs(r.m_cmd[2000:, 0]) <= env + 1e-3)
     assert np.all(r.smc_health[2000:] & H.VH_ROLL_S_EST_NOT_OK)
+
+
+# ---- the robust law (docs/roll.md, "The robust law") ----------------------------------------------
+
+def _robust_params():
+    sp = rn.default_smc_params()
+    rn.lib.vh_roll_smc_law_robust(sp)
+    return sp
+
+
+def test_robust_law_is_the_robust_variants_default_and_the_paper_law_stays_reachable():
+    prm = rn.default_params()
+    assert rn.default_smc_params(prm).law == H.VH_ROLL_L_PAPER   # the paper's UKF: the paper's SMC
+    prm.variant = H.VH_ROLL_V_ROBUST
+    sp = rn.default_smc_params(prm)
+    assert sp.law == H.VH_ROLL_L_ROBUST and sp.dist_gain == 0.0
+    # the actuator turns the body against the suspension alone: sum share_i k_phi,i / k_susp,i
+    ksf = 1 / (1 / prm.kphi_f - 1 / (2 * prm.kt * prm.tf ** 2))
+    ksr = 1 / (1 / prm.kphi_r - 1 / (2 * prm.kt * prm.tr ** 2))
+    assert sp.eta == pytest.approx(sp.front_share * prm.kphi_f / ksf + (1 - sp.front_share) * prm.kphi_r / ksr)
+    assert 0.6 < sp.eta < 0.75
+
+
+@pytest.mark.parametrize("prec", list(rn.PRECISIONS))
+def test_robust_law_does_not_feed_the_roll_stiffness_back(prec):
+    """With the switching term and the integral off, what is left is the equivalent control: the
+    paper's commands +(k_phi - ms g e) phi (it cancels the model's stiffness through the actuator),
+    the robust law's holds the reference and does not move with the roll."""
+    n = 1500  # on after recover_time, faded in over fade_time
+    slopes = {}
+    for law, sp in (("paper", rn.default_smc_params()), ("robust", _robust_params())):
+        sp.k, sp.ki = 1e-9, 0.0
+        m = []
+        for phi in (0.0, 0.01):
+            c = rn.Smc(sp, prec)
+            mf, mr, _, _ = c.run(np.full(n, phi), np.zeros(n), np.zeros(n), H.VH_ROLL_H_OK, True)
+            m.append(mf[-1] + mr[-1])
+        slopes[law] = (m[1] - m[0]) / 0.01
+    sp = rn.default_smc_params()
+    assert slopes["paper"] == pytest.approx(sp.kphi - sp.ms_e * 9.81, rel=1e-3)
+    assert abs(slopes["robust"]) < 1.0
+
+
+@pytest.mark.parametrize("prec", list(rn.PRECISIONS))
+def test_robust_law_does_not_wind_up_in_a_sustained_turn_with_a_biased_rate(prec):
+    """30 s of a steady turn whose roll-rate estimate is biased by 0.5 deg/s: the integral is on the
+    angle, bounded, so the command settles and stays within the integral's share of the limits."""
+    sp = _robust_params()
+    c = rn.Smc(sp, prec)
+    n = 30000
+    mf, mr, h, _ = c.run(np.full(n, 0.01), np.full(n, np.radians(0.5)), np.full(n, 6.0), H.VH_ROLL_H_OK, True)
+    m = mf + mr
+    assert np.all(np.isfinite(m)) and not np.any(h[5000:] & (H.VH_ROLL_S_SAT | H.VH_ROLL_S_RATE))
+    assert abs(m[-1] - m[20000]) < 1.0                       # settled: no drift over the last 10 s
+    assert abs(sp.i_roll * sp.ki * c.c.z) <= sp.i_frac * (sp.m_max_f + sp.m_max_r) * (1 + 1e-6)
+    # and the integral is emptied when the controller is off
+    mf, mr, _, _ = c.run(np.full(2000, 0.01), np.zeros(2000), np.full(2000, 6.0), H.VH_ROLL_H_OK, False)
+    assert c.c.z == 0.0 and mf[-1] == 0.0
+
+
+@pytest.mark.parametrize("prec", list(rn.PRECISIONS))
+def test_robust_law_fades_out_when_the_estimator_is_not_ok(prec):
+    sp = _robust_params()
+    c = rn.Smc(sp, prec)
+    n = 3000
+    health = np.full(n, H.VH_ROLL_H_OK)
+    health[1500:] = H.VH_ROLL_H_DEGRADED
+    mf, mr, h, _ = c.run(np.full(n, 0.02), np.zeros(n), np.full(n, 5.0), health, True)
+    k_deb = int(round(sp.not_ok_debounce / DT))
+    k_fade = int(round(sp.fade_time / DT))
+    assert abs(mf[1499] + mr[1499]) > 1000
+    assert np.all(mf[1500 + k_deb + k_fade + 2:] == 0) and np.all(mr[1500 + k_deb + k_fade + 2:] == 0)
+    assert np.abs(np.diff(mf)).max() <= sp.rate_max_f * DT + 1e-3

@@ -142,7 +142,7 @@ CASES = [
      "disagrees with buses.pt.timing (500000 bit/s)"),
     (dict(buses={}), "buses", "no bus"),
     (dict(buses=None), "buses", "missing"),
-    (dict(nodes__real=["ABS"]), "nodes.real", "node ABS is in no bus's DBC (buses.pt: CIS, DLS, SIM, VEHEST)"),
+    (dict(nodes__real=["ABS"]), "nodes.real", "node ABS is in no bus's DBC (buses.pt: CIS, DLS, SIM, TESTER, VEHEST)"),
     (dict(nodes__real=["VEHEST"]), "nodes.real", "node VEHEST is declared twice (also in nodes.simulated)"),
     (dict(nodes__real=["CIS"]), "nodes.real", "node CIS belongs to the car of launch_2nd (driveline: DLS, SIM, CIS): "
                                               "it is simulated like DLS"),
@@ -232,8 +232,8 @@ def test_dbc_files_that_do_not_load_or_do_not_match_the_firmware(tmp_path):
 def test_a_cyclic_frame_with_cycle_time_0_is_invalid(tmp_path, capsys):
     """Counted as an event frame, the 2 kHz DLS_Sensors would leave the bus load (29 % instead of 54 %)."""
     path = custom_dbc(tmp_path, "zero.dbc")
-    line = 'BA_ "CycleTimeUs" BO_ 256 500;'
-    path.write_text(path.read_text().replace(line, line.replace("500", "0")))
+    text = path.read_text().replace('BA_ "CycleTimeUs" BO_ 256 500;', 'BA_ "CycleTimeUs" BO_ 256 0;')
+    path.write_text(text.replace('BA_ "GenMsgCycleTime" BO_ 256 0.5;', 'BA_ "GenMsgCycleTime" BO_ 256 0;'))
     config = write(tmp_path, mutate(buses__pt__dbc="zero.dbc"))
     with pytest.raises(ConfigError, match=r"hil.toml: buses\.pt\.dbc: zero\.dbc: DLS_Sensors \(0x100\) is cyclic "
                                           r"\(GenMsgSendType = Cyclic; CycleTimeUs = 0; .*\) but has no cycle time"):
@@ -244,8 +244,12 @@ def test_a_cyclic_frame_with_cycle_time_0_is_invalid(tmp_path, capsys):
 
 
 def test_nodes_of_other_dbcs_must_be_declared_and_only_ours_can_be_simulated(tmp_path):
-    custom_dbc(tmp_path, "gw.dbc", nodes="DLS VEHEST SIM GW")
+    path = custom_dbc(tmp_path, "gw.dbc", nodes="DLS VEHEST SIM GW")
     doc = mutate(buses__pt__dbc="gw.dbc")
+    # a node that sends nothing is a listener (like TESTER, the bench's loggers): nothing to simulate
+    assert "GW" not in load_hil_config(write(tmp_path, doc)).real
+    gw_frame = 'BO_ 1000 GW_Status: 8 GW\n SG_ GwState : 0|8@1+ (1,0) [0|255] "" VEHEST\n\n'
+    path.write_text(path.read_text().replace("BO_ 256 ", gw_frame + "BO_ 256 ", 1))
     with pytest.raises(ConfigError, match=r"hil.toml: nodes: node GW \(on buses.pt, DBC gw.dbc\) is not declared"):
         load_hil_config(write(tmp_path, doc))
     doc["nodes"]["simulated"].append("GW")

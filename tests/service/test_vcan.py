@@ -55,7 +55,7 @@ DB = database("pt")
 EST = DB.get_message_by_name("VEHEST_DrivelineEst")
 STATUS = DB.get_message_by_name("VEHEST_Status")
 DLS = DB.get_message_by_name("DLS_Sensors")
-ACK = DB.get_message_by_name("VEHEST_SyncAck")
+ACK = database("sim").get_message_by_name("VEHEST_SyncAck")
 ECU_IDS = {EST.frame_id, STATUS.frame_id}
 
 

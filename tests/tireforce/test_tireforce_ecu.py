@@ -270,3 +270,31 @@ def test_ecu_adaptive_equals_its_array_api_bit_for_bit(paper_session):
     assert [e["EstMassStd"] for e, g in zip(raw, ok) if g] == std
     assert abs(raw[-1]["EstMass"] * 0.5 / (float(m0) + PAPER.mass_delta_kg) - 1) < 0.05
     assert all(e["SkfmecA_Valid"] == (h == 1) for e, h in zip(raw, health))
+
+
+def test_ecu_publishes_each_tyres_bound(paper_session):
+    """FyA1Bound..FyA4Bound in VEHEST_TireForceAdaptive decode through cantools (10 N, SNA 255) and equal the
+    fixed-point array API's bounds raw for raw (round half up of the exact Q.FN value); the truth of the
+    14-DOF plant lies within them (the paper run is a design case of the bound: the check is that the bus
+    carries what the filter computes, the held-out coverage is in test_tireforce_bound.py)."""
+    from vehest_can.systems.tireforce.adaptive import AdaptiveFixed
+    from vehest_can.systems.tireforce.report import decode_inputs
+
+    names = [f"FyA{i}Bound" for i in range(1, 5)]
+    assert all(TFA.get_signal_by_name(n).scale == 10 for n in names) and TFA.length == 24
+    ticks, raw = decoded(paper_session, TFA, scaling=False)
+    _, phys = decoded(paper_session, TFA)
+    ref = AdaptiveFixed().run(inputs_of(paper_session), None, decode_inputs(paper_session.messages()).ride)
+    ok = np.array([e["SkfmecA_Health"] in (1, 2) for e in raw])
+    assert ok.mean() > 0.95
+    for i, n in enumerate(names):
+        want = [min(254, math.floor(Fraction(int(v), 2**lib.VH_SKFQ_FN) / 10 + Fraction(1, 2)))
+                for v in ref.raw["bound"][ticks, i][ok]]
+        assert [e[n] for e, g in zip(raw, ok) if g] == want
+        assert all(e[n] == 255 for e, g in zip(raw, ok) if not g)  # SNA while INIT
+        assert all(p[n] == 10.0 * e[n] for p, e, g in zip(phys, raw, ok) if g)
+    truth = paper_session.truth
+    fy = np.stack([np.asarray(truth["fy"])[ticks, i] for i in range(4)], 1)[ok]
+    est = np.array([[p[f"FyA{i}"] for i in range(1, 5)] for p, g in zip(phys, ok) if g])
+    bound = np.array([[p[n] for n in names] for p, g in zip(phys, ok) if g])
+    assert (np.abs(est - fy) <= bound).mean() >= 0.95

@@ -53,7 +53,7 @@ def test_busload_counts_the_xcp_bus_and_every_bus_is_within_60_percent(capsys):
     paths = [str(p) for p in sorted(dbc_dir().glob("vehest_*.dbc"))] + [str(ecu_desc.SHIPPED_DBC)]
     assert main(["busload", *paths, "--json"]) == 0
     buses = {b["bus"]: b for b in json.loads(capsys.readouterr().out)["buses"]}
-    assert set(buses) == {"vehest_pt", "vehest_ch", "vehest_xcp"}
+    assert set(buses) == {"vehest_pt", "vehest_ch", "vehest_sim", "vehest_xcp"}
     assert all(b["worst_pct"] <= 60.0 for b in buses.values()), {k: b["worst_pct"] for k, b in buses.items()}
     assert 35.0 < buses["vehest_xcp"]["worst_pct"] <= 60.0  # 39.2 %: one 48-byte frame per tick
 
@@ -73,4 +73,4 @@ def test_the_ecu_tick_bench_runs_the_daq_within_its_budget():
     assert {"ecu_tick_no_xcp", "ecu_tick_xcp_idle", "ecu_tick_xcp_daq"} <= set(rows)
     assert rows["xcp_daq_dtos"] == (40000.0, 0.0)  # 2 DTOs per 1 ms = one per tick, none dropped
     text = bench.table({"array_api_ns": 1.0, "single_cffi_ns": 1.0, "numpy_ref_ns": 1.0, "ecu_xcp": rows})
-    assert "ECU tick, XCP 20-signal DAQ at 1 ms" in text
+    assert "ECU tick, XCP 18-signal DAQ at 1 ms" in text

@@ -118,14 +118,14 @@ def test_pyxcp_measures_the_running_daemon_on_its_event_channels(rig):
     time.sleep(0.1)
     assert r.read("tick")[0] > t0  # the ECU is ticking
     m.cond_unlock("daq")
-    # the documented 1 ms list: 20 measurements in two 48-byte DTOs per sample, which is the whole
-    # XCP budget of one frame per tick (docs/xcp.md); the 10 ms event: test_xcp_ecu.py
+    # the documented 1 ms list: 17 measurements (the counters uint32) in two 48-byte DTOs per sample,
+    # which is the whole XCP budget of one frame per tick (docs/xcp.md); the 10 ms event: test_xcp_ecu.py
     small = ["tick", "app.drv.dkf[0].health", "app.drv.dkf[1].health", *(f"cnt.{n}" for n in
              ("crc_error", "counter_repeat", "counter_skip", "dlc_error", "timeout", "unknown_id",
-              "signal_invalid", "input_invalid", "filter_reset", "deadline_miss", "rx_burst"))]
+              "signal_invalid", "input_invalid"))]
     fast = small + ["app.drv.dkf[0].x[2]", "app.drv.dkf[0].x[0]", "app.drv.dkf[0].innov[2]", "app.drv.dkf[0].p[10]",
                     "app.drv.dkf[1].x[2]", "app.drv.dls.to"]
-    assert len(fast) == 20
+    assert len(fast) == 17
     rows = [(n, desc.item(n).address, 0, C_TYPES[desc.item(n).ctype][3]) for n in fast]
     policy = Collect([DaqList(name="fast", event_num=1, stim=False, enable_timestamps=True, measurements=rows,
                               priority=0, prescaler=1)])
@@ -162,10 +162,10 @@ def test_a_calibration_through_pyxcp_changes_the_running_filter(rig):
     m.getCommModeInfo()
 
     def settled_p() -> float:
-        """The torque state's variance P[2][2] over 1 s of the running filter: its smallest value
+        """The torque state's variance P[2][2] over 2 s of the running filter: its smallest value
         (a tick the daemon ran late predicts without a measurement and only raises P)."""
         seen = []
-        for _ in range(20):
+        for _ in range(40):
             if r.read("app.drv.dkf[0].health")[0] == 1:
                 seen.append(r.read("app.drv.dkf[0].p[10]")[0])
             time.sleep(0.05)
@@ -180,8 +180,11 @@ def test_a_calibration_through_pyxcp_changes_the_running_filter(rig):
     assert r.read("cal.app.drv.dkf[0].r")[2] == 1.0e6
     p_after = settled_p()
     assert "car" not in r.stats, "the drive ended before the filter was read again"
-    # the variance follows R (in-process, lockstep: 4342 with R = 22500, 28323 with R = 1e6)
-    assert p_after > 4 * p_before, (p_before, p_after)
+    # the variance follows R (in-process, lockstep: 4342 with R = 22500, 28323 with R = 1e6, 6.5x); in
+    # real time a late tick raises P without a measurement: on a machine loaded to ~10 the least of 20
+    # reads sat at 7300 and 24000 (3.3x); the least of 40 and a 2.5x bound leave room for that, not for
+    # a filter that ignored the new R
+    assert p_after > 2.5 * p_before, (p_before, p_after)
     with pytest.raises(types.XcpResponseError) as e:
         r.download("cal.app.drv.dkf[0].r", [-5.0], index=2)
     assert code(e) == ERR_OUT_OF_RANGE

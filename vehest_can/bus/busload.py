@@ -36,11 +36,12 @@ Frame length in bits (upper bound "worst case" with bit stuffing, and "nominal" 
 
 "Nominal" load leaves out the dynamic stuff bits (fixed stuff bits stay: they are always sent).
 
-Cycle time of a frame: the message attribute ``CycleTimeUs`` (project convention for sub-millisecond
-frames, in microseconds) when present and non-zero, else cantools' ``message.cycle_time`` (GenMsgCycleTime,
-ms). Frames with neither are event frames: listed, but not part of the cyclic load. A frame the DBC
-marks cyclic (``vehest_can.bus.cyclic``: GenMsgSendType, a cycle attribute set to 0, RxTimeoutCycles)
-without a cycle time is a ConfigError, not an event frame.
+Cycle time of a frame: the message attribute ``CycleTimeUs`` (project convention, in microseconds, exact)
+when present and non-zero, else cantools' ``message.cycle_time`` (GenMsgCycleTime, ms; a FLOAT attribute
+gives sub-millisecond cycles, 0.5 for 2 kHz). A frame that gives both must give the same time. Frames
+with neither are event frames: listed, but not part of the cyclic load. A frame the DBC marks cyclic
+(``vehest_can.bus.cyclic``: GenMsgSendType, a cycle attribute set to 0, RxTimeoutCycles) without a cycle
+time is a ConfigError, not an event frame.
 """
 from __future__ import annotations
 
@@ -52,7 +53,7 @@ from pathlib import Path
 import cantools
 
 from ..errors import ConfigError
-from .cyclic import zero_cycle_error
+from .cyclic import cycle_mismatch_error, zero_cycle_error
 
 #: Payload lengths a CAN FD frame can have (DLC 0..15).
 FD_LENGTHS = (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)
@@ -215,7 +216,9 @@ def _rate(value, what: str, source: str) -> int | None:
 
 def _cycle_us(db, message, source: str) -> tuple[float | None, str]:
     """Cycle time in µs and where it came from; (None, "") for an event frame. A frame the DBC marks
-    cyclic without a cycle time is a ConfigError."""
+    cyclic without a cycle time, or with two that disagree (GenMsgCycleTime, CycleTimeUs), is a ConfigError."""
+    if error := cycle_mismatch_error(message):
+        raise ConfigError(f"{source}: {error}")
     if message.dbc is not None:
         value, _ = _dbc_attribute(db, ("CycleTimeUs",), message.dbc.attributes or {})
         try:

@@ -13,6 +13,10 @@ A frame is cyclic when its DBC says so in any of three ways:
 A cyclic frame whose cycle time is 0 is an error, not an event frame: counted as an event frame it would
 drop out of the bus load (a 2 kHz frame is half a 500 kbit/s bus) and out of the ECU's schedule.
 
+A frame that gives both ``GenMsgCycleTime`` (ms, what cantools and canmatrix read) and ``CycleTimeUs`` (µs,
+what the firmware is generated from) non-zero must give the same time in both: otherwise the DBC tools show
+one schedule and the ECU runs another.
+
 This file imports nothing: dbcgen loads it alone, without the vehest_can package.
 """
 from __future__ import annotations
@@ -34,6 +38,21 @@ def cyclic_because(message) -> list[str]:
     if isinstance(timeout, (int, float)) and timeout > 0:
         why.append(f"RxTimeoutCycles = {timeout:g}: received with a timeout")
     return why
+
+
+def cycle_mismatch_error(message) -> str | None:
+    """The error of a `message` whose own non-zero GenMsgCycleTime (ms) and CycleTimeUs (µs) differ, else None."""
+    attrs = {k.lower(): a.value for k, a in ((message.dbc.attributes or {}).items() if message.dbc else ())}
+    if not set(_CYCLE_ATTRIBUTES) <= set(attrs):
+        return None
+    try:
+        ms, us = float(attrs["genmsgcycletime"] or 0), float(attrs["cycletimeus"] or 0)
+    except (TypeError, ValueError):
+        return None  # not numbers: the readers say so
+    if not ms or not us or round(ms * 1000) == round(us):  # 0: not given (tools write 0 for "none")
+        return None
+    return (f"{message.name} (0x{message.frame_id:X}): GenMsgCycleTime = {ms:g} ms and CycleTimeUs = {us:g} us "
+            f"disagree: give both the same cycle time")
 
 
 def zero_cycle_error(message, cycle_us: float | None) -> str | None:

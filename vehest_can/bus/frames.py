@@ -23,38 +23,44 @@ def database(bus: str = "pt") -> cantools.database.can.Database:
     return cast(cantools.database.can.Database, cantools.database.load_file(str(dbc_path(bus)), strict=True))
 
 
-#: the ECU's buses: powertrain (driveline, camber) and chassis (tyre force); IDs are unique across both
+#: the ECU's buses: powertrain (driveline, camber) and chassis (tyre force, roll); IDs are unique across both
 BUSES = ("pt", "ch")
+#: the simulator's lockstep frames (SIM_Sync, VEHEST_SyncAck): no bus of the car, they ride on whichever
+#: bus a lockstep session runs; their IDs are unique across every DBC too
+SIM = "sim"
+#: every bundled DBC
+DBCS = (*BUSES, SIM)
 
 
 @cache
 def unused_frame_id(start: int = 0x123) -> int:
     """The first standard ID from `start` that no bundled DBC uses, nor the ECU's XCP identifiers
     (0x7E0/0x7E1): the "unknown frame" of hostile tests and the soak's sender, never a real one."""
-    used = {m.frame_id for b in BUSES for m in database(b).messages} | {0x7E0, 0x7E1}
+    used = {m.frame_id for b in DBCS for m in database(b).messages} | {0x7E0, 0x7E1}
     return next(i for i in range(start, 0x800) if i not in used)
 
 
 def sent_by(nodes: AbstractSet[str], bus: str | None = None) -> frozenset[int]:
-    """Standard IDs the given DBC nodes transmit (on one bus, or on every bus). A node ignores its
-    own IDs on receive: some buses (python-can's udp_multicast) echo a sender's frames back to it."""
-    return frozenset(m.frame_id for b in ((bus,) if bus else BUSES) for m in database(b).messages
+    """Standard IDs the given DBC nodes transmit (in one DBC, or in every DBC, the simulator's too). A
+    node ignores its own IDs on receive: some buses (python-can's udp_multicast) echo a sender's frames
+    back to it."""
+    return frozenset(m.frame_id for b in ((bus,) if bus else DBCS) for m in database(b).messages
                      if set(m.senders) & nodes and not m.is_extended_frame)
 
 
 def message(name: str):
-    """A message of either bus's DBC by name (names, like IDs, are unique across the buses)."""
+    """A message of any bundled DBC by name (names, like IDs, are unique across them)."""
     return _on_either_bus("get_message_by_name", name)
 
 
 def message_by_id(frame_id: int):
-    """The message of either bus with this standard ID (IDs are unique across the buses)."""
+    """The message of any bundled DBC with this standard ID (IDs are unique across them)."""
     return _on_either_bus("get_message_by_frame_id", frame_id)
 
 
 def _on_either_bus(lookup: str, key):
-    """``database(bus).<lookup>(key)`` of the first bus that has it; KeyError(key) when none does."""
-    for bus in BUSES:
+    """``database(name).<lookup>(key)`` of the first DBC that has it; KeyError(key) when none does."""
+    for bus in DBCS:
         try:
             return getattr(database(bus), lookup)(key)
         except KeyError:

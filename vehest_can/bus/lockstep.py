@@ -1,5 +1,6 @@
 """The lockstep protocol over any bus: the simulation master publishes a tick's frames and then
 SIM_Sync(tick, STEP); the ECU steps once and answers with its frames and VEHEST_SyncAck(tick, n).
+Both frames are in the simulator's own DBC (dbc/vehest_sim.dbc), not the car's.
 
 The master never sends tick k+1 before the ack of tick k, so the ECU sees exactly the frames of
 each tick whatever the bus's latency: runs are deterministic and equal to in-process lockstep.
@@ -8,7 +9,7 @@ from __future__ import annotations
 
 import can
 
-from .frames import database
+from .frames import SIM, database
 
 STEP, RESET, END = 0, 1, 2
 #: RESET handshakes number their attempts from here, above every STEP tick of a session
@@ -16,7 +17,7 @@ RESET_TICK_BASE = 0x8000_0000
 
 
 def _msg(name: str):
-    return database("pt").get_message_by_name(name)
+    return database(SIM).get_message_by_name(name)
 
 
 SYNC = _msg("SIM_Sync")

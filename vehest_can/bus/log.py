@@ -89,7 +89,7 @@ class SessionLog(can.Listener):
     def __init__(self, path: str | Path, nodes: Iterable[str], *, per_bus: bool = False,
                  epoch: float | None = None, default_bus: str = BUSES[0]):
         """`nodes`: the DBC nodes the logging process plays (their frames are Tx). Frames of an ID
-        in no DBC are logged on `default_bus`."""
+        in no bus's DBC (the simulator's lockstep frames, unknown IDs) are logged on `default_bus`."""
         self.path = check_log_path(path)
         self.nodes = sorted(nodes)
         self.per_bus = per_bus

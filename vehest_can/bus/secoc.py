@@ -71,6 +71,19 @@ def check_private(path: Path) -> None:
                           f"(others can read it); chmod 600 {path}")
 
 
+def write_private(path: Path | str, text: str) -> None:
+    """A new key file with `text`, mode 600, never over an existing file."""
+    path = Path(path)
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    except FileExistsError:
+        raise ConfigError(f"{path}: exists; not overwritten (remove it to make new keys)") from None
+    except OSError as e:
+        raise ConfigError(f"{path}: cannot create: {e.strerror}") from None
+    with os.fdopen(fd, "w") as f:
+        f.write(text)
+
+
 def load_keys(path: Path | str) -> dict[str, Key]:
     """The key file's keys by node name; every problem a clear ConfigError naming the key, never its value."""
     path = Path(path)
@@ -93,19 +106,10 @@ def load_keys(path: Path | str) -> dict[str, Key]:
 
 def write_dev_keys(path: Path | str, nodes: list[str]) -> dict[str, Key]:
     """A new key file of random keys (mode 600, never overwrites): the development keys of a bench."""
-    path = Path(path)
-    try:
-        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-    except FileExistsError:
-        raise ConfigError(f"{path}: exists; not overwritten (remove it to make new keys)") from None
-    except OSError as e:
-        raise ConfigError(f"{path}: cannot create: {e.strerror}") from None
     keys = {n: Key(n, secrets.token_bytes(16)) for n in nodes}
-    with os.fdopen(fd, "w") as f:
-        f.write("# vehest-can SecOC development keys: one AES-128 key per sending node.\n"
-                "# Keep this file out of the repository, readable by its owner only.\n[keys]\n")
-        for k in keys.values():
-            f.write(f'{k.node} = "{k.raw.hex()}"\n')
+    write_private(path, "# vehest-can SecOC development keys: one AES-128 key per sending node.\n"
+                        "# Keep this file out of the repository, readable by its owner only.\n[keys]\n"
+                  + "".join(f'{k.node} = "{k.raw.hex()}"\n' for k in keys.values()))
     return keys
 
 

@@ -37,7 +37,7 @@ def add_subparser(subparsers) -> None:
 
 
 def run(args) -> int:
-    from ..bus.frames import BUSES, TICK_S, database, sent_by
+    from ..bus.frames import DBCS, TICK_S, database, sent_by
     from ..progress import Progress
     from ..service import sdnotify
     from ..service.hil import ResidualBus, load_hil_config
@@ -91,7 +91,7 @@ def run(args) -> int:
         print(f"ECU (simulated here, bus{'es' if len(result.ecu_buses) > 1 else ''} {', '.join(result.ecu_buses)}):")
         print("\n".join(f"  {line}" for line in result.ecu.lines()))
     ecu_ids = sent_by({"VEHEST"})
-    names = {m.frame_id: m.name for b in BUSES for m in database(b).messages}
+    names = {m.frame_id: m.name for b in DBCS for m in database(b).messages}
     metrics: dict[str, list] = collections.defaultdict(list)
     for car, session in result.sessions:
         st = session.stats

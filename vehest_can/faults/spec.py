@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import cast
 
 from ..bus.busload import FD_LENGTHS
-from ..bus.frames import BUSES, database, e2e_config, message, message_by_id
+from ..bus.frames import DBCS, database, e2e_config, message, message_by_id
 from ..errors import ConfigError
 from ..schema import Checker, read_toml
 
@@ -125,8 +125,8 @@ class FaultConfig:
 # ---- validation --------------------------------------------------------------------------------
 
 def _names(bus: str = "pt") -> tuple[set[str], set[str]]:
-    """Messages and nodes of every bus (names are unique across them; `bus` is kept for callers)."""
-    dbs = [database(b) for b in BUSES]
+    """Messages and nodes of every DBC (names are unique across them; `bus` is kept for callers)."""
+    dbs = [database(b) for b in DBCS]
     return {m.name for db in dbs for m in db.messages}, {n.name for db in dbs for n in db.nodes}
 
 
@@ -190,8 +190,8 @@ def _validate(spec: FaultSpec, where: str, bus: str = "pt") -> None:
 
 
 def _target_ids(target: str, bus: str = "pt") -> frozenset[int]:
-    """The standard IDs a target names, on every bus (`bus` is kept for callers)."""
-    msgs = [m for b in BUSES for m in database(b).messages]
+    """The standard IDs a target names, in every DBC (`bus` is kept for callers)."""
+    msgs = [m for b in DBCS for m in database(b).messages]
     if target in {m.name for m in msgs}:
         return frozenset({message(target).frame_id})
     return frozenset(m.frame_id for m in msgs

@@ -271,9 +271,13 @@ def hil_config_from_dict(doc: dict, path: str | Path = "<hil config>") -> HilCon
         if partners:
             declared[node] = next(iter(partners.values()))
             inferred.add(node)
+    # a listener (TESTER: the bench's loggers and monitor) sends nothing and no car plays it: nothing
+    # to simulate, so it needs no role
+    played = {n for g in _car_groups() for n in g} | {ECU_NODE}
     for b in buses:
+        senders = {s for m in databases[b.dbc].messages for s in m.senders}
         for node in b.nodes:
-            if node not in declared:
+            if node not in declared and (node in senders or node in played):
                 c.fail("nodes", f"node {node} (on buses.{b.name}, DBC {b.dbc.name}) is not declared: "
                                 f"add it to nodes.simulated or nodes.real")
     simulated = tuple(n for n, r in declared.items() if r == SIMULATED)

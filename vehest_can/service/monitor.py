@@ -21,7 +21,7 @@ import can
 import cantools
 from cantools.database.can import Message
 
-from ..bus.frames import BUSES, database
+from ..bus.frames import DBCS, database
 from ..errors import ConfigError
 
 #: signals left out of the decoded view unless the filter names them: they change every frame
@@ -86,7 +86,7 @@ class Monitor:
             db = load_dbc(p)
             for m in db.messages:
                 self.catalogue.setdefault((m.frame_id, bool(m.is_extended_frame)), _Entry(Path(p).stem, m))
-        for b in BUSES:
+        for b in DBCS:
             for m in database(b).messages:
                 self.catalogue.setdefault((m.frame_id, bool(m.is_extended_frame)), _Entry(b, m))
         self.listed = frozenset(k for k, e in self.catalogue.items() if set(e.message.senders) & nodes)
@@ -143,7 +143,7 @@ class Monitor:
         now = time.monotonic() if now is None else now
         keys = set(self.listed) | set(self.seen)
         label = max((len(self._bus(k)) for k in keys), default=2)
-        order = {b: i for i, b in enumerate(BUSES)}
+        order = {b: i for i, b in enumerate(DBCS)}
         lines: list[str] = []
         for key in sorted(keys, key=lambda k: (k not in self.catalogue, order.get(self._bus(k), -1), self._bus(k), k)):
             lines += self._lines(key, width, now, pattern, raw, label)

@@ -242,7 +242,6 @@ class PilEcu(Ecu):
 
     def rx_frame(self, frame) -> None:
         self._link.queue(b"R", _frame_bytes(frame))
-        self._frames += 1
 
     def step_frames(self) -> list:
         self._link.queue(b"S")
@@ -269,8 +268,6 @@ class PilEcu(Ecu):
         self._link.queue(b"Z")
         self._link.answer(b"Z")
         self._tick = 0
-        for w in self._wide:
-            w.reset()
 
     def note_deadline_miss(self, n: int = 1) -> None:
         raise ConfigError("the emulated ECU runs in lockstep only: an emulator's time is not the target's")
@@ -306,16 +303,10 @@ class PilEcu(Ecu):
 
     def poll_counters(self) -> None:
         self.read_state()
-        for w in self._wide:
-            w.poll()
 
     def counters(self) -> dict[str, int]:
         self.read_state()
         return self._own.poll()
-
-    def c_counters(self) -> dict[str, int]:
-        self.read_state()
-        return super().c_counters()
 
     def heard(self) -> dict[str, bool]:
         self.read_state()
@@ -398,7 +389,7 @@ def insn_profile_plugin() -> Path:
     """QEMU's TCG plugin that counts the instructions executed per block (c_core/target/qemu_plugin), built
     for this host once."""
     sys.path.insert(0, str(C_CORE))
-    import cbuild  # type: ignore[import-not-found]
+    import cbuild
 
     src = C_CORE / "target" / "qemu_plugin" / "vh_insn_profile.c"
     import hashlib

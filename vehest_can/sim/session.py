@@ -59,8 +59,8 @@ class Session:
 
 def run_inprocess(car: Car, ecu) -> Session:
     """Mode 1: car and ECU in one C loop (vh_lockstep_run), a second of the drive per call; between
-    calls the ECU's 16-bit (wrapping) counters are folded into its wide totals (a tick counts a few
-    at most, so none can wrap unseen) and the car's SecOC upkeep runs. `ecu` is a
+    calls the ECU's counters are polled (a remote ECU refreshes its mirror) and the car's SecOC upkeep
+    runs. `ecu` is a
     :class:`vehest_can.systems.ecu.Ecu` (the firmware with every system's app)."""
     car.reset()
     n = car.n

@@ -20,11 +20,9 @@ import numpy as np
 from ..carfile import DATA_SHEET
 from ..errors import ConfigError, ScenarioError
 from ..schema import Checker, Num, type_name
+from . import WHEELS
 from .car import PLANTS, Car
 from .scenario import DT, SCENARIO_TOP, ScenarioBase, _native, kind_checker, scenario_top
-
-#: Wheels in the order of every per-wheel quantity: the paper's 1..4 in a left turn.
-WHEELS = ("FL", "FR", "RL", "RR")
 
 # ---- schema --------------------------------------------------------------------------------
 
@@ -252,13 +250,6 @@ class Veh14Car(Car):
         return raw["plant"].copy()
 
 
-def truth_dtype(ffi) -> np.dtype:
-    """numpy dtype laid out like ``vh_v14_truth_t`` (per-wheel arrays as (4,) sub-arrays)."""
-    from ..native import struct_dtype
-
-    return struct_dtype("vh_v14_truth_t")
-
-
 def truth_to_numpy(ffi, truth_array, n: int) -> np.ndarray:
     """Copy n ``vh_v14_truth_t`` from a cffi array into a numpy record array."""
     from ..native import struct_array
@@ -410,4 +401,4 @@ def bench(sc: Veh14Scenario, seconds: float = 10.0, repeats: int = 9) -> dict[st
 
 
 __all__ = ["DT", "WHEELS", "Veh14Scenario", "Veh14Car", "veh14_scenario_from_dict",
-           "truth_dtype", "truth_to_numpy", "bench"]
+           "truth_to_numpy", "bench"]

@@ -18,32 +18,18 @@ COUNTERS = (
     "signal_invalid", "input_invalid", "filter_reset", "deadline_miss", "rx_burst", "secoc_reject",
 )
 HEALTH = {0: "INIT", 1: "OK", 2: "DEGRADED", 3: "FAULT"}
-#: a C counter read at least this often (steps, frames) cannot move 65536 between two reads
-_POLL_STEPS, _POLL_FRAMES = 64, 4096
-
-
-class WideCounters:
-    """The C core's 16-bit counters (wrapping modulo 2^16, as on the bus) accumulated into Python
-    ints that never wrap or saturate: each :meth:`poll` adds the difference modulo 2^16 since the
-    last one, exact while no counter moves 65536 or more between two polls."""
+class CounterSet:
+    """A C counter set read by name. The C counts in uint32 and saturates at 2^32 - 1 (never wraps:
+    vh_sat_add_u32), so what it holds is the total since reset; only the status frames' 16-bit fields
+    stop at 65535 (their CntSaturated bit then set)."""
 
     def __init__(self, read, names: tuple[str, ...]):
         self._read = read  # () -> the C struct holding `names`
         self.names = names
-        self.reset()
-
-    def reset(self) -> None:
-        """The C counters were zeroed (an ECU reset): totals start again."""
-        self._last = dict.fromkeys(self.names, 0)
-        self.totals = dict.fromkeys(self.names, 0)
 
     def poll(self) -> dict[str, int]:
         c = self._read()
-        for name in self.names:
-            now = int(getattr(c, name))
-            self.totals[name] += (now - self._last[name]) & 0xFFFF
-            self._last[name] = now
-        return dict(self.totals)
+        return {name: int(getattr(c, name)) for name in self.names}
 
 
 def _systems():
@@ -147,12 +133,11 @@ class Ecu:
         check(lib.vh_ecu_init(self.c, self._c_config), "ECU configuration")
         self._rx = ffi.new("vh_frame_t *")
         self._tx = ffi.new("vh_frame_t[]", lib.VH_ECU_MAX_TX)
-        self._own = WideCounters(lambda: self.c.cnt, COUNTERS)
+        self._own = CounterSet(lambda: self.c.cnt, COUNTERS)
         #: the counter sets the systems' applications keep (System.ecu_counters), by name
-        self._sets = {s.name: WideCounters(lambda read=s.read: read(self.c), s.names)
+        self._sets = {s.name: CounterSet(lambda read=s.read: read(self.c), s.names)
                       for system in _systems() for s in getattr(system, "ecu_counters", ())}
-        self._wide = (self._own, *self._sets.values())
-        self._steps = self._frames = 0
+        self._steps = 0
         self.secoc: Any = None  # SecOC off until enable_secoc (a vehest_can.bus.secoc.BusSecoc)
 
     def enable_secoc(self, keys: dict, store=None):
@@ -171,15 +156,10 @@ class Ecu:
         lib.vh_ecu_reset(self.c)
         if self.secoc is not None:
             self.secoc.restart()
-        for w in self._wide:
-            w.reset()
 
     def poll_counters(self) -> None:
-        """Fold the C counters into the wide totals; the loops here call it often enough (every
-        64 steps and 4096 frames); a caller that steps the C ECU itself calls it at least every
-        65535 counts of any counter (e.g. every 8192 ticks: a tick counts a few at most)."""
-        for w in self._wide:
-            w.poll()
+        """Nothing to do in process: the C counters are the totals. A remote ECU (the emulated
+        target) refreshes its host mirror here."""
 
     def rx(self, msg: can.Message) -> None:
         if msg.is_error_frame or msg.is_remote_frame:
@@ -189,16 +169,11 @@ class Ecu:
     def rx_frame(self, frame) -> None:
         """A ``vh_frame_t *`` straight from a C node (in-process runs)."""
         lib.vh_ecu_rx(self.c, frame)
-        self._frames += 1
-        if self._frames % _POLL_FRAMES == 0:
-            self.poll_counters()
 
     def step_frames(self) -> list:
         """One tick; the frames to transmit as ``vh_frame_t`` cdata (valid until the next step)."""
         n = lib.vh_ecu_step(self.c, self._tx, lib.VH_ECU_MAX_TX)
         self._steps += 1
-        if self._steps % _POLL_STEPS == 0:
-            self.poll_counters()
         if self.secoc is not None and self._steps % lib.VH_SECOC_SYNC_PERIOD_TICKS == 0:
             self.secoc.maintain()  # once a second: the FV reservation ahead, the receivers' state stored
         return [self._tx[i] for i in range(n)]
@@ -207,22 +182,16 @@ class Ecu:
         return [to_message(f, timestamp) for f in self.step_frames()]
 
     def note_deadline_miss(self, n: int = 1) -> None:
-        while n > 0:  # a stall of more than 65535 ticks in pieces the wide total can follow
-            lib.vh_ecu_note_deadline_miss(self.c, min(n, 0x7FFF))
-            self.poll_counters()
-            n -= 0x7FFF
+        lib.vh_ecu_note_deadline_miss(self.c, min(n, 0xFFFF_FFFF))  # the C saturates the sum
 
     @property
     def tick(self) -> int:
         return int(self.c.tick)
 
     def counters(self) -> dict[str, int]:
-        """The powertrain side's fault counters since reset: true totals (the 16-bit C counters wrap)."""
+        """The powertrain side's fault counters since reset, all 32 bits (VEHEST_Status carries each
+        saturated at 65535)."""
         return self._own.poll()
-
-    def c_counters(self) -> dict[str, int]:
-        """The 16-bit C counters as the bus carries them (VEHEST_Status): the totals modulo 65536."""
-        return {name: int(getattr(self.c.cnt, name)) for name in COUNTERS}
 
     @staticmethod
     def estimators():
@@ -241,9 +210,9 @@ class Ecu:
         return {e.name: HEALTH[int(e.health(self.c))] for e in self.estimators()}
 
     def system_counters(self, name: str) -> dict[str, int]:
-        """A system's counter set (:class:`~vehest_can.systems.EcuCounters`) since reset: true totals."""
+        """A system's counter set (:class:`~vehest_can.systems.EcuCounters`) since reset, all 32 bits."""
         return self._sets[name].poll()
 
     def chassis_counters(self) -> dict[str, int]:
-        """The chassis bus's own counter set (VEHEST_ChassisStatus) since reset: true totals."""
+        """The chassis bus's own counter set (VEHEST_ChassisStatus) since reset, all 32 bits."""
         return self.system_counters("chassis")

@@ -36,24 +36,37 @@ def _data(n: int, seed: int = 0):
     return np.full(n, 170.0), z
 
 
+def _build_run(sources, include_dirs, args=(), generated=None) -> str | None:
+    """Compile c_core/bench sources with the extension's compiler and flags, run the program and give its
+    output; None without a compiler. `generated(dir)`: writes the generated sources first and gives
+    their list."""
+    sys.path.insert(0, str(ROOT / "c_core"))
+    import cbuild
+    import vehest_build
+
+    cc = cbuild.cc()
+    if shutil.which(cc[0]) is None:
+        return None
+    with tempfile.TemporaryDirectory() as tmp:
+        srcs = [*(generated(Path(tmp) / "generated") if generated else []), *sources]
+        exe = Path(tmp) / "bench"
+        subprocess.run([*cc, *vehest_build.STRICT_FLAGS, *vehest_build.OPT_FLAGS,
+                        *(f"-I{d}" for d in include_dirs(Path(tmp) / "generated")), *map(str, srcs),
+                        *vehest_build.LINK_FLAGS, "-o", str(exe)], check=True, capture_output=True, text=True)
+        return subprocess.run([str(exe), *args], check=True, capture_output=True, text=True).stdout
+
+
 def c_loop(bench: str = "vh_bench.c") -> dict[str, tuple[float, float]] | None:
     """Build c_core/bench/<bench> with the extension's flags and run it: {name: (median_ns, p99_ns)}."""
     src = ROOT / "c_core" / "bench" / bench
-    cc = shutil.which("cc") or shutil.which("gcc")
-    if not src.exists() or cc is None:
+    if not src.exists():
         return None
     sys.path.insert(0, str(ROOT / "c_core"))
     import vehest_build
 
-    with tempfile.TemporaryDirectory() as tmp:
-        gen = Path(tmp) / "generated"
-        sources = [str(s) for s in vehest_build.firmware_sources(gen)] + [str(src)]
-        inc = [f"-I{d}" for d in vehest_build.bench_include_dirs(gen)]
-        exe = Path(tmp) / "vh_bench"
-        subprocess.run([cc, *vehest_build.STRICT_FLAGS, *vehest_build.OPT_FLAGS, *inc, *sources,
-                        *vehest_build.LINK_FLAGS, "-o", str(exe)],
-                       check=True, capture_output=True, text=True)
-        out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout
+    out = _build_run([src], vehest_build.bench_include_dirs, generated=vehest_build.firmware_sources)
+    if out is None:
+        return None
     rows = {}
     for line in out.splitlines():
         name, _, med, p99 = line.split()
@@ -120,9 +133,11 @@ def run(quick: bool = False) -> dict:
 
 
 def roll(steps: int = 1200, ref_steps: int = 60, repeats: int = 7) -> dict:
-    """Seed-003 roll UKF step (n = 16, 33 sigma points): the C float32 and double builds through the
-    array API (one call per run) against filterpy's UnscentedKalmanFilter on the same model and
-    sigma points (ref.filterpy_ukf), on the paper's 72 km/h case at the ECU's 5 ms step."""
+    """Seed-003 roll UKF step, the paper's variant (n = 16, 33 sigma points) and the robust one (n = 21,
+    43): the C float32 and double builds through the array API (one call per run) against filterpy's
+    UnscentedKalmanFilter on the paper's model and sigma points (ref.filterpy_ukf); the robust model as
+    the numpy reference UKF and as its EKF (same model, Q, R, P0), both numpy, for the cost of one
+    against the other; on the paper's 72 km/h case at the ECU's 5 ms step."""
     from ..systems.roll import api as rn
     from ..systems.roll import evaluate as ev
     from ..systems.roll import reference as ref
@@ -133,21 +148,27 @@ def roll(steps: int = 1200, ref_steps: int = 60, repeats: int = 7) -> dict:
     u, z, _ = ev.synthesise(truth, decim=10, prm=prm)
     u, z = u[:steps], z[:steps]
     out: dict = {"steps": len(u)}
-    for prec in ("f32", "f64"):
-        k = rn.Ukf(prm, prec)
+    m = min(ref_steps, len(u))
+    for variant, tag in (("paper", ""), ("robust", "robust_")):
+        prm.variant = rn.VARIANTS[variant]
+        for prec in ("f32", "f64"):
+            k = rn.Ukf(prm, prec)
 
-        def run_c(k=k):
-            k.reset()
-            k.run(u, z)
+            def run_c(k=k):
+                k.reset()
+                k.run(u, z)
 
-        out[f"c_{prec}_ns"] = _median_time(run_c, repeats) / len(u) * 1e9
+            out[f"c_{tag}{prec}_ns"] = _median_time(run_c, repeats) / len(u) * 1e9
+    p = rn.params_dict(prm)  # the robust variant's
+    for name, cls in (("ref_robust_ukf_ns", ref.RefUkf), ("ref_robust_ekf_ns", ref.RefEkf)):
+        out[name] = _median_time(lambda cls=cls: cls(p).run(u[:m], z[:m]), max(1, repeats // 3)) / m * 1e9
+    prm.variant = rn.VARIANTS["paper"]
     try:
         p = rn.params_dict(prm)
         ref.filterpy_ukf(p)
     except ImportError:
         out["filterpy_ns"] = None
         return out
-    m = min(ref_steps, len(u))
 
     def run_fp():
         f = ref.filterpy_ukf(p)
@@ -248,7 +269,7 @@ def _tick_rows(res: dict, rows: tuple[tuple[str, str], ...], feature: str) -> li
 _FEATURE_RUNS = (
     ("ecu_xcp", "XCP", (("ecu_tick_no_xcp", "ECU tick, XCP off (same run)"),
                         ("ecu_tick_xcp_idle", "ECU tick, XCP on, connected, idle"),
-                        ("ecu_tick_xcp_daq", "ECU tick, XCP 20-signal DAQ at 1 ms")),
+                        ("ecu_tick_xcp_daq", "ECU tick, XCP 18-signal DAQ at 1 ms")),
      # "xcp_daq_dtos ticks dtos overruns": the DAQ ran within its budget
      ("xcp_daq_dtos", "  XCP DAQ in that run", "DTOs", "samples dropped")),
     ("ecu_secoc", "SecOC", (("ecu_tick_secoc_off", "ECU tick, every system, SecOC off (same run)"),
@@ -312,12 +333,19 @@ def table(res: dict, lockstep: dict[str, tuple[float, float]] | None = None) -> 
     if rl:
         fpu = rl.get("filterpy_ns")
         for key, name in (("c_f32_ns", "roll UKF step, C float32 (array API)"),
-                          ("c_f64_ns", "roll UKF step, C double (array API)")):
-            vs = f"   {fpu / rl[key]:.0f}x filterpy UKF (target >= 100x)" if fpu else ""
-            lines.append(f"{name:<44}{rl[key] / 1000:>9.2f} µs/step{vs}")
+                          ("c_f64_ns", "roll UKF step, C double (array API)"),
+                          ("c_robust_f32_ns", "roll robust UKF step, C float32"),
+                          ("c_robust_f64_ns", "roll robust UKF step, C double")):
+            if key in rl:
+                vs = f"   {fpu / rl[key]:.0f}x filterpy UKF (target >= 100x)" if fpu else ""
+                lines.append(f"{name:<44}{rl[key] / 1000:>9.2f} µs/step{vs}")
         if fpu:
             lines.append(f"{'roll UKF step, filterpy UnscentedKalmanFilter':<44}{fpu / 1000:>9.0f} µs/step")
         lines.append(f"roll UKF float32 / double step time: {rl['c_f32_ns'] / rl['c_f64_ns']:.2f}")
+        if "ref_robust_ekf_ns" in rl:
+            lines.append(f"{'roll robust model, numpy UKF step':<44}{rl['ref_robust_ukf_ns'] / 1000:>9.0f} µs/step")
+            lines.append(f"{'roll robust model, numpy EKF step (FD Jac.)':<44}{rl['ref_robust_ekf_ns'] / 1000:>9.0f} µs/step"
+                         f"   {rl['ref_robust_ukf_ns'] / rl['ref_robust_ekf_ns']:.2f}x the UKF's speed")
     if "ecu_tick_all" in c:
         mx = f", longest {c['ecu_all_roll'][1] / 1000:.1f} µs (target <= 100 µs)" if "ecu_all_roll" in c else ""
         lines.append(f"{'ECU tick, every system (+ roll UKF + SMC)':<44}{c['ecu_tick_all'][0] / 1000:>9.2f} µs/tick"
@@ -341,7 +369,7 @@ def table(res: dict, lockstep: dict[str, tuple[float, float]] | None = None) -> 
     return "\n".join(lines)
 
 
-def bench_c_loop(cc: str | None = None, samples: int = 40000) -> dict[str, tuple[float, float]] | None:
+def bench_c_loop(samples: int = 40000) -> dict[str, tuple[float, float]] | None:
     """Build and run ``c_core/bench/vh_bench_skf.c`` with the extension's flags.
 
     Returns {name: (median_ns, p99_ns)} for ``skfmec_double_step``, ``ekf_double_step``,
@@ -349,21 +377,17 @@ def bench_c_loop(cc: str | None = None, samples: int = 40000) -> dict[str, tuple
     {name: (value, 0)} for the fixed-point filters' saturation counts and final-state checksums
     (``skfmec_fixed_checksum``, ...), or None without a compiler.
     """
-    root = ROOT
-    src = root / "c_core" / "bench" / "vh_bench_skf.c"
-    cc = cc or shutil.which("cc") or shutil.which("gcc")
-    if not src.exists() or cc is None:
+    src = ROOT / "c_core" / "bench" / "vh_bench_skf.c"
+    if not src.exists():
         return None
-    sys.path.insert(0, str(root / "c_core"))
+    sys.path.insert(0, str(ROOT / "c_core"))
     import vehest_build
 
     sources = [src] + [vehest_build.firmware_path(f) for f in ("vh_skf.c", "vh_skfq.c", "vh_skfq_host.c",
                                                                      "vh_tfa.c", "vh_tfa_host.c", "vh_fix.c")]
-    with tempfile.TemporaryDirectory() as tmp:
-        exe = Path(tmp) / "vh_bench_skf"
-        subprocess.run([cc, *vehest_build.STRICT_FLAGS, *vehest_build.OPT_FLAGS, *(f"-I{d}" for d in vehest_build.FIRMWARE_DIRS),
-                        *map(str, sources), "-lm", "-o", str(exe)], check=True, capture_output=True, text=True)
-        out = subprocess.run([str(exe), str(samples)], check=True, capture_output=True, text=True).stdout
+    out = _build_run(sources, lambda _gen: vehest_build.FIRMWARE_DIRS, args=(str(samples),))
+    if out is None:
+        return None
     rows = {}
     for line in out.splitlines():
         name, count, med, p99 = line.split()

@@ -242,15 +242,19 @@ def dbc_text(desc: Description, data_rate: int) -> str:
         f'to MAX_DTO bytes), cyclic here; a master in standard mode sends a CRO (event frame) only after the '
         f'RES of the one before, so per tick the worst case is a CRO and its RES, or one DTO.";',
         'BA_DEF_ "Baudrate" INT 10000 1000000;', 'BA_DEF_ "BaudrateCANFD" INT 500000 10000000;',
-        'BA_DEF_ BO_ "CycleTimeUs" INT 0 100000000;',
+        'BA_DEF_ BO_ "GenMsgCycleTime" FLOAT 0 65535;', 'BA_DEF_ BO_ "CycleTimeUs" INT 0 100000000;',
+        'BA_DEF_ BO_ "GenMsgSendType" ENUM "Cyclic","Event";',
         'BA_DEF_ BO_ "VFrameFormat" ENUM "StandardCAN","ExtendedCAN","reserved","reserved","reserved",'
         '"reserved","reserved","reserved","reserved","reserved","reserved","reserved","reserved","reserved",'
         '"StandardCAN_FD","ExtendedCAN_FD";',
         'BA_DEF_DEF_ "Baudrate" 500000;', 'BA_DEF_DEF_ "BaudrateCANFD" 4000000;', 'BA_DEF_DEF_ "CycleTimeUs" 0;',
+        'BA_DEF_DEF_ "GenMsgCycleTime" 0;', 'BA_DEF_DEF_ "GenMsgSendType" "Event";',
         'BA_DEF_DEF_ "VFrameFormat" "StandardCAN";',
         f'BA_ "Baudrate" {desc.bitrate};', f'BA_ "BaudrateCANFD" {data_rate};',
         f'BA_ "VFrameFormat" BO_ {cro} {fmt};',
-        f'BA_ "CycleTimeUs" BO_ {dto} {desc.tick_us};', f'BA_ "VFrameFormat" BO_ {dto} {fmt};', "",
+        f'BA_ "GenMsgCycleTime" BO_ {dto} {desc.tick_us / 1000:g};',  # ms, as the bus DBCs (docs/busload.md)
+        f'BA_ "CycleTimeUs" BO_ {dto} {desc.tick_us};', f'BA_ "GenMsgSendType" BO_ {dto} 0;',
+        f'BA_ "VFrameFormat" BO_ {dto} {fmt};', "",
     ])
 
 

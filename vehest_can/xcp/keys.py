@@ -14,12 +14,11 @@ same function. The development key (``--xcp-dev``) is public and fixed: for a be
 """
 from __future__ import annotations
 
-import os
 import re
 import secrets
 from pathlib import Path
 
-from ..bus.secoc import check_private
+from ..bus.secoc import check_private, write_private
 from ..errors import ConfigError
 from ..schema import Checker, read_toml
 
@@ -49,19 +48,11 @@ def load_key(path: Path | str) -> bytes:
 
 def write_key(path: Path | str) -> bytes:
     """A new key file with a random key (mode 600, never overwrites an existing file)."""
-    path = Path(path)
-    try:
-        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-    except FileExistsError:
-        raise ConfigError(f"{path}: exists; not overwritten (remove it to make a new key)") from None
-    except OSError as e:
-        raise ConfigError(f"{path}: cannot create: {e.strerror}") from None
     key = secrets.token_bytes(16)
-    with os.fdopen(fd, "w") as f:
-        f.write("# vehest-can XCP seed & key: the AES-128 key of the ECU's XCP slave (CMAC).\n"
-                "# The daemon (--xcp-key) and every master that unlocks it need this file.\n"
-                "# Keep it out of the repository, readable by its owner only.\n"
-                f'[xcp]\nkey = "{key.hex()}"\n')
+    write_private(path, "# vehest-can XCP seed & key: the AES-128 key of the ECU's XCP slave (CMAC).\n"
+                        "# The daemon (--xcp-key) and every master that unlocks it need this file.\n"
+                        "# Keep it out of the repository, readable by its owner only.\n"
+                        f'[xcp]\nkey = "{key.hex()}"\n')
     return key
 
 

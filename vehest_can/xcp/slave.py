@@ -38,16 +38,6 @@ class Frame:
     data: bytes
 
 
-def firmware_key_for(seed: bytes, resource: int, key: bytes) -> bytes:
-    """The key as this slave's C computes it (vh_xcp_key); keys.key_for is the independent master's."""
-    k = ffi.new("vh_cmac_key_t *")
-    if lib.vh_cmac_init(k, key) != 0:
-        raise XcpConfigError("the AES backend refused the key")
-    out = ffi.new("uint8_t[]", lib.VH_XCP_KEY_LEN)
-    lib.vh_xcp_key(k, resource, seed, out)
-    return bytes(out)
-
-
 def _f32(v: float) -> float:
     return struct.unpack("<f", struct.pack("<f", v))[0]
 

@@ -26,10 +26,10 @@ import numpy as np
 
 from ...errors import ConfigError
 from ...native import c_enum, check, config_class, ffi, lib
+from ...sim import WHEELS
 
 FORMAT = "vehest-can/camber-calibration"
 VERSION = 1
-WHEELS = ("FL", "FR", "RL", "RR")
 N_MAX = int(lib.VH_CAMBER_N_MAX)
 DEFAULT_LSB_G = 0.004  # 4 mg, the paper's resolution
 AXIS_NORM_TOL = 1e-3  # a stored axis must be a unit vector to this (the C check)

@@ -65,11 +65,12 @@ def write_car(cfg, car) -> None:
 
 def configure_variant(cfg, variant: str) -> None:
     """The UKF variant (``"paper"`` or ``"robust"``) into a ``vh_roll_app_config_t *``; the controller's
-    disturbance share follows it (1 robust, 0 paper: ``vh_roll_smc_params_default``'s rule)."""
+    defaults follow it (``vh_roll_smc_params_default``: the paper's law with the paper's UKF, the
+    robust law with the robust one), so set the controller's own fields after this."""
     if variant not in VARIANTS:
         raise RollError(f"roll variant must be one of {sorted(VARIANTS)}, not {variant!r}")
     cfg.ukf.variant = VARIANTS[variant]
-    cfg.smc.dist_gain = 1.0 if variant == "robust" else 0.0
+    lib.vh_roll_smc_params_default(ffi.addressof(cfg, "smc"), ffi.addressof(cfg, "ukf"))
 
 
 def make_params(**over):

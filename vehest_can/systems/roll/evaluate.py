@@ -342,5 +342,47 @@ def ukf_vs_ekf(doc: dict, seed: int = 1) -> dict:
     return out
 
 
+
+# ---- the robust model as UKF and as EKF, on what the ECU took from the bus ---------------------------
+
+#: the 95 % interval of the NIS of 14 independent measurements (chi-square, 14 degrees of freedom)
+NIS_95_14 = (5.629, 26.119)
+
+
+def filters_on_bus(session, car=None, skip_s: float = 0.2) -> dict:
+    """The robust model (docs/roll.md, eq. 4d/10d) run as the numpy reference UKF and as its EKF (double,
+    the same Q, R, P0) on the samples the ECU decoded from the bus of one run, against the plant's truth
+    after `skip_s`: roll and roll-rate RMS error in % of the run's peak, the mean NIS per measurement
+    (1 for a filter whose covariance tells the truth) and the share of steps with the NIS inside its 95 %
+    interval (clean runs: all 14 measurements every step), the cost of one step of each (numpy, so one
+    against the other, not against the C build)."""
+    import time
+
+    from . import reference as ref
+    from .report import bus_samples
+
+    prm, u, z, steps = bus_samples(session, car)
+    prm.variant = rn.VARIANTS["robust"]
+    p = rn.params_dict(prm)
+    phi, rate = session.truth["phi"][steps], session.truth["p"][steps]
+    keep = np.arange(len(steps)) >= int(round(skip_s / prm.dt))
+    out: dict = {"steps": int(len(steps))}
+    for name, cls in (("ukf", ref.RefUkf), ("ekf", ref.RefEkf)):
+        f = cls(p)
+        xs, nis = np.zeros((len(u), 2)), np.zeros(len(u))
+        t0 = time.perf_counter()
+        for k in range(len(u)):
+            f.step(u[k], z[k])
+            xs[k], nis[k] = f.x[4:6], f.nis
+        step_s = (time.perf_counter() - t0) / len(u)
+        out[name] = {
+            "roll_pct": float(100 * np.sqrt(np.mean((xs[keep, 0] - phi[keep]) ** 2)) / np.abs(phi).max()),
+            "rate_pct": float(100 * np.sqrt(np.mean((xs[keep, 1] - rate[keep]) ** 2)) / np.abs(rate).max()),
+            "nis_per_measurement": float(nis[keep].mean() / ref.NZ),
+            "nis_in_95_pct": float(100 * np.mean((nis[keep] > NIS_95_14[0]) & (nis[keep] < NIS_95_14[1]))),
+            "step_us": step_s * 1e6}
+    return out
+
+
 if __name__ == "__main__":
     raise SystemExit(main())

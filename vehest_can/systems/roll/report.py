@@ -234,12 +234,10 @@ def _by_tick(session, name: str, n: int, scaling: bool = True) -> dict[str, np.n
     return out
 
 
-def rerun(session, car=None) -> dict[str, Any]:
-    """The ECU's float32 UKF once more, through the array API (in ``vehest_can._native``) on the samples
-    decoded from the bus, and the double build on the same: whether the published estimates equal the
-    array API's at the DBC's resolution (bit for bit), and how far float32 is from double. Assumes a
-    clean run (every measurement valid at every step), as the shipped cases are. `car`: the car the ECU was
-    calibrated for (a :class:`~vehest_can.carfile.CarFile`; None: the paper's)."""
+def bus_samples(session, car=None):
+    """What the ECU's UKF took from the bus, decoded: (its parameters as ``vh_roll_params_t *``, u (n, NU),
+    z (n, NZ), the ticks of its steps). `car`: the car the ECU was calibrated for (a
+    :class:`~vehest_can.carfile.CarFile`; None: the paper's)."""
     from ...native import ffi as nffi
     from ...native import lib as nlib
     from . import api as rn
@@ -262,6 +260,19 @@ def rerun(session, car=None) -> dict[str, Any]:
     w = [chs[f"WheelSpeed{x}"][steps] for x in ("FL", "FR", "RL", "RR")]
     vx = float(cfg.rw) * (((w[0] + w[1]) + w[2]) + w[3]) / 4.0   # as the ECU sums them
     u = np.column_stack([chs["SteerAngle"][steps], vx, act["AppliedMomentF"][steps], act["AppliedMomentR"][steps]])
+    return prm, u, z, steps
+
+
+def rerun(session, car=None) -> dict[str, Any]:
+    """The ECU's float32 UKF once more, through the array API (in ``vehest_can._native``) on the samples
+    decoded from the bus, and the double build on the same: whether the published estimates equal the
+    array API's at the DBC's resolution (bit for bit), and how far float32 is from double. Assumes a
+    clean run (every measurement valid at every step), as the shipped cases are. `car`: the car the ECU was
+    calibrated for (a :class:`~vehest_can.carfile.CarFile`; None: the paper's)."""
+    from . import api as rn
+
+    prm, u, z, steps = bus_samples(session, car)
+    n = len(session.truth)
     x32, _, h32 = rn.Ukf(prm, "f32").run(u, z)
     x64, _, _ = rn.Ukf(prm, "f64").run(u, z)
     raw = _by_tick(session, "VEHEST_RollEst", n, scaling=False)

@@ -25,7 +25,7 @@ import numpy as np
 from ...paths import ShippedSet
 from ...schema import Num
 from ...sim.scenario import DT, _native, derived_seed, kind_checker, load_shipped, set_channels
-from ...sim.veh14 import Veh14Car, Veh14Scenario, truth_dtype, veh14_scenario_from_dict
+from ...sim.veh14 import Veh14Car, Veh14Scenario, veh14_scenario_from_dict
 
 KINDS = ("roll",)
 #: the tables a roll scenario adds to a 14-DOF scenario
@@ -132,18 +132,15 @@ class RollScenario:
         return cfg
 
 
-#: the car's truth: the plant's, then the actuators' (applied and commanded moments, supervision state)
-_ARC_FIELDS = [("m_applied", "<f8", (2,)), ("m_cmd", "<f8", (2,)), ("arc_state", "u1"), ("mode_active", "u1")]
-
-
-def _names(dt: np.dtype) -> tuple[str, ...]:
-    return tuple(dt.names or ())
-
-
 def roll_truth_dtype() -> np.dtype:
-    base = truth_dtype(None)
-    fields: dict = dict(base.fields or {})
-    return np.dtype([(n, fields[n][0]) for n in _names(base)] + _ARC_FIELDS)
+    """The car's truth (``vh_v14car_truth_t``) with the plant's record flattened into it: the plant's
+    fields, then the actuators' (applied and commanded moments, supervision state, the driver's switch)."""
+    from ...native import struct_dtype
+
+    car = struct_dtype("vh_v14car_truth_t")
+    plant = car["plant"]
+    return np.dtype([(n, plant.fields[n][0]) for n in plant.names]
+                    + [(n, car.fields[n][0]) for n in car.names if n != "plant"])
 
 
 class RollCar(Veh14Car):
@@ -167,10 +164,9 @@ class RollCar(Veh14Car):
 
     def truths(self, raw: np.ndarray) -> np.ndarray:
         out = np.zeros(len(raw), dtype=self.truth_dtype)
-        for name in _names(raw.dtype["plant"]):
-            out[name] = raw["plant"][name]
-        for field in _ARC_FIELDS:
-            out[field[0]] = raw[field[0]]
+        plant = raw["plant"]
+        for name in out.dtype.names or ():
+            out[name] = plant[name] if name in (plant.dtype.names or ()) else raw[name]
         return out
 
 

@@ -39,7 +39,7 @@ class Roll(Registration):
         if part:
             configure_variant(app.roll, part.get("variant", "robust"))
             for key, value in part.get("smc", {}).items():  # the controller's tuning, by vh_roll_smc_params_t field
-                setattr(app.roll.smc, key, float(value))
+                setattr(app.roll.smc, key, int(value) if key == "law" else float(value))
             for key, value in part.get("ukf", {}).items():  # the filter's, by vh_roll_params_t field
                 if isinstance(value, (list, tuple)):
                     for i, v in enumerate(value):

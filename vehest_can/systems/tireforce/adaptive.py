@@ -129,6 +129,15 @@ class AdaptiveConfig:
     kin_dmu: float = 0.05        # the finite difference of the measurement's derivative in mu
     kin_dh_max: float = 30.0     # that derivative bounded to this [deg per unit mu]
     kin_side_min: float = 0.95   # used (and updated) only while both sides' estimates are at least this
+    # each tyre's bound (docs/tireforce.md, "Per-tyre bound"): bound_z sigma; the axle model's std (N, and a
+    # fraction of |F_axle|) and the lateral load transfer's (N, and a fraction of |dFz|), chosen on the design
+    # runs; a bound wider than bound_max [N] makes the health DEGRADED
+    bound_z: float = 1.96
+    bound_axle_abs: float = 150.0
+    bound_axle_rel: float = 0.08
+    bound_lt_abs: float = 200.0
+    bound_lt_rel: float = 0.1
+    bound_max: float = 2000.0
 
     @classmethod
     def for_car(cls, car, **overrides) -> AdaptiveConfig:
@@ -163,6 +172,7 @@ class AdaptiveRun(tf.TireForceRun):
     mu: np.ndarray | None = None        # (n, 4) the friction each tyre's split assumed (None: ``mu``)
     road_mu: np.ndarray | None = None   # (n,) the road's friction from the kinematic coupling (None: off)
     contra: np.ndarray | None = None    # (n,) contradictions (C_VX, C_MASS, C_BOUNDS bits)
+    bound: np.ndarray | None = None     # (n, 4) each tyre's bound: |F_y - fy| within it with 95 % [N]
 
 
 def _pac(c: float, mu: float, e: float, k: float, x: np.ndarray, fz: np.ndarray) -> np.ndarray:
@@ -330,6 +340,27 @@ def load_sensitive_split(axle: np.ndarray, fz: np.ndarray, cfg: AdaptiveConfig,
             alpha[:, a] = np.where(k > 0, kk - 1 + np.clip(t, 0.0, 1.0), top) * ALPHA_STEP_DEG
         if peak is not None:
             peak[:, a] = tot[rows, top]
+    return out
+
+
+def tyre_bounds(fy: np.ndarray, fz: np.ndarray, axle: np.ndarray, base_axle: np.ndarray, var_base: np.ndarray,
+                k: np.ndarray, var_k: np.ndarray, cfg: AdaptiveConfig) -> np.ndarray:
+    """Each tyre's bound z σ_i (docs/tireforce.md, "Per-tyre bound"; vh_tfa.c ``bounds``): the axle mean's
+    variance σ_a² = k² P_F + F² σ_k² + axle_abs² + (axle_rel F_axle)² (F the SKFMEC's axle mean with its
+    filter variance P_F, F_axle = k F), through the split's share g_i = F_i / F_axle, plus the split's own
+    term from the load transfer's std σ_ΔFz = lt_abs + lt_rel |ΔFz|: σ_i² = g_i² σ_a² + (F_axle σ_ΔFz / F̄z)².
+    fy, fz (n, 4); axle, base_axle, var_base (n, 2); k, var_k (n,)."""
+    out = np.empty_like(fy)
+    for a, (i, j) in enumerate(((0, 1), (2, 3))):
+        mag = np.abs(axle[:, a])
+        var_a = (k ** 2 * var_base[:, a] + base_axle[:, a] ** 2 * var_k + cfg.bound_axle_abs ** 2
+                 + (cfg.bound_axle_rel * mag) ** 2)
+        mean, dz = 0.5 * (fz[:, i] + fz[:, j]), 0.5 * (fz[:, j] - fz[:, i])
+        sdz = cfg.bound_lt_abs + cfg.bound_lt_rel * np.abs(dz)
+        split = mag * np.where(mean > sdz, sdz / np.where(mean > sdz, mean, 1.0), 1.0)
+        for w in (i, j):
+            g = np.where(mag >= 1.0, np.clip(fy[:, w] / np.where(mag >= 1.0, axle[:, a], 1.0), 0.0, 2.0), 1.0)
+            out[:, w] = cfg.bound_z * np.sqrt(g ** 2 * var_a + split ** 2)
     return out
 
 
@@ -714,7 +745,7 @@ class AdaptiveSkfmec:
         cfg, skf = self.adaptive, self.config
         n = len(inputs)
         m = np.full(n, int(lib.VH_SKF_ALL_VALID), np.uint8) if mask is None else np.asarray(mask, np.uint8)
-        base = tf.estimator(tf.SKFMEC, skf).run(inputs, m)
+        base = tf.estimator(tf.SKFMEC, skf).run(inputs, m, covariances=True)
         ride_n = _ride(ride, n)
         balance = np.zeros(n, bool)
         if cfg.mass:
@@ -740,14 +771,19 @@ class AdaptiveSkfmec:
             fy = load_sensitive_split(axle, fz, cfg)
         else:
             fy = base.fy * k
+        base_axle = np.c_[base.fy[:, :2].mean(1), base.fy[:, 2:].mean(1)]
+        var_base = base.p[:, (5, 6), (5, 6)] / (np.asarray(skf.s)[5:] ** 2 if skf.scaled else 1.0)
+        bound = tyre_bounds(fy, fz, axle, base_axle, var_base, k[:, 0], (std / skf.m) ** 2, cfg)
+        base.p = None
         health = base.health.copy()
         unconverged = (std > cfg.mass_sigma_ok * skf.m) & (health == H_OK) & cfg.mass
         health[unconverged] = H_DEGRADED
         contra = contradictions(inputs, m, base, mass, fz, side, road, skf, cfg)
         contra[balance] |= C_BALANCE
         health[(health == H_OK) & implausible(inputs, m, skf, cfg, contra)] = H_DEGRADED
+        health[(health == H_OK) & (bound > cfg.bound_max).any(1)] = H_DEGRADED
         return AdaptiveRun(x=base.x, fy=fy, fz=fz, health=health, resets=base.resets, mass=mass, mass_std=std,
-                           mu=mu, road_mu=road, contra=contra)
+                           mu=mu, road_mu=road, contra=contra, bound=bound)
 
 
 STRESS_DIR = "stress"  # firmware_sim/scenarios/tireforce/stress/: scenarios of SKFMEC-A, not in any tuning
@@ -772,7 +808,8 @@ def config_to_c(cfg: AdaptiveConfig):
                  "q_gate", "tau_mu", "tau_mu_forget", "mu_floor", "ellipse_floor", "friction", "combined", "ride",
                  "spring_front", "spring_rear", "sigma_ride", "road", "tau_kin", "ay_kin_gate", "fx_free", "kin_q",
                  "kin_r_deg", "kin_sigma0", "kin_dmu", "kin_dh_max", "kin_side_min", "transfer", "tyre_kz",
-                 "tau_vyd", "vyd_gate", "hold_implausible", "vx_tol", "vx_tol_rel", "bal_tol", "bal_tol_rel"):
+                 "tau_vyd", "vyd_gate", "hold_implausible", "vx_tol", "vx_tol_rel", "bal_tol", "bal_tol_rel",
+                 "bound_z", "bound_axle_abs", "bound_axle_rel", "bound_lt_abs", "bound_lt_rel", "bound_max"):
         setattr(c, name, getattr(cfg, name))
     c.mass_lo, c.mass_hi = cfg.mass_range
     for i, v in enumerate(cfg.tyre_a):
@@ -822,13 +859,15 @@ class AdaptiveFixed:
             np.floor(np.nan_to_num(r) * 2.0 ** lib.VH_TFA_FH + 0.5), dtype=np.int32)
         fy, fz = np.empty((n, 4), np.int32), np.empty((n, 4), np.int32)
         k, p, health = np.empty(n, np.int32), np.empty(n, np.int32), np.empty(n, np.uint8)
+        bound = np.empty((n, 4), np.int32)
         sat0 = self.saturations
         ptr = tf._ptr
         lib.vh_tfa_run(self._a, self._skf._f, n, ptr(q, "int32_t *"), ptr(m, "uint8_t *"), ptr(rq, "int32_t *"),
                        ptr(ride_ok, "uint8_t *"), ptr(fy, "int32_t *"), ptr(fz, "int32_t *"), ptr(k, "int32_t *"),
-                       ptr(p, "int32_t *"), ptr(health, "uint8_t *"))
+                       ptr(p, "int32_t *"), ptr(health, "uint8_t *"), ptr(bound, "int32_t *"))
         fn = 2.0 ** -lib.VH_SKFQ_FN
         m0 = self.params.m_num / self.params.m_den  # the model mass as the ECU sends it (vh_tfa_params_from_config)
         return AdaptiveRun(x=np.zeros((n, 7)), fy=fy * fn, fz=fz * fn, health=health, resets=0,
                            saturations=self.saturations - sat0, mass=k * 2.0 ** -lib.VH_TFA_FK * m0,
-                           mass_std=np.sqrt(p * 2.0 ** -lib.VH_TFA_FP) * m0, raw={"fy": fy, "fz": fz, "k": k, "p": p})
+                           mass_std=np.sqrt(p * 2.0 ** -lib.VH_TFA_FP) * m0, bound=bound * fn,
+                           raw={"fy": fy, "fz": fz, "k": k, "p": p, "bound": bound})

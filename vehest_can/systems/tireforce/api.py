@@ -14,6 +14,7 @@ import numpy as np
 
 from ...errors import ConfigError
 from ...native import check, config_class, ffi, from_c_default, lib
+from ...sim import WHEELS  # noqa: F401 - the per-wheel order of this API's arrays
 
 SKFMEC = "skfmec"
 EKF = "ekf"
@@ -21,7 +22,6 @@ FIXED = "skfmec-fixed"
 VARIANTS = (SKFMEC, FIXED, EKF)
 _VARIANT_C = {SKFMEC: lib.VH_SKF_SKFMEC, FIXED: lib.VH_SKF_SKFMEC, EKF: lib.VH_SKF_EKF}
 STATES = ("vx", "vy", "r", "phi", "p", "fyf", "fyr")
-WHEELS = ("FL", "FR", "RL", "RR")
 _VEC = {"s": 7, "q": 7, "p0": 7, "r": 4, "gp": 7, "gy": 2}
 
 
