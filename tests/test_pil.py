@@ -3,12 +3,11 @@ against the host build, over the frame link (vehest_can.service.pil).
 
 The calibration block and the state read back cross the link as raw bytes, so their layout must be
 the same on x86-64 and ARM: a dump of every leaf's offset and size, compiled by both compilers. The
-golden log replays through the emulated ECU to the golden frames bit for bit; the roll system's
-float32 path is bit for bit until newlib's sinf/cosf round differently from glibc's (measured here:
-1 ulp at most). Skipped with the reason where QEMU or the cross compiler is missing; with CI=true
-that fails instead (CI installs both: .ci/apt-packages.txt)."""
-import ctypes
-import ctypes.util
+golden log replays through the emulated ECU to the golden frames bit for bit, and so does the roll
+system's float32 path (its sin/cos/atan are the project's own, c_core/common/vh_mathf.c, the same
+bits on both sides: checked here; newlib's and glibc's differ by an ulp). Skipped with the reason
+where QEMU or the cross compiler is missing; with CI=true that fails instead (CI installs both:
+.ci/apt-packages.txt)."""
 import os
 import shutil
 import subprocess
@@ -20,7 +19,7 @@ import pytest
 
 from vehest_can.bus.frames import message
 from vehest_can.bus.log import read_log
-from vehest_can.native import ffi
+from vehest_can.native import ffi, lib
 from vehest_can.service import pil
 from vehest_can.service.replay import replay
 from vehest_can.sim.session import run_inprocess
@@ -171,8 +170,7 @@ def test_golden_log_on_the_emulated_ecu_gives_the_golden_frames(target):
 
 def test_roll_golden_record_on_the_emulated_ecu(target):
     """The roll loop closed through the image (plant here, UKF and SMC in float32 there): the golden
-    record's first 0.5 s bit for bit, plant truth included. (Later, newlib's sinf/cosf round one ulp
-    away from glibc's in some calls: test_newlib_float_functions_against_the_hosts.)"""
+    record's first 0.5 s bit for bit, plant truth included (the whole record: test_roll_scenarios_...)."""
     from vehest_can.systems.roll.scenario import RollCar, load_roll_scenario
 
     target.reset()
@@ -209,11 +207,11 @@ def test_a_calibration_set_on_the_host_copy_reaches_the_target(target):
     assert windows(host) == expected
 
 
-def test_newlib_float_functions_against_the_hosts(target):
-    """The float32 functions the firmware takes from libm, newlib's (on the target) against the host's:
-    sqrtf is exact on both; sinf, cosf, atanf, atan2f differ by one ulp at most, in a measured share of
-    the inputs (docs/firmware.md): the bound of the float32 paths' difference, per call."""
-    m = ctypes.CDLL(ctypes.util.find_library("m"))
+def test_float_functions_are_the_same_bits_on_host_and_target(target):
+    """The float32 functions the firmware calls: vh_mathf's sinf, cosf, atanf, atan2f (c_core/common),
+    compiled for the target and for the host, give the same bits on every input (roll's and camber's
+    ranges and beyond; sqrtf is correctly rounded on both); and the image links no libm sinf, cosf,
+    atanf or atan2f (newlib's round differently from glibc's), so nothing else can call them."""
     rng = np.random.default_rng(7)
 
     def on_target(fn: int, x: np.ndarray) -> np.ndarray:
@@ -223,20 +221,30 @@ def test_newlib_float_functions_against_the_hosts(target):
             out.append(np.frombuffer(target._link.answer(b"Q"), "<f4"))
         return np.concatenate(out)
 
-    def ulps(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        return np.abs(a.view(np.int32).astype(np.int64) - b.view(np.int32).astype(np.int64))
+    def bits(a: np.ndarray) -> np.ndarray:
+        return np.asarray(a, np.float32).view(np.uint32)
 
-    for fn, name, lo, hi in ((0, "sinf", -4.0, 4.0), (1, "cosf", -4.0, 4.0), (2, "atanf", -20.0, 20.0),
-                             (4, "sqrtf", 0.0, 1e4)):
-        f = getattr(m, name)
-        f.restype, f.argtypes = ctypes.c_float, [ctypes.c_float]
-        x = rng.uniform(lo, hi, 2000).astype(np.float32)
-        d = ulps(on_target(fn, x), np.array([f(float(v)) for v in x], np.float32))
-        assert d.max() <= (0 if name == "sqrtf" else 1), name
-    m.atan2f.restype, m.atan2f.argtypes = ctypes.c_float, [ctypes.c_float] * 2
-    x = rng.uniform(-20.0, 20.0, 4000).astype(np.float32)
-    d = ulps(on_target(3, x), np.array([m.atan2f(float(a), float(b)) for a, b in x.reshape(-1, 2)], np.float32))
-    assert d.max() <= 1
+    special = np.array([0.0, -0.0, 1e-30, -1e-30, np.pi / 4, np.pi / 2, np.pi, 8191.0, 2.0 ** 24, np.inf, -np.inf,
+                        np.nan], np.float32)
+    for fn, name, lo, hi in ((0, "vh_sinf", -10.0, 10.0), (1, "vh_cosf", -10.0, 10.0), (0, "vh_sinf", -8192.0, 8192.0),
+                             (2, "vh_atanf", -50.0, 50.0), (2, "vh_atanf", -1e6, 1e6), (4, "sqrtf", 0.0, 1e4)):
+        # sqrtf of a negative is the FPU's default NaN, whose sign IEEE leaves open (x86 sets it, ARM not)
+        x = np.concatenate([rng.uniform(lo, hi, 20000).astype(np.float32), special[~(special < 0)] if lo >= 0 else special])
+        f = getattr(lib, name) if name != "sqrtf" else (lambda v: np.sqrt(np.float32(v)))
+        host = np.array([f(float(v)) for v in x], np.float32)
+        assert np.array_equal(bits(on_target(fn, x)), bits(host)), name
+    x = np.concatenate([rng.uniform(-20.0, 20.0, 40000), [0.0, 1.0, 0.0, -1.0, 1.0, 0.0, -1.0, 0.0, 1e-30, -1.0,
+                                                         np.inf, -np.inf, np.nan, 1.0, 1.0, np.nan]])
+    x = x.astype(np.float32)
+    host = np.array([lib.vh_atan2f(float(a), float(b)) for a, b in x.reshape(-1, 2)], np.float32)
+    assert np.array_equal(bits(on_target(3, x)), bits(host))
+    import firmware_image
+
+    nm = subprocess.run(["arm-none-eabi-nm", "--defined-only", str(firmware_image.image())], check=True,
+                        capture_output=True, text=True).stdout
+    linked = {ln.split()[-1] for ln in nm.splitlines()}
+    assert not linked & {"sinf", "cosf", "atanf", "atan2f", "sin", "cos", "atan", "atan2"}
+    assert {"vh_sinf", "vh_cosf", "vh_atanf", "vh_atan2f"} <= linked
 
 
 # -- the cost of a tick ------------------------------------------------------------------------------

@@ -3,6 +3,7 @@
 #include <string.h>
 
 #include "vh_camber.h"
+#include "vh_mathf.h" /* sin, cos, atan2: the same bits on the ECU and the host */
 
 static bool finite3(const float v[3])
 {
@@ -325,17 +326,17 @@ void vh_camber_cal_apply(const vh_camber_cal_t *cal, const float counts[3], floa
 void vh_camber_angles(const float a_s[3], float *theta_rad, float *psi_rad)
 {
     /* eq. 4: psi = -atan(ax / az); atan2 equals it for az > 0 and stays defined otherwise */
-    *psi_rad = atan2f(-a_s[0], a_s[2]);
+    *psi_rad = vh_atan2f(-a_s[0], a_s[2]);
     /* eq. 6: theta = atan(ay / sqrt(ax^2 + az^2)), free of psi */
-    *theta_rad = atan2f(a_s[1], sqrtf(a_s[0] * a_s[0] + a_s[2] * a_s[2]));
+    *theta_rad = vh_atan2f(a_s[1], sqrtf(a_s[0] * a_s[0] + a_s[2] * a_s[2]));
 }
 
 float vh_camber_bound(float theta_rad, float psi_rad, const float da[3], float g)
 {
-    float st = sinf(theta_rad);
+    float st = vh_sinf(theta_rad);
     /* eq. 22 */
-    return (fabsf(st * sinf(psi_rad) * da[0]) + fabsf(cosf(theta_rad) * da[1])
-            + fabsf(st * cosf(psi_rad) * da[2]))
+    return (fabsf(st * vh_sinf(psi_rad) * da[0]) + fabsf(vh_cosf(theta_rad) * da[1])
+            + fabsf(st * vh_cosf(psi_rad) * da[2]))
            / g;
 }
 

@@ -10,6 +10,7 @@
 #define NX VH_DKF_NX
 #define NZ VH_DKF_NZ
 
+
 double vh_dkf_road_load_coeff(double rt, double rho_a, double ca, double area, double wwo)
 {
     return rt * rho_a * ca * area * wwo; /* eq. 4 */
@@ -121,174 +122,6 @@ int vh_dkf_init(vh_dkf_t *f, const vh_dkf_config_t *cfg)
     return VH_OK;
 }
 
-static void restart(vh_dkf_t *f)
-{
-    memset(f->x, 0, sizeof f->x);
-    memset(f->k, 0, sizeof f->k);
-    vh_mat_diag(f->p, f->cfg.p0, NX);
-    vh_kf_restart(&f->steps, &f->x_init, &f->health);
-}
-
-void vh_dkf_reset(vh_dkf_t *f)
-{
-    restart(f);
-    f->resets = 0u;
-}
-
-/* Rows of z the measurement set uses and the caller marked valid. */
-static int select_rows(const vh_dkf_t *f, unsigned mask, int rows[NZ])
-{
-    int n = 0, i;
-    const unsigned used = (f->cfg.meas == VH_DKF_SPEEDS) ? (VH_DKF_Z_WO | VH_DKF_Z_WW) : VH_DKF_Z_ALL;
-    for (i = 0; i < NZ; ++i) {
-        if ((mask & used & (1u << i)) != 0u) {
-            rows[n++] = i;
-        }
-    }
-    return n;
-}
-
-static int sane(const vh_dkf_t *f)
-{
-    int i;
-    if (!vh_mat_finite(f->x, NX) || !vh_mat_finite(f->p, NX * NX)) {
-        return 0;
-    }
-    for (i = 0; i < NX; ++i) {
-        const double d = f->p[i * NX + i];
-        if (!(d > 0.0) || d > f->cfg.p_max || fabs(f->x[i]) > f->cfg.x_max) {
-            return 0;
-        }
-    }
-    return 1;
-}
-
-/* First usable sample: start from the measurements instead of zero, so an ECU that boots
- * with the car moving does not spend its first second unlearning x = 0. */
-static void seed_state(vh_dkf_t *f, double u, const double z[NZ], unsigned mask)
-{
-    f->x[0] = (mask & VH_DKF_Z_WO) ? z[0] : 0.0;
-    f->x[1] = (mask & VH_DKF_Z_WW) ? z[1] : 0.0;
-    if (f->cfg.meas == VH_DKF_SPEEDS_TORQUE && (mask & VH_DKF_Z_TO)) {
-        f->x[2] = z[2];
-    } else { /* quasi-static eq. 1 with J_o -> 0: T_o = T_i / (R_i R_d) */
-        f->x[2] = f->cfg.use_input ? u / (f->cfg.ri * f->cfg.rd) : 0.0;
-    }
-    f->x[3] = 0.0;
-    f->x_init = 1u;
-}
-
-int vh_dkf_step(vh_dkf_t *f, double u, const double z[VH_DKF_NZ], unsigned mask)
-{
-    double xp[NX], pp[NX * NX], tmp[NX * NX];
-    double s[NZ * NZ], sinv[NZ], pht[NX * NZ], kt[NZ * NX], ikh[NX * NX];
-    int rows[NZ], nz, i, j, l;
-    const unsigned needed = VH_DKF_U_VALID |
-                            ((f->cfg.meas == VH_DKF_SPEEDS) ? (VH_DKF_Z_WO | VH_DKF_Z_WW) : VH_DKF_Z_ALL);
-
-    if (!isfinite(u)) {
-        u = 0.0;
-        mask &= ~(unsigned)VH_DKF_U_VALID;
-    }
-    if (!f->cfg.use_input) {
-        u = 0.0;
-    }
-    nz = (mask & VH_DKF_STALE) ? 0 : select_rows(f, mask, rows);
-    if (!f->x_init) {
-        if (mask & VH_DKF_STALE) {
-            return 0;
-        }
-        if ((mask & (VH_DKF_Z_WO | VH_DKF_Z_WW)) != (VH_DKF_Z_WO | VH_DKF_Z_WW)) {
-            return 0; /* wait for both speeds before starting */
-        }
-        seed_state(f, u, z, mask);
-    }
-
-    /* predict: x- = A x + B u (eq. 10), P- = A P A^T + Q (eq. 15) */
-    vh_mat_mul(f->ad, f->x, xp, NX, NX, 1);
-    for (i = 0; i < NX; ++i) {
-        xp[i] += f->bd[i] * u;
-    }
-    vh_mat_mul(f->ad, f->p, tmp, NX, NX, NX);
-    vh_mat_mul_bt(tmp, f->ad, pp, NX, NX, NX);
-    for (i = 0; i < NX; ++i) {
-        pp[i * NX + i] += f->cfg.q[i];
-    }
-
-    memset(f->k, 0, sizeof f->k);
-    memset(f->innov, 0, sizeof f->innov);
-    if (nz > 0) {
-        for (j = 0; j < nz; ++j) {
-            f->innov[rows[j]] = z[rows[j]] - xp[rows[j]]; /* z - H x-: measured in the A2L */
-        }
-        /* H selects rows, so P- H^T is columns of P- and H P- H^T a sub-block */
-        for (i = 0; i < NX; ++i) {
-            for (j = 0; j < nz; ++j) {
-                pht[i * nz + j] = pp[i * NX + rows[j]];
-            }
-        }
-        for (i = 0; i < nz; ++i) {
-            for (j = 0; j < nz; ++j) {
-                s[i * nz + j] = pp[rows[i] * NX + rows[j]];
-            }
-            s[i * nz + i] += f->cfg.r[rows[i]];
-        }
-        /* K = P- H^T (H P- H^T + R)^-1 (eq. 13), as S K^T = H P- via Cholesky */
-        if (vh_mat_chol(s, sinv, nz) != 0) {
-            goto diverged;
-        }
-        for (i = 0; i < nz; ++i) {
-            for (j = 0; j < NX; ++j) {
-                kt[i * NX + j] = pht[j * nz + i];
-            }
-        }
-        vh_mat_chol_solve(s, sinv, kt, nz, NX);
-        for (i = 0; i < NX; ++i) {
-            double innov_gain = 0.0;
-            for (j = 0; j < nz; ++j) {
-                const double kij = kt[j * NX + i];
-                f->k[i * NZ + rows[j]] = kij;
-                innov_gain += kij * f->innov[rows[j]];
-            }
-            f->x[i] = xp[i] + innov_gain;
-        }
-        /* P = (I - KH) P- (I - KH)^T + K R K^T: Joseph form of eq. 14, symmetric PD by construction */
-        vh_mat_identity(ikh, NX);
-        for (i = 0; i < NX; ++i) {
-            for (j = 0; j < nz; ++j) {
-                ikh[i * NX + rows[j]] -= kt[j * NX + i];
-            }
-        }
-        vh_mat_mul(ikh, pp, tmp, NX, NX, NX);
-        vh_mat_mul_bt(tmp, ikh, f->p, NX, NX, NX);
-        for (l = 0; l < nz; ++l) { /* + K R K^T, R diagonal: one outer product per row */
-            const double *kl = kt + l * NX;
-            const double rl = f->cfg.r[rows[l]];
-            for (i = 0; i < NX; ++i) {
-                const double rki = rl * kl[i];
-                for (j = 0; j < NX; ++j) {
-                    f->p[i * NX + j] += rki * kl[j];
-                }
-            }
-        }
-        vh_mat_symmetrise(f->p, NX);
-    } else { /* no measurement this step: prediction only */
-        memcpy(f->x, xp, sizeof xp);
-        memcpy(f->p, pp, sizeof pp);
-    }
-
-    if (!sane(f)) {
-        goto diverged;
-    }
-    f->health = vh_kf_step_health(&f->steps, (mask & needed) != needed,
-                                  2u * (f->cfg.meas == VH_DKF_SPEEDS ? 1000u : 20u));
-    return 0;
-
-diverged:
-    restart(f);
-    return vh_kf_fault(&f->resets, &f->health);
-}
-
 int vh_dkf_set_ratio(vh_dkf_t *f, double ri)
 {
     double a[16], b[4];
@@ -322,23 +155,14 @@ void vh_dkf_use_gear_model(vh_dkf_t *f, const vh_dkf_gear_model_t *m)
     memcpy(f->bd, m->bd, sizeof f->bd);
 }
 
-uint32_t vh_dkf_run(vh_dkf_t *f, size_t n, const double *u, const double *z, const uint8_t *mask,
-                    double *x_out, double *k_out, double *p_out)
-{
-    size_t t;
-    uint32_t resets = 0u;
-    for (t = 0; t < n; ++t) {
-        resets += (uint32_t)vh_dkf_step(f, u[t], z + t * NZ, mask ? mask[t] : VH_DKF_ALL_VALID);
-        memcpy(x_out + t * NX, f->x, sizeof f->x);
-        if (k_out) {
-            memcpy(k_out + t * NX * NZ, f->k, sizeof f->k);
-        }
-        if (p_out) {
-            memcpy(p_out + t * NX * NX, f->p, sizeof f->p);
-        }
-    }
-    return resets;
-}
+#undef NX
+#undef NZ
+#define VH_DKF_SELF vh_dkf_t
+#define VH_DKF_REAL double
+#define VH_DKF_FN(n) vh_dkf_##n
+#define VH_DKF_MAT(n) vh_mat_##n
+#define VH_DKF_FABS fabs
+#include "vh_dkf_step.inc"
 
 int vh_dkf_turbine_torque(double we, double wt, double we_min, double *ti)
 {

@@ -101,6 +101,43 @@ int vh_dkf_set_ratio(vh_dkf_t *f, double ri);
 uint32_t vh_dkf_run(vh_dkf_t *f, size_t n, const double *u, const double *z, const uint8_t *mask,
                     double *x_out, double *k_out, double *p_out);
 
+/* The ECU's filter: the same step, reset and run (one source, vh_dkf_step.inc) in float32, which a
+ * Cortex-M4F's FPU runs in hardware (in double, libgcc's software routines are 80 % of the step).
+ * The configuration is checked and the model discretised in double (vh_dkf_init, vh_dkf_gear_model),
+ * then rounded once into these. Accuracy against the double build: docs/firmware.md. */
+typedef struct {
+    float q[VH_DKF_NX];
+    float r[VH_DKF_NZ];
+    float p0[VH_DKF_NX];
+    float p_max, x_max, ri, rd;
+    int meas, use_input;
+} vh_dkf_f32_config_t;
+
+typedef struct {
+    vh_dkf_f32_config_t cfg;
+    float ad[VH_DKF_NX * VH_DKF_NX];
+    float bd[VH_DKF_NX];
+    float x[VH_DKF_NX];
+    float p[VH_DKF_NX * VH_DKF_NX];
+    float k[VH_DKF_NX * VH_DKF_NZ];
+    float innov[VH_DKF_NZ];
+    uint32_t steps;
+    uint32_t resets;
+    uint8_t health;
+    uint8_t x_init;
+} vh_dkf_f32_t;
+
+/* vh_dkf_init's checks and model, rounded to float32; VH_EINVAL as vh_dkf_init. */
+int vh_dkf_f32_init(vh_dkf_f32_t *f, const vh_dkf_config_t *cfg);
+/* The tuning a running filter takes from a configuration (q, r, p0, p_max, x_max; XCP). */
+void vh_dkf_f32_tune(vh_dkf_f32_t *f, const vh_dkf_config_t *cfg);
+void vh_dkf_f32_reset(vh_dkf_f32_t *f);
+int vh_dkf_f32_step(vh_dkf_f32_t *f, float u, const float z[VH_DKF_NZ], unsigned mask);
+/* A precomputed gear model (double), rounded into the filter: a gear change, no exponential. */
+void vh_dkf_f32_use_gear_model(vh_dkf_f32_t *f, const vh_dkf_gear_model_t *m);
+uint32_t vh_dkf_f32_run(vh_dkf_f32_t *f, size_t n, const float *u, const float *z, const uint8_t *mask,
+                        float *x_out, float *k_out, float *p_out);
+
 /* Turbine torque from engine and turbine speed: eq. 9 (with the coupling/overrun extension of
  * vh_tc.h). Returns 0 and sets *ti when w_e >= we_min and the speed ratio is in [0, 2]; else -1
  * (input not usable: stalled engine, implausible ratio, non-finite speed). */

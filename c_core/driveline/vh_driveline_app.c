@@ -67,7 +67,7 @@ void vh_drv_app_reset(vh_drv_app_t *a)
     memset(a, 0, sizeof *a);
     a->cfg = cfg;
     for (i = 0; i < VH_ECU_N_DKF; ++i) {
-        (void)vh_dkf_init(&a->dkf[i], &cfg.dkf[i]); /* checked at init */
+        (void)vh_dkf_f32_init(&a->dkf[i], &cfg.dkf[i]); /* checked at init */
     }
     for (i = 0; i < VH_ECU_N_DKF; ++i) {
         for (g = 1; g < VH_ECU_N_GEARS; ++g) {
@@ -133,7 +133,7 @@ void vh_drv_app_rx(vh_drv_app_t *a, vh_app_ctx_t *ctx, const vh_frame_t *f)
 /* Inputs for this tick: timeout, gear, turbine torque (eq. 9, held when not usable). */
 static unsigned update_inputs(vh_drv_app_t *a, vh_ecu_counters_t *cnt, unsigned burst_limit)
 {
-    vh_dkf_t *dkf = a->dkf;
+    vh_dkf_f32_t *dkf = a->dkf;
     const double we_min = a->cfg.we_min;
     vh_ecu_dls_t *d = &a->dls;
     const int fresh = d->rx.fresh;
@@ -145,7 +145,7 @@ static unsigned update_inputs(vh_drv_app_t *a, vh_ecu_counters_t *cnt, unsigned 
     if (d->gear != GEAR_SNA && d->gear != a->gear && !d->rx.timed_out) {
         if (d->gear > 0u) {
             for (i = 0; i < VH_ECU_N_DKF; ++i) {
-                vh_dkf_use_gear_model(&dkf[i], &a->gears[i][d->gear]); /* rx_dls admits usable gears only */
+                vh_dkf_f32_use_gear_model(&dkf[i], &a->gears[i][d->gear]); /* rx_dls admits usable gears only */
             }
         }
         a->gear = d->gear;
@@ -191,10 +191,11 @@ void vh_drv_app_step(vh_drv_app_t *a, vh_app_ctx_t *ctx)
 {
     const unsigned mask = update_inputs(a, ctx->cnt, ctx->burst_limit);
     const vh_ecu_dls_t *d = &a->dls;
-    const double z[VH_DKF_NZ] = {d->wo, 0.5 * (d->wwl + d->wwr), d->to};
+    /* the filters run in float32 (vh_dkf.h); the decoded signals are rounded once into them */
+    const float z[VH_DKF_NZ] = {(float)d->wo, (float)(0.5 * (d->wwl + d->wwr)), (float)d->to};
     int i;
     for (i = 0; i < VH_ECU_N_DKF; ++i) {
-        if (vh_dkf_step(&a->dkf[i], a->ti, z, mask)) {
+        if (vh_dkf_f32_step(&a->dkf[i], (float)a->ti, z, mask)) {
             vh_rx_count(&ctx->cnt->filter_reset);
         }
     }
@@ -232,23 +233,20 @@ void vh_drv_app_cal_gather(const vh_drv_app_t *a, vh_drv_app_cal_t *c)
 /* Into the configuration (a reset keeps it) and into the running filters. */
 void vh_drv_app_cal_apply(vh_drv_app_t *a, const vh_drv_app_cal_t *c)
 {
-    int i, k;
+    int i;
     for (i = 0; i < VH_ECU_N_DKF; ++i) {
-        vh_dkf_config_t *cfg[2];
-        cfg[0] = &a->cfg.dkf[i];
-        cfg[1] = &a->dkf[i].cfg;
-        for (k = 0; k < 2; ++k) {
-            memcpy(cfg[k]->q, c->dkf[i].q, sizeof c->dkf[i].q);
-            memcpy(cfg[k]->r, c->dkf[i].r, sizeof c->dkf[i].r);
-            cfg[k]->p_max = c->dkf[i].p_max;
-        }
+        vh_dkf_config_t *cfg = &a->cfg.dkf[i];
+        memcpy(cfg->q, c->dkf[i].q, sizeof c->dkf[i].q);
+        memcpy(cfg->r, c->dkf[i].r, sizeof c->dkf[i].r);
+        cfg->p_max = c->dkf[i].p_max;
+        vh_dkf_f32_tune(&a->dkf[i], cfg);
     }
     a->cfg.we_min = c->we_min;
 }
 
 int vh_drv_app_fill_est(vh_drv_app_t *a, vh_app_ctx_t *ctx, uint8_t *data)
 {
-    const vh_dkf_t *dkf = a->dkf;
+    const vh_dkf_f32_t *dkf = a->dkf;
     struct vh_pt_vehest_driveline_est_t est;
     (void)ctx;
     memset(&est, 0, sizeof est);
@@ -278,7 +276,7 @@ int vh_drv_app_fill_est(vh_drv_app_t *a, vh_app_ctx_t *ctx, uint8_t *data)
 
 int vh_drv_app_fill_status(vh_drv_app_t *a, vh_app_ctx_t *ctx, uint8_t *data)
 {
-    const vh_dkf_t *dkf = a->dkf;
+    const vh_dkf_f32_t *dkf = a->dkf;
     const vh_ecu_counters_t *cnt = ctx->cnt;
     const uint32_t tick = ctx->tick;
     struct vh_pt_vehest_status_t st;

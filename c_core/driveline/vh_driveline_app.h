@@ -54,7 +54,7 @@ typedef struct {
 
 typedef struct {
     vh_drv_app_config_t cfg;
-    vh_dkf_t dkf[VH_ECU_N_DKF]; /* the two filters */
+    vh_dkf_f32_t dkf[VH_ECU_N_DKF]; /* the two filters, float32 (vh_dkf.h) */
     vh_ecu_dls_t dls;
     double ti;        /* last turbine torque input (eq. 9) */
     uint8_t ti_valid;

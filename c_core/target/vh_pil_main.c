@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "vh_ecu.h"
+#include "vh_mathf.h"
 #include "vh_probe.h"
 #include "vh_target.h"
 
@@ -24,7 +25,7 @@ enum {
     MSG_WRITE = 'P',  /* -> u32 offset, bytes into vh_ecu_t (a calibration the host applied to its copy); <- 'P' */
     MSG_STACK = 'W',  /* -> -; <- u32 deepest since the last 'W' (or init), u32 main's depth, u32 size; repaints */
     MSG_CAL = 'K',    /* -> u32 n; <- u32 SysTick counts of a loop of n x 2 instructions */
-    MSG_LIBM = 'Q',   /* -> u8 function, floats; <- the function of each (pairs for atan2f): newlib against the host's libm */
+    MSG_LIBM = 'Q',   /* -> u8 function, floats; <- the function of each (pairs for atan2f): the target's vh_mathf against the host's */
     MSG_HELLO = 'H',  /* -> -; <- u32 sizeof vh_ecu_config_t, u32 sizeof vh_ecu_t, u16 applications, their names */
     MSG_ERROR = 'E'   /* <- a message it did not understand: its type */
 };
@@ -185,7 +186,7 @@ static void do_cal(size_t len)
     send(MSG_CAL, r, sizeof r);
 }
 
-/* The float32 functions the firmware calls from newlib, on the target's own build of them; in place */
+/* The float32 functions the firmware calls (vh_mathf.c; sqrtf from newlib), on the target's build; in place */
 static void do_libm(size_t len)
 {
     size_t i, m = 0u;
@@ -196,12 +197,12 @@ static void do_libm(size_t len)
         float x, y = 0.0f, r;
         memcpy(&x, v + 4u * i, sizeof x);
         switch (fn) {
-        case 0: r = sinf(x); break;
-        case 1: r = cosf(x); break;
-        case 2: r = atanf(x); break;
+        case 0: r = vh_sinf(x); break;
+        case 1: r = vh_cosf(x); break;
+        case 2: r = vh_atanf(x); break;
         case 3:
             memcpy(&y, v + 4u * ++i, sizeof y);
-            r = atan2f(x, y);
+            r = vh_atan2f(x, y);
             break;
         default: r = sqrtf(x); break;
         }

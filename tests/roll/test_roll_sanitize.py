@@ -10,6 +10,7 @@ pytestmark = pytest.mark.rebuild
 
 ROOT = Path(__file__).resolve().parents[2]
 ROLL = ROOT / "c_core" / "roll"
+COMMON = ROOT / "c_core" / "common"
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-Wdouble-promotion"]
 SAN = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer", "-g", "-O1"]
 
@@ -17,9 +18,9 @@ SAN = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-f
 @pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
 def test_roll_under_asan_ubsan(tmp_path):
     exe = tmp_path / "sanitize_roll"
-    srcs = [ROLL / "vh_roll_f32.c", ROLL / "vh_roll_f64_host.c", ROLL / "vh_roll_params.c",
+    srcs = [ROLL / "vh_roll_f32.c", ROLL / "vh_roll_f64_host.c", ROLL / "vh_roll_params.c", COMMON / "vh_mathf.c",
             Path(__file__).parent / "c" / "sanitize_roll.c"]
-    build = subprocess.run(["cc", *STRICT, *SAN, f"-I{ROLL}", *map(str, srcs), "-lm", "-o", str(exe)],
+    build = subprocess.run(["cc", *STRICT, *SAN, f"-I{ROLL}", f"-I{COMMON}", *map(str, srcs), "-lm", "-o", str(exe)],
                            capture_output=True, text=True)
     assert build.returncode == 0, build.stderr
     run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=300,

@@ -101,7 +101,8 @@ def test_addresses_are_the_c_offsets_and_names_the_c_members():
     ecu = Ecu()
     base = int(ffi.cast("uintptr_t", ecu.c))
     assert desc.item("app.drv.dkf[0].x[2]").address - desc.measurement_address == \
-        int(ffi.cast("uintptr_t", ffi.addressof(ecu.c.app.drv.dkf[0], "x"))) + 16 - base
+        int(ffi.cast("uintptr_t", ffi.addressof(ecu.c.app.drv.dkf[0], "x"))) \
+        + 2 * ffi.sizeof(ffi.typeof(ecu.c.app.drv.dkf[0].x).item) - base
     assert desc.item("cal.app.tf.skf.r").address - desc.calibration_address == \
         ffi.offsetof("vh_ecu_cal_t", "app", "tf", "skf", "r")
     names = {it.name for it in desc.measurements}
@@ -170,7 +171,7 @@ def test_upload_reads_the_running_filters():
                         ("app.drv.dkf[0].p[5]", lambda: ecu.c.app.drv.dkf[0].p[5])):
         value = value()  # now: each command is a tick (the filters predict on)
         assert value != 0.0
-        assert struct.unpack("<d", cro.upload(desc.item(name).address, 8))[0] == value
+        assert struct.unpack("<f", cro.upload(desc.item(name).address, 4))[0] == value  # the ECU's filters: float32
     assert struct.unpack("<I", cro.upload(desc.item("tick").address, 4))[0] == ecu.tick - 1
 
 
@@ -372,14 +373,15 @@ def test_daq_values_equal_what_the_ecu_publishes_on_its_estimate_frames():
 
 
 def test_at_most_one_xcp_frame_per_tick_and_dtos_carry_the_tick():
-    """DAQ of 20 doubles on the tick event (4 DTOs per tick of 48 bytes) is more than the budget
+    """DAQ of 20 floating-point items on the tick event (4 DTOs per tick of 48 bytes) is more than the budget
     of one XCP frame per tick: the ECU never sends more, the queue overruns, whole samples are
     dropped and counted."""
     ecu = Ecu()
     cro = Cro(ecu)
     cro.connect_unlocked()
     desc = cro.desc
-    doubles = [it for it in desc.measurements if it.ctype == "double"][:20]
+    doubles = [it for it in desc.measurements if it.ctype in ("double", "float")][:20]
+    assert len(doubles) == 20
     per_odt = (desc.max_dto - 1) // 8
     odts = [doubles[i:i + per_odt] for i in range(0, len(doubles), per_odt)]
     start_daq(cro, odts, event=0, timestamp=False)
