@@ -274,10 +274,8 @@ def test_bad_cli_arguments_are_errors(tmp_path, capsys, argv, problem):
     (["no_such_campaign"], "cannot read"),
 ])
 def test_bad_bench_arguments_are_errors_before_any_run(capsys, argv, problem):
-    from vehest_can.campaign import bench
-
     with pytest.raises(SystemExit) as e:
-        bench.main(argv)
+        main(["study", "campaign.throughput", *argv])
     assert e.value.code == 2 and problem in capsys.readouterr().err
 
 

@@ -142,3 +142,19 @@ def test_unknown_verb_and_flags(capsys):
     with pytest.raises(SystemExit) as e:
         main(["daemon", "--mode", "warp"])
     assert e.value.code == 2
+
+
+def test_study_lists_every_topic_and_each_one_parses_its_own_flags(capsys):
+    """`vehest-can study` lists the systems' studies and the house's; each topic's own parser runs
+    (`--help`: exit 0 with the verb's program name); an unknown topic names the valid ones."""
+    from vehest_can.cli import study
+
+    assert main(["study"]) == 0
+    listed = [line.split()[0] for line in capsys.readouterr().out.splitlines()]
+    assert listed == sorted(study.topics()) and {"roll.control", "tireforce.bound", "firmware.cost"} <= set(listed)
+    for topic in listed:
+        with pytest.raises(SystemExit) as e:
+            main(["study", topic, "--help"])
+        assert e.value.code == 0 and f"usage: vehest-can study {topic}" in capsys.readouterr().out
+    assert main(["study", "roll.nothing"]) == 1
+    assert "roll.control" in capsys.readouterr().err

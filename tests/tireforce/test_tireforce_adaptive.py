@@ -386,18 +386,19 @@ def _plant_tyre():
 
 @pytest.mark.slow
 def test_ablation_cli_prints_the_docs_table_and_refuses_a_bad_scenario(capsys, tmp_path):
-    """`python -m vehest_can.systems.tireforce.ablation --markdown NAME`: the header and one row per
+    """`vehest-can study tireforce.ablation --markdown NAME`: the header and one row per
     scenario with every variant's cells; a missing or malformed scenario is a one-line error, rc 1."""
+    from vehest_can.cli import main
     from vehest_can.systems.tireforce import ablation
 
-    assert ablation.main(["--markdown", "chassis_relation_70kph"]) == 0
+    assert main(["study", "tireforce.ablation", "--markdown", "chassis_relation_70kph"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 3 and lines[2].startswith("| `chassis_relation_70kph` |")
     assert lines[0].count("|") == lines[2].count("|") == len(ablation.ABLATIONS) + 3
     bad = tmp_path / "bad.toml"
     bad.write_text("kind = 'tireforce'\nduration_s = 'long'\n")
     for arg in (str(tmp_path / "missing.toml"), str(bad)):
-        assert ablation.main([arg]) == 1
+        assert main(["study", "tireforce.ablation", arg]) == 1
         err = capsys.readouterr().err
         assert err.startswith("error: ") and "Traceback" not in err and len(err.splitlines()) == 1
 

@@ -14,7 +14,7 @@ seconds, candump's exit status, the daemon's exit status, summary and statistics
 Runs on any python-can bus (``-i udp_multicast -c 239.74.x.y`` on the host); ``--capture`` needs
 a SocketCAN channel. Inside user-mode Linux:
 
-    python -m vehest_can.tools.uml -- .venv/bin/python tests/vcan_guest/lockstep_sessions.py \\
+    vehest-can uml -- .venv/bin/python tests/vcan_guest/lockstep_sessions.py \\
         out/vcan --capture --daemon-log launch_2nd tip_in_tip_out
 """
 from __future__ import annotations

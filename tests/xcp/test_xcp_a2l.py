@@ -16,11 +16,12 @@ SHIPPED = Path(a2l.__file__).with_name("VEHEST_XCP_DEMO.a2l")
 
 def test_regenerated_a2l_equals_the_shipped_file(tmp_path):
     out = a2l.write(load(DEMO), tmp_path / "x.a2l")
-    assert out.read_text() == SHIPPED.read_text(), "run: python -m vehest_can.xcp.a2l"
+    assert out.read_text() == SHIPPED.read_text(), "regenerate: vehest-can xcp a2l --description DEMO -o SHIPPED"
 
 
 def test_cli_writes_the_file(tmp_path):
-    r = subprocess.run([sys.executable, "-m", "vehest_can.xcp.a2l", str(DEMO), "-o", str(tmp_path / "d.a2l")],
+    r = subprocess.run([sys.executable, "-m", "vehest_can.cli", "xcp", "a2l", "--description", str(DEMO),
+                        "-o", str(tmp_path / "d.a2l")],
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "d.a2l").read_text() == SHIPPED.read_text()

@@ -3,7 +3,7 @@ running Dask LocalCluster with N workers (as an existing cluster would be) and o
 the campaign (`--scheduler local-dask`); runs per minute, scaling efficiency and Dask's overhead
 per run against the local pool.
 
-    python -m vehest_can.campaign.bench tireforce_payload --runs 200 --repeats 3
+    vehest-can study campaign.throughput tireforce_payload --runs 200 --repeats 3
 """
 from __future__ import annotations
 
@@ -55,8 +55,8 @@ def measure(spec: str, runs: int | None = None, workers: int | None = None, repe
             "dask_cluster_start_s": med[f"dask x{n} + start"] - dask}
 
 
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(argv: list[str], prog: str) -> int:
+    p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("spec")
     p.add_argument("--runs", type=int)
     p.add_argument("-j", "--workers", type=int)
@@ -79,6 +79,3 @@ def main(argv=None) -> int:
           f"({r['dask_overhead_pct']:+.1f} %); starting a LocalCluster adds {r['dask_cluster_start_s']:.1f} s once")
     return 0
 
-
-if __name__ == "__main__":
-    raise SystemExit(main())

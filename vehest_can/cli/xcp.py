@@ -16,6 +16,7 @@ import math
 import shutil
 import sys
 from contextlib import contextmanager
+from pathlib import Path
 
 from ..bus import bus as busmod
 from ..errors import ConfigError
@@ -36,6 +37,8 @@ def add_subparser(subparsers) -> None:
     kg.set_defaults(func=run_keygen)
     a = sub.add_parser("a2l", help="write the ECU's A2L")
     a.add_argument("-o", "--output", metavar="FILE", help="where (default: print it)")
+    a.add_argument("--description", metavar="TOML",
+                   help="the A2L of this XCP description (docs/xcp.md) instead of the ECU's")
     a.set_defaults(func=run_a2l)
     ls = sub.add_parser("list", help="list the measurements and characteristics")
     ls.add_argument("pattern", nargs="?", default="*", help="shell pattern on the names, e.g. 'cal.app.drv.dkf*'")
@@ -89,6 +92,18 @@ def run_keygen(args) -> int:
 
 def run_a2l(args) -> int:
     from ..xcp import ecu_desc
+    if args.description:
+        from ..xcp import a2l, description
+
+        try:
+            text = a2l.generate(description.load(args.description))
+        except (description.DescriptionError, FileNotFoundError) as exc:
+            raise ConfigError(f"--description {args.description}: {exc}") from None
+        if args.output:
+            Path(args.output).write_text(text)
+        else:
+            sys.stdout.write(text)
+        return 0
     if args.output:
         shutil.copyfile(ecu_desc.SHIPPED_A2L, args.output)
         print(f"wrote {args.output}", file=sys.stderr)

@@ -83,6 +83,17 @@ class FaultStudy(Protocol):
     def truth(self, car: Any) -> float: ...                             # the plant's value this tick
 
 
+class Study(NamedTuple):
+    """One of a system's design or validation studies (``vehest-can study SYSTEM.NAME``): the figures
+    behind a table of its docs page. ``main`` names ``module:function``, imported only when it runs;
+    the function takes the study's own arguments and the program name for its parser and returns an
+    exit status."""
+
+    name: str
+    main: str
+    help: str
+
+
 @dataclass(frozen=True)
 class CampaignRunner:
     """A campaign's run of a system: a scenario from a (varied) document, one in-process run to
@@ -110,6 +121,8 @@ class System(Protocol):
     estimators: tuple[EcuEstimator, ...]
     #: the counter sets its application keeps in the ECU (optional; none: it counts into the ECU's own)
     ecu_counters: tuple[EcuCounters, ...]
+    #: its design and validation studies (``vehest-can study``; optional)
+    studies: tuple[Study, ...]
 
     def configure_car(self, app: Any, car: Any) -> None:
         """(Optional.) Write a car (:class:`~vehest_can.carfile.CarFile`, :attr:`.ecu.EcuConfig.car`) into its
@@ -159,6 +172,7 @@ class Registration:
     kinds: tuple[str, ...] = ()
     estimators: tuple[EcuEstimator, ...] = ()
     ecu_counters: tuple[EcuCounters, ...] = ()
+    studies: tuple[Study, ...] = ()
 
     def claims(self, doc: dict) -> bool:
         return doc.get("kind") in self.kinds

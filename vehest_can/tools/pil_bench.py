@@ -3,7 +3,7 @@ instruction counting (``-icount shift=0``), per system the instructions of its r
 (median and worst over its own scenarios), the tick's RX and the whole tick, as cycles at 168 MHz
 for a range of cycles per instruction; the painted stack's high-water mark. ``vehest-can bench``
 prints it (skipped, with the reason, where QEMU or the cross compiler is missing);
-``python -m vehest_can.tools.pil_bench [--duration S]`` alone.
+``vehest-can study firmware.cost [--duration S]`` alone.
 """
 from __future__ import annotations
 
@@ -127,8 +127,8 @@ def table(res: dict) -> str:
     return "\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def main(argv: list[str], prog: str) -> int:
+    ap = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
     ap.add_argument("--duration", type=float, default=None, metavar="S",
                     help="seconds of each scenario (default: all of it)")
     ap.add_argument("--profile", action="store_true",
@@ -157,6 +157,3 @@ def main(argv: list[str] | None = None) -> int:
     print(json.dumps(res, indent=2))
     return 0
 
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -22,12 +22,11 @@ first guest process on hosts whose XSAVE area is larger than its fixed buffer (A
 "ptrace set fp regs failed, errno = 14"); newer UML kernels size it from the host, hence
 :func:`fetch_kernel`. See ``docs/uml.md``.
 
-Run by hand: ``python -m vehest_can.tools.uml -- ip -details link show vcan0``.
+Run by hand: ``vehest-can uml -- ip -details link show vcan0``.
 """
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import glob
 import os
@@ -36,7 +35,6 @@ import shlex
 import shutil
 import signal
 import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -185,7 +183,7 @@ def find_kernel() -> UmlKernel:
         if os.path.isfile(name) and os.access(name, os.X_OK):
             return _kernel_at(Path(name), Path("/usr/lib/uml/modules"), "system")
     raise UmlError("no UML kernel: apt-get install user-mode-linux, or "
-                   "`python -m vehest_can.tools.uml --fetch` (see docs/uml.md)")
+                   "`vehest-can uml --fetch` (see docs/uml.md)")
 
 
 def _module_plan(kernel: UmlKernel) -> list[Path]:
@@ -537,44 +535,3 @@ def fetch_kernel(home: str | os.PathLike | None = None, *, suites=FETCH_SUITES,
         raise UmlError(f"fetched kernel missing in {final}")
     log(f"UML {kernel.version} ready: {kernel.binary}")
     return kernel
-
-
-# --------------------------------------------------------------------------- for humans
-
-
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        prog="python -m vehest_can.tools.uml",
-        description="Run a shell command in user-mode Linux with a real vcan0 (CAN FD).")
-    parser.add_argument("--fetch", action="store_true",
-                        help="download a UML kernel that works on this CPU (see docs/uml.md)")
-    parser.add_argument("--force", action="store_true", help="with --fetch: download again")
-    parser.add_argument("--check", action="store_true", help="print available() and exit")
-    parser.add_argument("--timeout", type=float, default=300.0, help="seconds (default 300)")
-    parser.add_argument("--iface", action="append", help="vcan interface (repeatable; "
-                        "default vcan0)")
-    parser.add_argument("command", nargs="*", help="after --: the command line to run")
-    args = parser.parse_args(argv)
-    try:
-        if args.fetch:
-            fetch_kernel(force=args.force)
-            if not args.command:
-                return 0
-        if args.check or not args.command:
-            ok, reason = available()
-            print(("available: " if ok else "unavailable: ") + reason)
-            return 0 if ok else 1
-        line = args.command[0] if len(args.command) == 1 else shlex.join(args.command)
-        result = run(line, timeout=args.timeout, interfaces=tuple(args.iface or ("vcan0",)))
-    except UmlError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    sys.stdout.write(result.stdout)
-    sys.stderr.write(result.stderr)
-    print(f"[uml] exit {result.returncode}, command started {result.boot_seconds:.2f} s after "
-          f"launch, {result.total_seconds:.2f} s in all", file=sys.stderr)
-    return result.returncode
-
-
-if __name__ == "__main__":
-    sys.exit(main())

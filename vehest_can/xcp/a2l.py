@@ -1,7 +1,7 @@
 """A2L (ASAM MCD-2 MC, ASAP2 1.7.1) from a description: the same table that configures the slave.
 
-Generated, never edited: ``python -m vehest_can.xcp.a2l [DESCRIPTION.toml] -o FILE.a2l`` (default:
-the demo description to ``vehest_can/xcp/<NAME>.a2l``, the shipped file). The output is deterministic (no dates, sorted
+Generated, never edited: ``vehest-can xcp a2l --description DESCRIPTION.toml -o FILE.a2l``; :func:`write`
+with no path writes the shipped file ``vehest_can/xcp/<NAME>.a2l``. The output is deterministic (no dates, sorted
 where order is not meaningful), so a test regenerates it and compares with the shipped file.
 
 What it writes: PROJECT/HEADER/MODULE; MOD_PAR with the two MEMORY_SEGMENTs (measurement RAM and
@@ -15,11 +15,9 @@ its safety class in an ANNOTATION (label "safety class": "tuning" or "safety").
 """
 from __future__ import annotations
 
-import argparse
-import sys
 from pathlib import Path
 
-from .description import C_TYPES, DEMO, Description, Item, load
+from .description import C_TYPES, Description, Item
 
 # The shipped build output sits beside the description it comes from.
 SHIPPED_DIR = Path(__file__).resolve().parent
@@ -682,15 +680,3 @@ def write(d: Description, path: Path | None = None) -> Path:
     path.write_text(generate(d))
     return path
 
-
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m vehest_can.xcp.a2l", description=__doc__.splitlines()[0])
-    ap.add_argument("description", nargs="?", default=str(DEMO), help="TOML description (default: the demo)")
-    ap.add_argument("-o", "--output", help="A2L file (default: vehest_can/xcp/<NAME>.a2l)")
-    args = ap.parse_args(argv)
-    print(write(load(args.description), args.output))
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,11 +1,11 @@
 """The active-control table of docs/roll.md ("Active control, measured"): design and held-out runs on
 both plants, the ECU (robust UKF) with the robust SMC law and with the paper's law, each against its
-passive twin (in-process, lockstep). ``python -m vehest_can.systems.roll.control_table [design|held]``
+passive twin (in-process, lockstep). ``vehest-can study roll.control [design|held]``
 prints one Markdown row per run and plant."""
 from __future__ import annotations
 
+import argparse
 import math
-import sys
 
 import numpy as np
 
@@ -109,12 +109,13 @@ def row(name: str, plant: str, f: dict) -> str:
             f"{r['resets']} / {p['resets']} | {bias} |")
 
 
-def main(argv=None) -> None:
-    which = (argv or sys.argv[1:] or ["held"])[0]
-    for name, sc in cases(which):
+def main(argv: list[str], prog: str) -> int:
+    ap = argparse.ArgumentParser(prog=prog, description=__doc__.split("\n\n")[0])
+    ap.add_argument("runs", nargs="?", choices=("design", "held"), default="held",
+                    help="the design runs or the held-out ones (default: held)")
+    args = ap.parse_args(argv)
+    for name, sc in cases(args.runs):
         for plant in PLANTS:
             print(row(name, plant, measure(name, sc.with_plant(plant))), flush=True)
+    return 0
 
-
-if __name__ == "__main__":
-    main()

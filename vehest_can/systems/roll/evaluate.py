@@ -6,7 +6,7 @@ roll sensor node of issue 11 section 1 is not on the bus yet); the UKF runs at i
 (default 1 ms, every second plant tick) in both precisions, and its roll angle and rate are
 compared with the truth.
 
-``python -m vehest_can.systems.roll.evaluate`` prints the figures.
+``vehest-can study roll.filters`` prints the figures.
 """
 from __future__ import annotations
 
@@ -130,8 +130,8 @@ def evaluate_case(speed_kmh: float, seed: int = 1, prm=None, skip_s: float = 0.0
     )
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def main(argv: list[str], prog: str) -> int:
+    ap = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=1)
     args = ap.parse_args(argv)
     for v in (36.0, 72.0):
@@ -383,6 +383,3 @@ def filters_on_bus(session, car=None, skip_s: float = 0.2) -> dict:
             "step_us": step_s * 1e6}
     return out
 
-
-if __name__ == "__main__":
-    raise SystemExit(main())

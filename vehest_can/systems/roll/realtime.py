@@ -6,7 +6,7 @@ leaving the car to the car's tick that applies the first VEHEST_RollCmd received
 acts from the tick after it arrived; resolution one 0.5 ms tick; the ECU steps every 5 ms on its own
 clock, so a sample waits up to 5 ms for the next step).
 
-``python -m vehest_can.systems.roll.realtime --seconds 60`` prints the figures.
+``vehest-can study roll.realtime --seconds 60`` prints the figures.
 """
 from __future__ import annotations
 
@@ -96,13 +96,10 @@ def run(seconds: float = 60.0, config: dict | None = None) -> dict:
     }
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def main(argv: list[str], prog: str) -> int:
+    ap = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=60.0)
     args = ap.parse_args(argv)
     print(json.dumps(run(args.seconds), indent=1))
     return 0
 
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .. import EcuEstimator, Registration, Setup
+from .. import EcuEstimator, Registration, Setup, Study
 from . import report
 from .campaign import CAMPAIGN
 from .faults import FAULTS
@@ -16,6 +16,14 @@ class Roll(Registration):
     kinds = KINDS
     nodes = ("CHS", "ROLL")  # the 14-DOF plant with its chassis node and its roll node (sensors, actuators)
     realtime = True
+    studies = (
+        Study("filters", "vehest_can.systems.roll.evaluate:main",
+              "the UKF off line against the plant's truth at 36 and 72 km/h, both precisions"),
+        Study("control", "vehest_can.systems.roll.control_table:main",
+              "active control on both plants, robust and paper SMC law against passive (docs/roll.md)"),
+        Study("realtime", "vehest_can.systems.roll.realtime:main",
+              "the roll loop in real time over a bus: commands lost and frame-to-actuation latency"),
+    )
     faults = FAULTS
     campaign = CAMPAIGN  # vehest-can campaign
     scenario_dir = staticmethod(roll_scenario_dir)

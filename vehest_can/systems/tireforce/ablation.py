@@ -1,6 +1,6 @@
 """SKFMEC-A against the SKFMEC on every shipped and stress scenario, with each of its additions
 switched off in turn (the ablation table of docs/results.md):
-``python -m vehest_can.systems.tireforce.ablation [--markdown] [SCENARIO ...]``."""
+``vehest-can study tireforce.ablation [--markdown] [SCENARIO ...]``."""
 from __future__ import annotations
 
 import argparse
@@ -71,10 +71,8 @@ def markdown_header() -> str:
             + "|---" * (len(labels) + 2) + "|")
 
 
-def main(argv: list[str] | None = None) -> int:
-
-    ap = argparse.ArgumentParser(prog="python -m vehest_can.systems.tireforce.ablation",
-                                 description="SKFMEC-A against the SKFMEC, with its ablations")
+def main(argv: list[str], prog: str) -> int:
+    ap = argparse.ArgumentParser(prog=prog, description="SKFMEC-A against the SKFMEC, with its ablations")
     ap.add_argument("scenarios", nargs="*", help="scenario files or shipped names (default: the shipped ones "
                                                  "and the stress scenarios)")
     ap.add_argument("--markdown", action="store_true", help="one table row per scenario (docs/results.md's table)")
@@ -92,6 +90,3 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     return 0
 
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -1,7 +1,7 @@
 """Coverage and width of SKFMEC-A's per-tyre bound (docs/tireforce.md, "Per-tyre bound") over its design
 runs and held-out runs on both plants.
 
-    python -m vehest_can.systems.tireforce.bound [--fixed] [--plant P] [--only NAME ...] [--markdown]
+    vehest-can study tireforce.bound [--fixed] [--plant P] [--only NAME ...] [--markdown]
 
 The bound's model constants (``AdaptiveConfig.bound_*``) were chosen on the ``design`` runs only; the
 ``held-out`` runs (other scenarios, payloads, friction, speeds) judge it. Coverage is the share of
@@ -105,8 +105,8 @@ def _f(v) -> str:
     return "-" if v is None else " ".join(f"{x:.1f}" for x in v)
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m vehest_can.systems.tireforce.bound", description=__doc__.split("\n")[0])
+def main(argv: list[str], prog: str) -> int:
+    ap = argparse.ArgumentParser(prog=prog, description=__doc__.split("\n")[0])
     ap.add_argument("--fixed", action="store_true", help="the fixed-point run's bound (default: double)")
     ap.add_argument("--plant", choices=PLANTS, action="append", help="only this plant (repeatable)")
     ap.add_argument("--only", action="append", help="only runs whose scenario contains this (repeatable)")
@@ -131,6 +131,3 @@ def main(argv: list[str] | None = None) -> int:
                   f"{_f(c['rms'])} | {dev:.3f} | {fix.saturations} |", flush=True)
     return 0
 
-
-if __name__ == "__main__":
-    raise SystemExit(main())

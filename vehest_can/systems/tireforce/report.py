@@ -8,7 +8,7 @@ What comes out: a metrics dict (JSON), the paper's figures as PNGs (Fig. 3-4 rel
 Fig. 5-6 inner and outer front lateral force, plus per-tire errors) and a terminal table with the
 acceptance lines and an honest verdict on each.
 
-``python -m vehest_can.systems.tireforce.report [SCENARIO ...] -o DIR``.
+``vehest-can study tireforce.report [SCENARIO ...] -o DIR``.
 """
 from __future__ import annotations
 
@@ -753,11 +753,11 @@ def report(sc, out_dir: Path | None = None, progress=None, max_ay_g: float | Non
     return m
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str], prog: str) -> int:
     from ...progress import Progress
     from .scenario import list_tireforce_scenarios
 
-    ap = argparse.ArgumentParser(prog="python -m vehest_can.systems.tireforce.report", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog=prog, description=__doc__.split("\n")[0])
     ap.add_argument("scenarios", nargs="*", help="tyre-force scenario files or shipped names (default: all shipped)")
     ap.add_argument("-o", "--out", type=Path, default=Path("out/tfreport"), help="output directory")
     ap.add_argument("--mass-delta", type=float, default=None, metavar="KG",
@@ -783,6 +783,3 @@ def main(argv: list[str] | None = None) -> int:
     print(f"metrics: {args.out / 'metrics.json'}; plots in {args.out}/<scenario>/")
     return 0
 
-
-if __name__ == "__main__":
-    sys.exit(main())

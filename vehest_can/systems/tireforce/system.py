@@ -8,7 +8,7 @@ import numpy as np
 from ...native import ffi
 from ...sim.report import decode
 from ...sim.veh14 import Veh14Car
-from .. import EcuCounters, EcuEstimator, Registration, Setup
+from .. import EcuCounters, EcuEstimator, Registration, Setup, Study
 from . import api as tf
 from . import report
 from .adaptive import AdaptiveConfig, AdaptiveFixed
@@ -28,6 +28,14 @@ class TireForce(Registration):
     kinds = KINDS
     realtime = False
     nodes = ("CHS",)  # the 14-DOF plant and its chassis sensor node
+    studies = (
+        Study("report", "vehest_can.systems.tireforce.report:main",
+              "SKFMEC and SKFMEC-A in process against the plant: tables, metrics.json and plots"),
+        Study("ablation", "vehest_can.systems.tireforce.ablation:main",
+              "SKFMEC-A against the SKFMEC, with its ablations (docs/results.md)"),
+        Study("bound", "vehest_can.systems.tireforce.bound:main",
+              "each tyre's 95 % bound: coverage and width per plant and run (docs/tireforce.md)"),
+    )
     faults = None
     scenario_dir = staticmethod(tireforce_scenario_dir)
     load = staticmethod(load_tireforce_scenario)
