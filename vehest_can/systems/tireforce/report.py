@@ -770,9 +770,9 @@ def main(argv: list[str], prog: str) -> int:
     try:
         for name in args.scenarios or list_tireforce_scenarios():
             sc = scenario(name, mass_delta_kg=args.mass_delta)
-            prog = Progress(sc.name)
-            m = report(sc, args.out, progress=prog, max_ay_g=args.max_ay_g)
-            prog.done(f"{len(m.get('plots', []))} plots")
+            bar = Progress(sc.name)
+            m = report(sc, args.out, progress=bar, max_ay_g=args.max_ay_g)
+            bar.done(f"{len(m.get('plots', []))} plots")
             all_metrics.append(m)
             print(table(m))
             print()
