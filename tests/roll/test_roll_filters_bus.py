@@ -17,7 +17,7 @@ def lane_change(plant: str) -> dict:
             "control": {"mode": [[0.0, "passive"]]}}
 
 
-@pytest.mark.parametrize("plant", ["veh14", "commonroad_mb"])
+@pytest.mark.parametrize("plant", ["veh14", pytest.param("commonroad_mb", marks=pytest.mark.slow)])
 def test_ukf_and_ekf_agree_and_our_plant_is_consistent(plant):
     sc = roll_scenario_from_dict(lane_change(plant))
     session = run_inprocess(RollCar(sc), Ecu(EcuConfig(car=car_of(sc))))

@@ -139,6 +139,7 @@ def test_payload_rolls_more(ours):
     assert ours[200.0].roll_gradient_deg_per_g > 1.08 * ours[0.0].roll_gradient_deg_per_g
 
 
+@pytest.mark.slow
 def test_mb_rolls_more_than_ours(ours):
     """CommonRoad's MB has compliances ours has not (unsprung roll inertia and lateral compliance) and its
     own tyre: with the same car data it rolls more and transfers more load."""

@@ -91,6 +91,7 @@ def _toy_firmware(tmp_path: Path):
     return gen, ecu, sources, includes, desc
 
 
+@pytest.mark.rebuild  # compiles a firmware of its own
 @pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
 def test_a_toy_fifth_application_is_received_scheduled_sends_and_is_measured_over_xcp(tmp_path):
     """The toy's descriptor (one RX ID, a runnable every 10 ticks, a TX frame every 20, two
@@ -118,6 +119,7 @@ def test_a_toy_fifth_application_is_received_scheduled_sends_and_is_measured_ove
                    "toy_tx_ticks": sum(range(0, 100, 20)), "last_sum": 3 * sum(range(0, 90, 10))}
 
 
+@pytest.mark.rebuild  # compiles a firmware of its own
 @pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
 def test_a_toy_system_is_configured_and_reported_by_the_python_ecu(tmp_path, monkeypatch):
     """The same firmware as a cffi module behind vehest_can's Ecu, and a toy System registered in
