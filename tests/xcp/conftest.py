@@ -1,4 +1,4 @@
-"""pyxcp, the independent master, against the slave's bridge on python-can's virtual bus."""
+"""pyxcp, the independent master, against the C slave alone (``xcp_demo``) on python-can's virtual bus."""
 from __future__ import annotations
 
 import itertools
@@ -7,8 +7,10 @@ import struct
 
 import can
 import pytest
+from xcp_demo import DEMO, Slave  # noqa: E402 - tests/xcp is on sys.path (rootdir-relative test imports)
+from xcp_demo_bridge import XcpBridge  # noqa: E402
 
-from vehest_can.xcp import DEMO, Slave, XcpBridge, load
+from vehest_can.xcp import load
 from vehest_can.xcp.keys import seed_n_key
 
 _channels = itertools.count()

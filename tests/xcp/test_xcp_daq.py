@@ -29,7 +29,8 @@ def expected(desc, name, tick):
 def daq_rig(make_rig, fd: bool):
     import tomllib
 
-    from vehest_can.xcp import DEMO
+    from xcp_demo import DEMO
+
     from vehest_can.xcp.description import from_dict
     d = tomllib.loads(DEMO.read_text())
     if fd:
@@ -159,8 +160,11 @@ def test_daq_of_4_byte_items_with_a_timestamp_on_classic_can(make_rig):
 def test_pyxcp_over_the_projects_host_only_multicast_bus(pyxcp_master):
     """The project's default bus (udp_multicast joined on loopback, TTL 0: this host only), a
     private group/port: pyxcp is handed a ready bus (transport_layer_interface) and sets up DAQ."""
+    from xcp_demo import DEMO, Slave
+    from xcp_demo_bridge import XcpBridge
+
     from vehest_can.bus import bus as busmod
-    from vehest_can.xcp import DEMO, Slave, XcpBridge, load
+    from vehest_can.xcp import load
 
     desc = load(DEMO)
     cfg = busmod.private_multicast()

@@ -1,7 +1,8 @@
 """The description: layout, limits through the conversion, and what it refuses."""
 import pytest
+from xcp_demo import DEMO, Slave, XcpConfigError  # noqa: E402
 
-from vehest_can.xcp import DEMO, DescriptionError, Slave, XcpConfigError, load
+from vehest_can.xcp import DescriptionError, load
 from vehest_can.xcp.description import from_dict
 
 

@@ -199,7 +199,8 @@ def test_daq_info_names_the_ecu_event_channels(rig):
 def test_can_fd_short_download_and_a_matrix_in_two_frames(make_rig):
     import tomllib
 
-    from vehest_can.xcp import DEMO
+    from xcp_demo import DEMO
+
     from vehest_can.xcp.description import from_dict
     d = tomllib.loads(DEMO.read_text())
     d["xcp"].update(fd=True, max_cto=64, max_dto=64)

@@ -11,11 +11,11 @@ import tomllib
 
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from xcp_demo import DEMO, Slave  # noqa: E402
 
-from vehest_can.xcp import DEMO, Slave, key_for, load
-from vehest_can.xcp.description import from_dict
+from vehest_can.xcp import key_for, load
+from vehest_can.xcp.description import from_dict, raw_limits_for_c
 from vehest_can.xcp.keys import SEED_LEN
-from vehest_can.xcp.slave import raw_limits_for_c
 
 DESC = load(DEMO)
 FD_DESC = from_dict({**tomllib.loads(DEMO.read_text()),

@@ -2,8 +2,8 @@
 
 A versioned JSON document (like the camber calibration)::
 
-    {"format": "vehest-can/xcp-calibration", "version": 1, "description": "VEHEST_XCP_DEMO",
-     "values": {"dkf_r_torque": 64.0, "skf_gain": [[1.0, 0.0, ...], ...], ...}}
+    {"format": "vehest-can/xcp-calibration", "version": 1, "description": "VEHEST_ECU",
+     "values": {"<characteristic>": <physical value, or nested lists for an array>, ...}}
 
 Loading refuses another format or version, another description, unknown or missing names, a
 wrong shape, a value outside the characteristic's limits or not representable in its C type; it
@@ -18,10 +18,7 @@ import struct
 import tempfile
 from pathlib import Path
 
-from vehest_can.native import ffi
-
-from .description import C_TYPES, Description, DescriptionError, Item
-from .slave import Slave, raw_limits_for_c
+from .description import C_TYPES, Description, DescriptionError, Item, raw_limits_for_c
 
 FORMAT = "vehest-can/xcp-calibration"
 VERSION = 1
@@ -51,11 +48,6 @@ def _shape_of(v) -> tuple[int, ...]:
     return (len(v),) + inner.pop()
 
 
-def values(slave: Slave, page: str = "work") -> dict:
-    """Physical values of every characteristic on a page (``work``, ``ecu`` or ``ref``)."""
-    return values_of(slave.desc, lambda name: slave.read(name, page))
-
-
 def values_of(desc: Description, read_raw) -> dict:
     """{name: physical value(s)} of every characteristic, from `read_raw(name)` (raw value(s))."""
     out = {}
@@ -64,10 +56,6 @@ def values_of(desc: Description, read_raw) -> dict:
         flat = [c.raw_to_phys(r) for r in (raw if isinstance(raw, list) else [raw])]
         out[c.name] = _nest(flat, c.shape) if c.shape else flat[0]
     return out
-
-
-def save(slave: Slave, path, page: str = "work") -> None:
-    save_values(slave.desc, values(slave, page), path)
 
 
 def save_values(desc: Description, vals: dict, path) -> None:
@@ -97,14 +85,6 @@ def _raw(item: Item, phys: float, path) -> float | int:
         lo_p, hi_p = item.phys_limits()
         raise CalFileError(f"{path}: {item.name}: {phys} outside [{lo_p}, {hi_p}]")
     return raw
-
-
-def load(slave: Slave, path) -> dict:
-    """Validates the file against the slave's description and applies it; returns the values."""
-    image, vals = load_image(slave.desc, path, bytes(ffi.buffer(slave.cal_work)))
-    ffi.buffer(slave.cal_work)[:] = image
-    ffi.buffer(slave.cal_ecu)[:] = image
-    return vals
 
 
 def load_image(desc: Description, path, image: bytes) -> tuple[bytes, dict]:

@@ -39,6 +39,7 @@ multiple of its element size), which is what a C struct of the same members does
 from __future__ import annotations
 
 import math
+import struct
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -247,4 +248,10 @@ def load(path: str | Path) -> Description:
         return from_dict(tomllib.load(f), name=path.stem.upper())
 
 
-DEMO = Path(__file__).with_name("demo.toml")
+def raw_limits_for_c(item: Item) -> tuple[float, float]:
+    """Raw limits as the C slave compares them: a float32 limit is rounded to float32, so the value a
+    master writes for a limit (itself rounded to float32) is accepted."""
+    lo, hi = item.raw_limits()
+    if item.ctype != "float":
+        return lo, hi
+    return tuple(struct.unpack("<2f", struct.pack("<2f", lo, hi)))

@@ -14,8 +14,7 @@ import time
 from collections.abc import Callable
 
 import can
-
-from .slave import EXTENDED, Slave
+from xcp_demo import EXTENDED, Slave
 
 
 class XcpBridge:

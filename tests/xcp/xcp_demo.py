@@ -1,18 +1,20 @@
-"""The C XCP slave (in ``vehest_can._native``) over a memory image laid out by a description.
+"""The tests' XCP rig: the ECU's C XCP slave (``vh_xcp``, in ``vehest_can._native``) on its own, over
+a memory image laid out by a small description (``data/demo.toml``), so that the protocol is
+tested command by command against pyxcp without an ECU around it.
 
-Until the slave is wired into the ECU's tick, the memory it serves is an image owned here: one
-buffer of measurements (``measurements``, written by whoever simulates the ECU) and the three
-calibration buffers (reference page, working page, the ECU's view). The slave only ever sees
-them as caller-owned memory, exactly as it will see the ECU's own structs.
+The memory it serves is an image owned here: one buffer of measurements (``measurements``, written
+by the test) and the three calibration buffers (reference page, working page, the ECU's view). The
+slave only ever sees them as caller-owned memory, exactly as it sees the ECU's own structs.
 """
 from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
+from pathlib import Path
 
 from vehest_can.native import ffi, lib
-
-from .description import C_TYPES, Description, Item
+from vehest_can.xcp import calfile
+from vehest_can.xcp.description import C_TYPES, Description, Item, raw_limits_for_c
 
 XCP_ERRORS = {
     0x00: "ERR_CMD_SYNCH", 0x10: "ERR_CMD_BUSY", 0x11: "ERR_DAQ_ACTIVE", 0x12: "ERR_PGM_ACTIVE",
@@ -22,6 +24,7 @@ XCP_ERRORS = {
     0x29: "ERR_SEQUENCE", 0x2A: "ERR_DAQ_CONFIG", 0x30: "ERR_MEMORY_OVERFLOW", 0x31: "ERR_GENERIC",
     0x32: "ERR_VERIFY", 0x33: "ERR_RESOURCE_TEMPORARY_NOT_ACCESSIBLE",
 }
+DEMO = Path(__file__).with_name("data") / "demo.toml"
 EXTENDED = 0x80000000  # XCP-on-CAN convention: bit 31 of an identifier marks a 29-bit one
 COUNTERS = [f[0] for f in ffi.typeof("vh_xcp_counters_t").fields]
 
@@ -38,15 +41,6 @@ class Frame:
     data: bytes
 
 
-def _f32(v: float) -> float:
-    return struct.unpack("<f", struct.pack("<f", v))[0]
-
-
-def raw_limits_for_c(item: Item) -> tuple[float, float]:
-    """Raw limits as the slave compares them: a float32 limit is rounded to float32, so the value a
-    master writes for a limit (itself rounded to float32) is accepted."""
-    lo, hi = item.raw_limits()
-    return (_f32(lo), _f32(hi)) if item.ctype == "float" else (lo, hi)
 
 
 class Slave:
@@ -164,3 +158,21 @@ class Slave:
             raise KeyError(f"{name} is a characteristic: the master writes those")
         buf, off = self._buf(item, "ecu")
         ffi.buffer(buf)[off:off + item.size] = struct.pack("<" + C_TYPES[item.ctype][4], raw)
+
+
+def cal_values(slave: Slave, page: str = "work") -> dict:
+    """Physical values of every characteristic on a page (``work``, ``ecu`` or ``ref``)."""
+    return calfile.values_of(slave.desc, lambda name: slave.read(name, page))
+
+
+def save_cal(slave: Slave, path, page: str = "work") -> None:
+    calfile.save_values(slave.desc, cal_values(slave, page), path)
+
+
+def load_cal(slave: Slave, path) -> dict:
+    """Validates the file against the slave's description and applies it; returns the values."""
+    image, vals = calfile.load_image(slave.desc, path, bytes(ffi.buffer(slave.cal_work)))
+    ffi.buffer(slave.cal_work)[:] = image
+    ffi.buffer(slave.cal_ecu)[:] = image
+    return vals
+
