@@ -1,7 +1,7 @@
 """A soak run: the real-time ECU daemon (its own process) against a simulated car on ``udp_multicast``
 (this host only, a port of the run's own), with a bounded hostile sender beside them, for a given time.
 
-What it watches, for a process meant to run under systemd for weeks (issue 15): the daemon's resident
+What it watches, for a process meant to run under systemd for weeks: the daemon's resident
 memory and open file descriptors (``/proc/<pid>``, sampled), its frame-to-estimate latency and tick
 lateness p50/p99/p99.9 per window, and its fault counters' rates per window (from ``daemon --report``:
 totals since start, so a window's rate is a difference of two totals, never of a counter stuck at a

@@ -1,8 +1,8 @@
 """Off-line evaluation of the roll UKF against the 14-DOF plant's truth (seed 003's cases).
 
 The paper's cases: front road-wheel steer ramped to 5 deg on a level road at 36 and 72 km/h
-(Fig. 2-6). The 14 measurements are synthesised from the plant's truth with Gaussian noise (the
-roll sensor node of issue 11 section 1 is not on the bus yet); the UKF runs at its own step
+(Fig. 2-6). The 14 measurements are synthesised from the plant's truth with Gaussian noise (off the
+bus: the roll node's frames are the demo's and :func:`filters_on_bus`'s); the UKF runs at its own step
 (default 1 ms, every second plant tick) in both precisions, and its roll angle and rate are
 compared with the truth.
 

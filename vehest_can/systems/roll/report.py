@@ -13,7 +13,7 @@ from ...plotting import Figures, pyplot
 from ...sim.report import decode
 from ...sim.scenario import DT
 
-#: acceptance (issue 11): UKF RMS error as a fraction of the peak, roll angle and roll rate
+#: acceptance: UKF RMS error as a fraction of the peak, roll angle and roll rate
 TARGET_PHI, TARGET_P = 0.05, 0.10
 #: active vs passive at 72 km/h: peak roll reduced by at least this
 TARGET_REDUCTION = 0.50
