@@ -235,7 +235,16 @@ def _scenario(args, system, sc, out: Path, bus, setups: dict, keys, daemon_gone)
             and np.array_equal(local.frames, session.frames))
     print(f"  bus lockstep == in-process lockstep: {'identical' if same else 'DIFFERENT'} "
           f"({len(session.frames)} frames)")
+    diverged = session.diverged_s()
+    if diverged is not None:
+        print(f"  plant: its state is not finite from {diverged:.3f} s on (the car left the range its model holds, "
+              f"e.g. rolled over): the figures below cover the run up to then")
+        session = session.until(diverged)
     metrics = system.metrics(sc, session, sdir, setups[system.name])
+    if diverged is not None:
+        metrics["plant_diverged_s"] = diverged
+        metrics.setdefault("acceptance", []).append(
+            {"line": "the plant's state stays finite", "verdict": "FAIL", "detail": f"not from {diverged:.3f} s on"})
     metrics["bus_equals_inprocess"] = bool(same)
     metrics["inprocess_realtime_factor"] = local.stats["realtime_factor"]
     return metrics

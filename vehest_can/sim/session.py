@@ -18,7 +18,7 @@ import queue
 import sys
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import can
@@ -50,11 +50,36 @@ class Session:
     frame_tick: np.ndarray        # (m,) tick of each frame
     stats: dict = field(default_factory=dict)
 
+    def diverged_s(self) -> float | None:
+        """When the plant's state stopped being finite, in seconds of simulated time (None: it never did):
+        a car driven out of the range its model holds, e.g. rolled over in a plant that does not model
+        it. The figures of such a run are not the estimators' alone."""
+        bad = np.flatnonzero(~_finite_rows(self.truth))
+        return float(bad[0]) * TICK_S if bad.size else None
+
+    def until(self, t_s: float) -> Session:
+        """The session's first t_s seconds: its truth and the frames of those ticks."""
+        k = int(round(t_s / TICK_S))
+        keep = self.frame_tick < k
+        return replace(self, truth=self.truth[:k], frames=self.frames[keep], frame_tick=self.frame_tick[keep])
+
     def messages(self):
         """The session as python-can messages, timestamped with simulated time (a SessionLog
         writes them with absolute time, direction and bus)."""
         for f, k in zip(self.frames, self.frame_tick):
             yield to_message(f, timestamp=float(k) * TICK_S)
+
+
+def _finite_rows(a: np.ndarray) -> np.ndarray:
+    """(n,) bool: every floating-point field of each record finite (nested records included)."""
+    ok = np.ones(len(a), dtype=bool)
+    for name in a.dtype.names or ():
+        v = a[name]
+        if v.dtype.names:
+            ok &= _finite_rows(v.reshape(-1)).reshape(len(a), -1).all(axis=1)
+        elif v.dtype.kind == "f":
+            ok &= np.isfinite(v.reshape(len(a), -1)).all(axis=1)
+    return ok
 
 
 def run_inprocess(car: Car, ecu) -> Session:

@@ -134,9 +134,12 @@ def acceptance(m: dict) -> list[tuple[str, str, bool]]:
     if "limits_respected" in m:
         rows.append(("actuator limits respected", "yes" if m["limits_respected"] else "NO", m["limits_respected"]))
     if "vs_passive" in m and m.get("speed_kmh", 0) >= 70:
-        red = m["vs_passive"]["peak_roll_reduction_pct"]
-        rows.append((f"peak roll reduced >= {100 * TARGET_REDUCTION:.0f} % (72 km/h)", f"{red:.1f} %",
-                     red >= 100 * TARGET_REDUCTION))
+        line = f"peak roll reduced >= {100 * TARGET_REDUCTION:.0f} % (72 km/h)"
+        red = m["vs_passive"].get("peak_roll_reduction_pct")
+        if red is None:
+            rows.append((line, f"no passive twin: its plant diverged at {m['vs_passive']['passive_diverged_s']:.3f} s", False))
+        else:
+            rows.append((line, f"{red:.1f} %", red >= 100 * TARGET_REDUCTION))
     return rows
 
 
@@ -158,7 +161,10 @@ def table(m: dict) -> str:
         lines.append(f"  float32 (ECU) vs double on the same bus samples: max |d roll| {m['f32_vs_f64_roll_deg']:.1e} deg, "
                      f"max |d roll rate| {m['f32_vs_f64_roll_rate_deg_s']:.1e} deg/s; ECU == array API: "
                      f"{'yes' if m['ecu_equals_array_api'] else 'NO'}")
-    if "vs_passive" in m:
+    if "passive_diverged_s" in m.get("vs_passive", {}):
+        lines.append(f"  vs passive: none: the passive twin's plant diverged at {m['vs_passive']['passive_diverged_s']:.3f} s "
+                     f"(its state not finite from there on)")
+    elif "vs_passive" in m:
         v = m["vs_passive"]
         lines.append(f"  vs passive: peak roll {v['passive_peak_roll_deg']:.3f} -> {m['peak_roll_deg']:.3f} deg "
                      f"({-v['peak_roll_reduction_pct']:+.1f} %), peak yaw rate {v['peak_yaw_rate_change_pct']:+.2f} %, "
