@@ -554,7 +554,8 @@ static void bounds(vh_tfa_t *a, const vh_skfq_t *f, const int32_t *two, uint32_t
             /* g_i in [0, 2] (Q29); 1 below 1 N of axle force, where the share is the loads' and sigma_a its floor */
             int32_t g = INT32_C(1) << 29;
             if (mag >= (INT32_C(1) << FN)) {
-                const int32_t same = fax < 0 ? -a->fy[i] : a->fy[i]; /* F_i with F_axle's sign: the divisor > 0 */
+                /* F_i with F_axle's sign: the divisor > 0 (a saturated -2^31 negates to 2^31 - 1) */
+                const int32_t same = fax < 0 ? (a->fy[i] == INT32_MIN ? INT32_MAX : -a->fy[i]) : a->fy[i];
                 g = (int64_t)abs32(a->fy[i]) > 2 * (int64_t)mag ? INT32_C(1) << 30 : vh_fix_div(same, mag, 29, sat);
                 g = g < 0 ? 0 : g;
             }
