@@ -366,7 +366,9 @@ def test_plots_and_command_line_write_files(paper, relation, tmp_path, capsys):
     with pytest.raises(ConfigError):
         tr.plots("nonsense", truth, runs, tmp_path)
 
-    assert tr.main(["chassis_relation_70kph", "-o", str(tmp_path / "cli")]) == 0
+    from vehest_can.cli import main
+
+    assert main(["study", "tireforce.report", "chassis_relation_70kph", "-o", str(tmp_path / "cli")]) == 0
     out = capsys.readouterr().out
     assert "== chassis_relation_70kph" in out and "acceptance:" in out
     metrics = json.loads((tmp_path / "cli" / "metrics.json").read_text())
