@@ -118,6 +118,10 @@ typedef struct {
     double phi_max;               /* |roll| above this [rad] -> diverged, reset */
     double conv_sd_phi, conv_sd_p; /* converged (health leaves INIT) once sqrt(P) of roll [rad] and of
                                     * roll rate [rad/s] are both at or below these */
+    /* robust variant: the roll rate's process noise follows the innovations (eq. 18a, docs/roll.md):
+     * q_p (s)^2, s = the NIS per measurement low-passed over qp_adapt_tau, within [1, qp_adapt_max] */
+    double qp_adapt_tau;          /* [s]; 0: off */
+    double qp_adapt_max;          /* s at most this, >= 1 */
     uint32_t variant;             /* VH_ROLL_V_*: the paper's 16 states or the robust 17 */
     uint32_t ay_gravity;          /* 1: the lateral accelerometer is body-fixed and feels gravity,
                                    * z_ay = ay cos(phi) + g sin(phi) (eq. 20g); 0: it sends the

@@ -71,6 +71,9 @@ void vh_roll_params_default(vh_roll_params_t *prm)
      * 6 steps at 5 ms; the steady state is 0.0015 deg / 0.026 deg/s (docs/roll.md) */
     prm->conv_sd_phi = 3.5e-4;
     prm->conv_sd_p = 3.5e-3;
+    /* the robust variant's adaptive roll-rate noise: 0.1 s, q_p at most 1e4 times its own (docs/roll.md) */
+    prm->qp_adapt_tau = 0.1;
+    prm->qp_adapt_max = 100.0;
     /* the paper's UKF with a kinematic a_y; the ECU's app runs the robust variant on a body-fixed
      * accelerometer (vh_roll_app_config_default) */
     prm->variant = VH_ROLL_V_PAPER;
@@ -175,6 +178,7 @@ int vh_roll_params_check(const vh_roll_params_t *prm)
          prm->hf >= 0.0 && prm->hr >= 0.0 && prm->cphi_f >= 0.0 && prm->cphi_r >= 0.0 &&
          prm->reg_eps > 0.0 && prm->reg_eps < 1.0 && prm->nis_max >= 0.0 && prm->phi_max > 0.0 &&
          prm->conv_sd_phi > 0.0 && prm->conv_sd_phi < 1e3 && prm->conv_sd_p > 0.0 && prm->conv_sd_p < 1e3 &&
+         prm->qp_adapt_tau >= 0.0 && prm->qp_adapt_tau < 1e3 && prm->qp_adapt_max >= 1.0 && prm->qp_adapt_max <= 1e3 &&
          (prm->variant == VH_ROLL_V_PAPER || prm->variant == VH_ROLL_V_ROBUST) && prm->ay_gravity <= 1u;
     if (ok) {
         /* suspension roll stiffness with the tyres in series removed (as the plant,

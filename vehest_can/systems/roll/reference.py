@@ -12,6 +12,7 @@ G = 9.81
 NX, NZ, NU = 21, 14, 4   # states at most (the robust variant's), measurements, inputs
 NX_PAPER = 16            # the paper's variant carries the first 16
 ROBUST = 1               # vh_roll_params_t.variant of the robust variant
+X_P = 5                  # the roll rate's state (VH_ROLL_X_P)
 
 
 def n_states(p: dict) -> int:
@@ -140,9 +141,32 @@ def sigma_points(x, P, gamma):
 
 
 class _Filter:
-    """What both reference filters share: a run over arrays, step by step."""
+    """What both reference filters share: a run over arrays, step by step, and the robust variant's
+    adaptive roll-rate noise (eq. 18a)."""
 
     x: np.ndarray
+    p: dict
+    n: int
+
+    def _init_q(self) -> None:
+        p = self.p
+        self.q = np.asarray(p["q"][: self.n], float)
+        adapt = p["variant"] == ROBUST and p["qp_adapt_tau"] > 0.0
+        self.nis_alpha = min(p["dt"] / p["qp_adapt_tau"], 1.0) if adapt else 0.0
+        self.qp_max = p["qp_adapt_max"] if adapt else 1.0
+        self.nis, self.nis_lp = 0.0, 1.0
+
+    def _Q(self) -> np.ndarray:
+        """eq. 18a: Q with the roll rate's noise scaled by s^2, s = the low-passed NIS per measurement
+        within [1, qp_max]."""
+        s = min(max(self.nis_lp, 1.0), self.qp_max)
+        q = self.q.copy()
+        q[X_P] *= s * s
+        return np.diag(q)
+
+    def _nis(self, nis: float, m: int) -> None:
+        self.nis = nis
+        self.nis_lp += self.nis_alpha * (nis / m - self.nis_lp)
 
     def step(self, u, z, mask: int = (1 << NZ) - 1) -> None:
         raise NotImplementedError
@@ -165,14 +189,14 @@ class RefUkf(_Filter):
         self.p = p
         self.n = n = self.model.n
         self.gamma, self.w = sigma_weights(n, p["kappa"])
-        self.Q = np.diag(p["q"][:n])
+        self._init_q()
         self.R = np.diag(p["r"])
-        self.nis = 0.0
         self.reset()
 
     def reset(self):
         self.x = np.zeros(self.n)                                               # eq. 13
         self.P = np.diag(np.asarray(self.p["p0"][: self.n], float))             # eq. 14
+        self.nis_lp = 1.0
 
     def step(self, u, z, mask: int = (1 << NZ) - 1):
         w = self.w
@@ -180,7 +204,7 @@ class RefUkf(_Filter):
         Xf = self.model.f(X, u)                                                 # eq. 16
         xp = w @ Xf                                                             # eq. 17
         dX = Xf - xp
-        Pp = (w[:, None] * dX).T @ dX + self.Q                                  # eq. 18
+        Pp = (w[:, None] * dX).T @ dX + self._Q()                               # eq. 18, 18a
         X = sigma_points(xp, Pp, self.gamma)                                    # eq. 19
         Z = self.model.h(X, u)                                                  # eq. 20
         zp = w @ Z                                                              # eq. 21
@@ -194,7 +218,7 @@ class RefUkf(_Filter):
         Pxz = (w[:, None] * dX).T @ dZ
         K = np.linalg.solve(Pzz, Pxz.T).T                                       # eq. 22
         nu = np.asarray(z)[sel] - zp[sel]
-        self.nis = float(nu @ np.linalg.solve(Pzz, nu))
+        self._nis(float(nu @ np.linalg.solve(Pzz, nu)), int(sel.sum()))
         self.x = xp + K @ nu                                                    # eq. 25
         self.P = Pp - K @ Pzz @ K.T                                             # eq. 26
         self.P = 0.5 * (self.P + self.P.T)
@@ -233,15 +257,15 @@ class RefEkf(_Filter):
         self.model = RollModel(p)
         self.p = p
         self.n = n = self.model.n
-        self.Q = np.diag(p["q"][:n])
+        self._init_q()
         self.R = np.diag(p["r"])
         self.hstep = 1e-6 * np.sqrt(np.asarray(p["p0"][:n], float))
-        self.nis = 0.0
         self.reset()
 
     def reset(self):
         self.x = np.zeros(self.n)
         self.P = np.diag(np.asarray(self.p["p0"][: self.n], float))
+        self.nis_lp = 1.0
 
     def _jac(self, fn, x, u):
         n = self.n
@@ -252,7 +276,7 @@ class RefEkf(_Filter):
     def step(self, u, z, mask: int = (1 << NZ) - 1):
         F = self._jac(self.model.f, self.x, u)
         xp = self.model.f(self.x, u)[0]
-        Pp = F @ self.P @ F.T + self.Q
+        Pp = F @ self.P @ F.T + self._Q()
         sel = np.array([(mask >> i) & 1 for i in range(NZ)], bool) & np.isfinite(z)
         self.x, self.P = xp, Pp
         if not sel.any():
@@ -262,7 +286,7 @@ class RefEkf(_Filter):
         S = Hm @ Pp @ Hm.T + self.R[np.ix_(sel, sel)]
         K = np.linalg.solve(S, Hm @ Pp).T
         nu = np.asarray(z)[sel] - zp
-        self.nis = float(nu @ np.linalg.solve(S, nu))
+        self._nis(float(nu @ np.linalg.solve(S, nu)), int(sel.sum()))
         self.x = xp + K @ nu
         IKH = np.eye(self.n) - K @ Hm
         self.P = IKH @ Pp @ IKH.T + K @ self.R[np.ix_(sel, sel)] @ K.T   # Joseph form
