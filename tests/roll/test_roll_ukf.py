@@ -94,6 +94,24 @@ def test_c_double_agrees_with_numpy_reference(case72, masked, variant):
     assert rel.max() <= 1e-6
 
 
+def test_the_adaptive_roll_rate_noise_is_the_same_in_c_and_in_the_reference(case72):
+    """eq. 18a exercised: R ten times too small makes the NIS per measurement ~10, so the robust
+    variant's q_p scale leaves 1; the C double build and the numpy reference still agree, and without
+    the adaptation the estimate is another one (the test would see an adaptation done differently)."""
+    _, u, z, _ = case72
+    n = 600
+    r = [v / 10.0 for v in rn.default_params().r]
+    prm = rn.make_params(variant=rn.VARIANTS["robust"], r=r)
+    c = rn.Ukf(prm, "f64")
+    xc = np.array([(c.step(u[k], z[k]), c.x)[1] for k in range(n)])
+    assert 2.0 < c.c.nis_lp <= float(prm.qp_adapt_max) * 10
+    xr = ref.RefUkf(rn.params_dict(prm)).run(u[:n], z[:n])
+    rel = np.max(np.abs(xc[:, : xr.shape[1]] - xr), axis=0) / np.max(np.abs(xr), axis=0)
+    assert rel.max() <= 1e-6
+    fixed = ref.RefUkf(dict(rn.params_dict(prm), qp_adapt_tau=0.0)).run(u[:n], z[:n])
+    assert np.max(np.abs(fixed[:, 5] - xr[:, 5])) > 1e-3 * np.max(np.abs(xr[:, 5]))
+
+
 def test_numpy_reference_agrees_with_filterpy(case72):
     _, u, z, _ = case72
     n = 120
