@@ -253,7 +253,8 @@ def test_instruction_counts_and_stack(tmp_path):
     each system's step has a cost; the painted stack's high-water mark stays inside the stack."""
     require_pil()
     with pil.PilEcu(icount=True, measure=True) as ecu:
-        assert pil.calibrate(ecu) == pil.INSNS_PER_COUNT
+        # 200 000 instructions read as 5 000 counts, give or take the one count a read may straddle
+        assert pil.calibrate(ecu) == pytest.approx(pil.INSNS_PER_COUNT, abs=0.01)
         replay(read_log(GOLDEN / "chassis_golden.log"), ecu)
         costs = ecu.costs.per_system()
         stack = ecu.stack()
