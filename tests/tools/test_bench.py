@@ -78,3 +78,14 @@ def test_the_python_drive_is_the_c_drive(n):
     raw = kf.run_raw(kf.quantise(bench.skf_inputs(n)), covariances=True)
     c = bench.bench_c_loop(samples=n)
     assert _fnv1a(raw["x"][-1], raw["p"][-1], raw["fy"][-1], raw["fz"][-1]) == int(c["skfmec_fixed_checksum"][0])
+
+
+def test_replay_bench_tiny_runs_every_baseline_on_a_log_with_the_sync_frames():
+    """The replay row on a small generated lockstep log: the ECU's replay is identical, and python-can's
+    LogReader and cantools (with the simulator's DBC beside each bus's) read and decode every frame."""
+    from vehest_can.tools import replay_bench
+
+    r = replay_bench.run(20_000, repeats=1, baseline_frames=5_000)
+    assert r["frames"] >= 20_000 and r["replay_identical"]
+    assert r["logreader_frames"] == r["cantools_frames"] == 5_000
+    assert all(_positive(float(r[k])) for k in ("replay_fps", "logreader_fps", "cantools_fps"))

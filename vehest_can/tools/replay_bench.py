@@ -20,6 +20,7 @@ import numpy as np
 from ..bus import lockstep
 from ..bus.frames import TICK_S
 from ..bus.log import bus_of_id
+from ..errors import VehestError
 from ..service.replay import ECU_TX
 from ..sim.powertrain import powertrain_car
 from ..sim.session import run_inprocess
@@ -87,6 +88,8 @@ else:
     import cantools
     from vehest_can.paths import dbc_path
     dbs = {b: cantools.database.load_file(str(dbc_path(b))) for b in ("pt", "ch")}
+    for db in dbs.values():  # the simulator's sync frames ride on each bus, in their own DBC
+        db.add_dbc_file(str(dbc_path("sim")))
     msgs = []
     for m in can.LogReader(path):
         msgs.append(m)
@@ -106,8 +109,10 @@ print(json.dumps({"frames": n, "seconds": s, "cpu_seconds": cpu,
 
 
 def _child(what: str, path: Path, limit: int = 0) -> dict:
-    out = subprocess.run([sys.executable, "-c", _CHILD, what, str(path), str(limit)],
-                         capture_output=True, text=True, check=True)
+    out = subprocess.run([sys.executable, "-c", _CHILD, what, str(path), str(limit)], capture_output=True, text=True)
+    if out.returncode != 0:
+        tail = "\n".join(out.stderr.strip().splitlines()[-3:])
+        raise VehestError(f"replay bench: the {what} run failed (exit {out.returncode}):\n{tail}")
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
