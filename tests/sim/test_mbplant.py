@@ -29,6 +29,7 @@ def scenario(plant: str, **extra) -> veh14.Veh14Scenario:
     return veh14.veh14_scenario_from_dict(doc, Path("test.toml"), "tireforce")
 
 
+@pytest.mark.slow  # numba compiles the model (~7 s) and scipy integrates it
 def test_adapter_equals_the_packages_own_integration():
     """Idle actuators, no drive, no drag: the car's truth follows scipy's integration of the package's
     own pure-Python vehicle_dynamics_mb with the same steering input (a 1 deg/s ramp)."""

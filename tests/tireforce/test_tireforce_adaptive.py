@@ -154,9 +154,12 @@ def test_ride_height_mass_from_the_springs_alone(delta):
     assert np.abs(mass[440:] / true - 1).max() < 0.02, (mass[440:].min(), mass[440:].max(), true)
 
 
-@pytest.mark.parametrize("name", ["stress_highway_step_payload", "stress_payload_p400kg", "stress_payload_m100kg",
-                                  "stress_step_steer_p400kg_no_excitation", "stress_sine_steer_m100kg_no_excitation",
-                                  "stress_split_mu_outer_low_p300", "stress_step_steer_4deg_p400"])
+_SLOW = pytest.mark.slow  # the quick tier keeps the first of each list; make test runs them all
+
+
+@pytest.mark.parametrize("name", ["stress_highway_step_payload", *(pytest.param(n, marks=_SLOW) for n in (
+    "stress_payload_p400kg", "stress_payload_m100kg", "stress_step_steer_p400kg_no_excitation",
+    "stress_sine_steer_m100kg_no_excitation", "stress_split_mu_outer_low_p300", "stress_step_steer_4deg_p400"))])
 def test_stress_within_ten_percent_and_the_mass_within_five(name):
     a, base, true, _ = pct(load_tireforce_scenario(STRESS / f"{name}.toml"))
     assert all(a["rms_pct"][w] <= 10.0 for w in tf.WHEELS), a["rms_pct"]
@@ -313,10 +316,9 @@ def test_slip_observation_inverts_the_combined_slip_model():
 
 # ---- fixed point (c_core/tireforce/vh_tfa.c) -------------------------------------------------
 
-@pytest.mark.parametrize("name", ["chassis_paper_mu_drop", "chassis_relation_70kph",
-                                  "stress/stress_highway_step_payload", "stress/stress_split_mu_braking",
-                                  "stress/stress_power_on_cornering", "stress/stress_low_mu_corner_p200",
-                                  "stress/stress_step_steer_4deg_p400"])
+@pytest.mark.parametrize("name", ["chassis_paper_mu_drop", *(pytest.param(n, marks=_SLOW) for n in (
+    "chassis_relation_70kph", "stress/stress_highway_step_payload", "stress/stress_split_mu_braking",
+    "stress/stress_power_on_cornering", "stress/stress_low_mu_corner_p200", "stress/stress_step_steer_4deg_p400"))])
 def test_fixed_point_matches_double(name):
     """Fixed vs double <= 0.5 % of peak per tyre (the issue's line), no saturation, the same health
     and the same mass to 0.1 kg; the same integers from a fresh instance (bit-exact)."""

@@ -80,6 +80,7 @@ def test_the_python_drive_is_the_c_drive(n):
     assert _fnv1a(raw["x"][-1], raw["p"][-1], raw["fy"][-1], raw["fz"][-1]) == int(c["skfmec_fixed_checksum"][0])
 
 
+@pytest.mark.slow  # three child interpreters
 def test_replay_bench_tiny_runs_every_baseline_on_a_log_with_the_sync_frames():
     """The replay row on a small generated lockstep log: the ECU's replay is identical, and python-can's
     LogReader and cantools (with the simulator's DBC beside each bus's) read and decode every frame."""
