@@ -23,6 +23,11 @@ def _session(plant="veh14", car=None, seconds=0.5):
 def test_a_finite_run_has_not_diverged_and_the_first_non_finite_tick_is_found():
     s = _session()
     assert s.diverged_s() is None
+    t = s.truth.copy()
+    t["phi"][99] = np.radians(31.0)  # rolling over
+    s.truth = t
+    assert s.diverged_s() == pytest.approx(99 * TICK_S)
+    s = _session()
     for name in ("phi", "fz"):  # a scalar field and an array field
         t = s.truth.copy()
         field = t[name]

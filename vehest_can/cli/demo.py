@@ -237,14 +237,14 @@ def _scenario(args, system, sc, out: Path, bus, setups: dict, keys, daemon_gone)
           f"({len(session.frames)} frames)")
     diverged = session.diverged_s()
     if diverged is not None:
-        print(f"  plant: its state is not finite from {diverged:.3f} s on (the car left the range its model holds, "
-              f"e.g. rolled over): the figures below cover the run up to then")
+        print(f"  plant: the car left the range its model holds at {diverged:.3f} s (its state not finite, or "
+              f"rolling over): the figures below cover the run up to then")
         session = session.until(diverged)
     metrics = system.metrics(sc, session, sdir, setups[system.name])
     if diverged is not None:
         metrics["plant_diverged_s"] = diverged
         metrics.setdefault("acceptance", []).append(
-            {"line": "the plant's state stays finite", "verdict": "FAIL", "detail": f"not from {diverged:.3f} s on"})
+            {"line": "the car stays in its plant's range", "verdict": "FAIL", "detail": f"left it at {diverged:.3f} s"})
     metrics["bus_equals_inprocess"] = bool(same)
     metrics["inprocess_realtime_factor"] = local.stats["realtime_factor"]
     return metrics

@@ -41,6 +41,10 @@ INPROCESS_CHUNK = 2000
 CAR_NODES = frozenset(n.name for b in BUSES for n in database(b).nodes) - {"VEHEST"}
 
 
+#: body roll beyond which a run counts as a rollover (Session.diverged_s) [rad]: 30 deg
+ROLLOVER_RAD = float(np.radians(30.0))
+
+
 @dataclass
 class Session:
     name: str
@@ -51,10 +55,14 @@ class Session:
     stats: dict = field(default_factory=dict)
 
     def diverged_s(self) -> float | None:
-        """When the plant's state stopped being finite, in seconds of simulated time (None: it never did):
-        a car driven out of the range its model holds, e.g. rolled over in a plant that does not model
-        it. The figures of such a run are not the estimators' alone."""
-        bad = np.flatnonzero(~_finite_rows(self.truth))
+        """When the car left the range its plant's model holds, in seconds of simulated time (None: it
+        never did): the state not finite, or a body rolled past ROLLOVER_RAD (the car is rolling over;
+        no chassis model here describes that, and a multi-body one may go on integrating nonsense). The
+        figures of such a run are not the estimators' alone."""
+        ok = _finite_rows(self.truth)
+        if self.truth.dtype.names and "phi" in self.truth.dtype.names:
+            ok &= np.abs(self.truth["phi"]) <= ROLLOVER_RAD
+        bad = np.flatnonzero(~ok)
         return float(bad[0]) * TICK_S if bad.size else None
 
     def until(self, t_s: float) -> Session:

@@ -163,7 +163,7 @@ def table(m: dict) -> str:
                      f"{'yes' if m['ecu_equals_array_api'] else 'NO'}")
     if "passive_diverged_s" in m.get("vs_passive", {}):
         lines.append(f"  vs passive: none: the passive twin's plant diverged at {m['vs_passive']['passive_diverged_s']:.3f} s "
-                     f"(its state not finite from there on)")
+                     f"(its state not finite, or rolling over, from there on)")
     elif "vs_passive" in m:
         v = m["vs_passive"]
         lines.append(f"  vs passive: peak roll {v['passive_peak_roll_deg']:.3f} -> {m['peak_roll_deg']:.3f} deg "
