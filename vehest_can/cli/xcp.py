@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import fnmatch
 import math
-import shutil
 import sys
 from contextlib import contextmanager
 from pathlib import Path
@@ -91,24 +90,20 @@ def run_keygen(args) -> int:
 
 
 def run_a2l(args) -> int:
-    from ..xcp import ecu_desc
-    if args.description:
-        from ..xcp import a2l, description
+    from ..xcp import a2l, description, ecu_desc
 
-        try:
+    if args.description:
+        try:  # a DescriptionError and a TOML syntax error are ValueErrors
             text = a2l.generate(description.load(args.description))
-        except (description.DescriptionError, FileNotFoundError) as exc:
+        except (ValueError, OSError) as exc:
             raise ConfigError(f"--description {args.description}: {exc}") from None
-        if args.output:
-            Path(args.output).write_text(text)
-        else:
-            sys.stdout.write(text)
-        return 0
+    else:
+        text = ecu_desc.SHIPPED_A2L.read_text()
     if args.output:
-        shutil.copyfile(ecu_desc.SHIPPED_A2L, args.output)
+        Path(args.output).write_text(text)
         print(f"wrote {args.output}", file=sys.stderr)
     else:
-        sys.stdout.write(ecu_desc.SHIPPED_A2L.read_text())
+        sys.stdout.write(text)
     return 0
 
 

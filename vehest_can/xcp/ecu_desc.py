@@ -13,13 +13,12 @@ Pure Python on purpose: ``c_core/vehest_build.py`` runs it before the extension 
 from __future__ import annotations
 
 import re
-import struct
 import tomllib
 from pathlib import Path
 
 from . import a2l
 from .args import ECU_TOML
-from .description import C_TYPES, SAFETY_CLASSES, Description, DescriptionError, Event, Item
+from .description import C_TYPES, SAFETY_CLASSES, Description, DescriptionError, Event, Item, raw_limits_for_c
 
 A2L_NAME = "VEHEST_ECU"
 SHIPPED_A2L = Path(__file__).with_name(f"{A2L_NAME}.a2l")
@@ -161,17 +160,6 @@ def data_bitrate(path: Path = ECU_TOML) -> int:
         return int(tomllib.load(f).get("xcp", {}).get("data_bitrate", 4000000))
 
 
-def _f32(v: float) -> float:
-    return struct.unpack("<f", struct.pack("<f", v))[0]
-
-
-def raw_limits(item: Item) -> tuple[float, float]:
-    """Raw limits as the slave compares them; a float32 limit rounded to float32 (so the value a
-    master writes for a limit, itself rounded to float32, is accepted)."""
-    lo, hi = item.raw_limits()
-    return (_f32(lo), _f32(hi)) if item.ctype == "float" else (lo, hi)
-
-
 def _c_double(v: float) -> str:
     return repr(float(v))  # shortest repr round-trips: the C compiler reads the same double
 
@@ -207,7 +195,7 @@ def c_table(desc: Description) -> str:
         "static const vh_xcp_char_t VH_ECU_XCP_CHARS[] = {",
     ]
     for it in desc.characteristics:
-        lo, hi = raw_limits(it)
+        lo, hi = raw_limits_for_c(it)
         member = it.name[len(CAL_PREFIX):]
         flags = "VH_XCP_CHAR_SAFETY" if it.safety_class == "safety" else "0u"
         lines.append(f"    {{VH_ECU_XCP_CAL_ADDRESS + offsetof({CAL_STRUCT}, {member}), {it.count}u, "

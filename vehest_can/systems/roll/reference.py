@@ -154,7 +154,12 @@ class _Filter:
         adapt = p["variant"] == ROBUST and p["qp_adapt_tau"] > 0.0
         self.nis_alpha = min(p["dt"] / p["qp_adapt_tau"], 1.0) if adapt else 0.0
         self.qp_max = p["qp_adapt_max"] if adapt else 1.0
-        self.nis, self.nis_lp = 0.0, 1.0
+        self.nis = 0.0
+
+    def reset(self):
+        self.x = np.zeros(self.n)                                               # eq. 13
+        self.P = np.diag(np.asarray(self.p["p0"][: self.n], float))             # eq. 14
+        self.nis_lp = 1.0
 
     def _Q(self) -> np.ndarray:
         """eq. 18a: Q with the roll rate's noise scaled by s^2, s = the low-passed NIS per measurement
@@ -192,11 +197,6 @@ class RefUkf(_Filter):
         self._init_q()
         self.R = np.diag(p["r"])
         self.reset()
-
-    def reset(self):
-        self.x = np.zeros(self.n)                                               # eq. 13
-        self.P = np.diag(np.asarray(self.p["p0"][: self.n], float))             # eq. 14
-        self.nis_lp = 1.0
 
     def step(self, u, z, mask: int = (1 << NZ) - 1):
         w = self.w
@@ -261,11 +261,6 @@ class RefEkf(_Filter):
         self.R = np.diag(p["r"])
         self.hstep = 1e-6 * np.sqrt(np.asarray(p["p0"][:n], float))
         self.reset()
-
-    def reset(self):
-        self.x = np.zeros(self.n)
-        self.P = np.diag(np.asarray(self.p["p0"][: self.n], float))
-        self.nis_lp = 1.0
 
     def _jac(self, fn, x, u):
         n = self.n
