@@ -118,8 +118,9 @@ typedef struct {
     double phi_max;               /* |roll| above this [rad] -> diverged, reset */
     double conv_sd_phi, conv_sd_p; /* converged (health leaves INIT) once sqrt(P) of roll [rad] and of
                                     * roll rate [rad/s] are both at or below these */
-    /* robust variant: the roll rate's process noise follows the innovations (eq. 18a, docs/roll.md):
-     * q_p (s)^2, s = the NIS per measurement low-passed over qp_adapt_tau, within [1, qp_adapt_max] */
+    /* robust variant: process noise that follows the innovations (eq. 18a-b, docs/roll.md): q_p s^2,
+     * s = the NIS per body-motion measurement low-passed over qp_adapt_tau, within [1, qp_adapt_max];
+     * q_vy and q_r the same from the lateral measurements (a_y, r) */
     double qp_adapt_tau;          /* [s]; 0: off */
     double qp_adapt_max;          /* s at most this, >= 1 */
     uint32_t variant;             /* VH_ROLL_V_*: the paper's 16 states or the robust 17 */

@@ -112,6 +112,28 @@ def test_the_adaptive_roll_rate_noise_is_the_same_in_c_and_in_the_reference(case
     assert np.max(np.abs(fixed[:, 5] - xr[:, 5])) > 1e-3 * np.max(np.abs(xr[:, 5]))
 
 
+def test_a_lateral_model_error_scales_the_lateral_noise_not_the_roll_rates(case72):
+    """eq. 18b exercised: only a_y's and r's R ten times too small raise the lateral NIS (2.4 after 3 s)
+    while the body-motion NIS stays below 1 (0.68: q_p not scaled); C double and the numpy reference
+    agree on the states and both NIS (eq. 18a alone would have scaled q_p by the mixed NIS)."""
+    _, u, z, _ = case72
+    n = 600
+    r = list(rn.default_params().r)
+    for i in (0, 13):  # VH_ROLL_Z_AY, VH_ROLL_Z_R
+        r[i] /= 10.0
+    prm = rn.make_params(variant=rn.VARIANTS["robust"], r=r)
+    c = rn.Ukf(prm, "f64")
+    xc = np.array([(c.step(u[k], z[k]), c.x)[1] for k in range(n)])
+    f = ref.RefUkf(rn.params_dict(prm))
+    xr = f.run(u[:n], z[:n])
+    rel = np.max(np.abs(xc[:, : xr.shape[1]] - xr), axis=0) / np.max(np.abs(xr), axis=0)
+    assert rel.max() <= 1e-6
+    assert abs(c.c.nis_lat_lp - f.nis_lat_lp) <= 1e-6 * f.nis_lat_lp
+    assert abs(c.c.nis_lp - f.nis_lp) <= 1e-6 * max(f.nis_lp, 1.0)
+    print(f"lateral NIS {c.c.nis_lat_lp:.2f}, body-motion NIS {c.c.nis_lp:.2f}")
+    assert c.c.nis_lat_lp > 1.5 and c.c.nis_lp < 0.5 * c.c.nis_lat_lp
+
+
 def test_numpy_reference_agrees_with_filterpy(case72):
     _, u, z, _ = case72
     n = 120

@@ -12,7 +12,8 @@ G = 9.81
 NX, NZ, NU = 21, 14, 4   # states at most (the robust variant's), measurements, inputs
 NX_PAPER = 16            # the paper's variant carries the first 16
 ROBUST = 1               # vh_roll_params_t.variant of the robust variant
-X_P = 5                  # the roll rate's state (VH_ROLL_X_P)
+X_VY, X_R, X_P = 0, 1, 5  # lateral velocity, yaw rate, roll rate (VH_ROLL_X_*)
+Z_LAT = (0, 13)          # the lateral measurements a_y and r (VH_ROLL_Z_AY, VH_ROLL_Z_R)
 
 
 def n_states(p: dict) -> int:
@@ -142,7 +143,7 @@ def sigma_points(x, P, gamma):
 
 class _Filter:
     """What both reference filters share: a run over arrays, step by step, and the robust variant's
-    adaptive roll-rate noise (eq. 18a)."""
+    adaptive noise (eq. 18a-b)."""
 
     x: np.ndarray
     p: dict
@@ -160,18 +161,27 @@ class _Filter:
         self.x = np.zeros(self.n)                                               # eq. 13
         self.P = np.diag(np.asarray(self.p["p0"][: self.n], float))             # eq. 14
         self.nis_lp = 1.0
+        self.nis_lat_lp = 1.0
 
     def _Q(self) -> np.ndarray:
-        """eq. 18a: Q with the roll rate's noise scaled by s^2, s = the low-passed NIS per measurement
-        within [1, qp_max]."""
-        s = min(max(self.nis_lp, 1.0), self.qp_max)
+        """eq. 18a-b: Q with the roll rate's noise scaled by s^2, s = the low-passed NIS per body-motion
+        measurement, and the lateral velocity's and yaw rate's by the same from a_y and r, within
+        [1, qp_max]."""
         q = self.q.copy()
-        q[X_P] *= s * s
+        q[X_P] *= min(max(self.nis_lp, 1.0), self.qp_max) ** 2
+        q[[X_VY, X_R]] *= min(max(self.nis_lat_lp, 1.0), self.qp_max) ** 2
         return np.diag(q)
 
-    def _nis(self, nis: float, m: int) -> None:
-        self.nis = nis
-        self.nis_lp += self.nis_alpha * (nis / m - self.nis_lp)
+    def _nis(self, nu: np.ndarray, S: np.ndarray, sel: np.ndarray) -> None:
+        """The step's NIS and eq. 18a-b's low-passes: nu^T S^-1 nu split by measurement as the C does,
+        the squares of L^-1 nu (S = L L^T, the valid measurements in their order)."""
+        w2 = np.linalg.solve(np.linalg.cholesky(S), nu) ** 2
+        lat = np.isin(np.flatnonzero(sel), Z_LAT)
+        self.nis = float(w2.sum())
+        if (~lat).any():
+            self.nis_lp += self.nis_alpha * (float(w2[~lat].sum()) / int((~lat).sum()) - self.nis_lp)
+        if lat.any():
+            self.nis_lat_lp += self.nis_alpha * (float(w2[lat].sum()) / int(lat.sum()) - self.nis_lat_lp)
 
     def step(self, u, z, mask: int = (1 << NZ) - 1) -> None:
         raise NotImplementedError
@@ -218,7 +228,7 @@ class RefUkf(_Filter):
         Pxz = (w[:, None] * dX).T @ dZ
         K = np.linalg.solve(Pzz, Pxz.T).T                                       # eq. 22
         nu = np.asarray(z)[sel] - zp[sel]
-        self._nis(float(nu @ np.linalg.solve(Pzz, nu)), int(sel.sum()))
+        self._nis(nu, Pzz, sel)
         self.x = xp + K @ nu                                                    # eq. 25
         self.P = Pp - K @ Pzz @ K.T                                             # eq. 26
         self.P = 0.5 * (self.P + self.P.T)
@@ -281,7 +291,7 @@ class RefEkf(_Filter):
         S = Hm @ Pp @ Hm.T + self.R[np.ix_(sel, sel)]
         K = np.linalg.solve(S, Hm @ Pp).T
         nu = np.asarray(z)[sel] - zp
-        self._nis(float(nu @ np.linalg.solve(S, nu)), int(sel.sum()))
+        self._nis(nu, S, sel)
         self.x = xp + K @ nu
         IKH = np.eye(self.n) - K @ Hm
         self.P = IKH @ Pp @ IKH.T + K @ self.R[np.ix_(sel, sel)] @ K.T   # Joseph form
