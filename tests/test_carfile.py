@@ -191,10 +191,15 @@ def test_a_car_file_with_bad_tyre_coefficients_names_them(tmp_path):
 
 def test_a_c_refusal_names_the_key_the_ranges_missed():
     """A tyre whose shape factor C = 2.5 is in the file's range (any number) but no peaked curve: the plant's
-    vh_v14_init refuses it, and the message names the key (the one whose paper value makes C accept it)."""
-    car = dataclasses.replace(load_car("commonroad_vehicle2"), lateral_coefficients=(2.5, *paper_car().lateral_coefficients[1:]))
-    check_car(car, plant=False)  # the ECU's split takes what it takes: the plant is the one refusing
-    with pytest.raises(ConfigError, match=r"commonroad_vehicle2: lateral_coefficients: \(2.5, .*vh_v14_init.*paper's"):
+    vh_v14_init refuses it, and the message names the key (the one whose paper value makes C accept it);
+    the same for a PAC2002 set (the plant plays the car's tyre)."""
+    paper = paper_car()
+    car = dataclasses.replace(paper, name="bent", path=None, lateral_coefficients=(2.5, *paper.lateral_coefficients[1:]))
+    with pytest.raises(ConfigError, match=r"bent: lateral_coefficients: \(2.5, .*vh_v14_init.*paper's"):
+        check_car(car)
+    v2 = load_car("commonroad_vehicle2")
+    car = dataclasses.replace(v2, pac2002_coefficients=(2.5, *v2.pac2002_coefficients[1:]))
+    with pytest.raises(ConfigError, match=r"commonroad_vehicle2: pac2002_coefficients: \(2.5, .*vh_v14_init"):
         check_car(car)
 
 

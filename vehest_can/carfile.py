@@ -189,7 +189,8 @@ class CarFile:
 
     def veh14_params(self, ffi, lib):
         """An initialised ``vh_v14_params_t *`` of this car; what the file does not say (relaxation, v_low,
-        sub-steps, the tyre size and, without a [tyre] table, its coefficients) stays at the C defaults."""
+        sub-steps, the tyre size and, without a [tyre] table, its coefficients) stays at the C defaults.
+        A PAC2002 set replaces the Magic Formula 1987 tyre (the size factor does not apply to it)."""
         prm = ffi.new("vh_v14_params_t *")
         lib.vh_v14_params_default(prm)
         for key, (fname, _) in DATA_SHEET.items():
@@ -200,6 +201,9 @@ class CarFile:
             coef = getattr(self, key)
             if coef is not None:
                 getattr(prm.tyre, arr)[0:9] = list(coef)
+        if self.pac2002_coefficients is not None:  # the plant plays the car's tyre, as the ECU expects it
+            prm.tyre.model = lib.VH_MFT_PAC2002
+            prm.tyre.p[0:8] = list(self.pac2002_coefficients)
         return prm
 
 
@@ -401,7 +405,7 @@ def blame(car: CarFile, what: str, accepts) -> str:
         (f"{a}_{axle}_{u}", f"{b}_{axle}_{v}") for axle in AXLES
         for a, u, b, v in (("roll_stiffness", "nm_per_rad", "anti_roll_bar", "nm_per_rad"),
                            ("roll_damping", "nms_per_rad", "damper_rate", "ns_per_m"))] + [
-        ("roll_axis_to_cg_m",), ("lateral_coefficients",), ("longitudinal_coefficients",)]
+        ("roll_axis_to_cg_m",), ("lateral_coefficients",), ("longitudinal_coefficients",), (_PAC_KEY,)]
     where = car.path or car.name
     for g in groups:
         if accepts(dataclasses.replace(car, **{k: getattr(paper, k) for k in g})):

@@ -37,11 +37,18 @@
 /* Loads beyond which vh_mft_check does not vouch for the coefficients [N]. */
 #define VH_MFT_FZ_MAX 20000.0
 
+/* vh_mft_coef_t.model */
+enum { VH_MFT_MF87 = 0, VH_MFT_PAC2002 = 1 };
+
 typedef struct {
     double a[9];     /* lateral: a[0] = C_y, a[1..8] as published (Fz in kN, alpha in deg) */
     double b[9];     /* longitudinal: b[0] = C_x, b[1..8] as published (Fz in kN, kappa in %) */
     double fz_scale; /* tyre size by similarity: at load Fz the tyre acts as the published one at
                       * Fz / fz_scale with every force times fz_scale (1: the published tyre) */
+    int model;       /* VH_MFT_MF87: a, b, fz_scale; VH_MFT_PAC2002: p instead */
+    double p[8];     /* PAC2002 with load-proportional slip stiffness (CommonRoad's tyre, no camber,
+                      * no shifts): p_cy1, p_dy1, p_ey1, p_ky1, p_cx1, p_dx1, p_ex1, p_kx1;
+                      * C = p_c*1, D = mu p_d*1 Fz, E = p_e*1, BCD = |p_k*1| Fz */
 } vh_mft_coef_t;
 
 /* One tyre's Magic Formula factors at one load and friction (slips in rad and as a fraction). */
@@ -64,7 +71,7 @@ typedef struct {
  * Theory of Ground Vehicles: C_y 1.30, C_x 1.65, ... (values in vh_mftire.c). */
 void vh_mft_coef_default(vh_mft_coef_t *c);
 /* 1 when the coefficients give a proper peaked curve for 0 < Fz <= VH_MFT_FZ_MAX: 1 < C < 2,
- * D > 0, BCD > 0, E < 1, mu0 > 0; else 0. */
+ * D > 0, BCD > 0, E < 1, mu0 > 0 (the model's set); else 0. */
 int vh_mft_check(const vh_mft_coef_t *c);
 
 /* u_m of the MF peak for shape C (1 < C < 2) and curvature E (< 1), by Newton from u0 (<= 0:

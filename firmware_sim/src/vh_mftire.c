@@ -27,6 +27,10 @@ void vh_mft_coef_default(vh_mft_coef_t *c)
         c->b[i] = B[i];
     }
     c->fz_scale = 1.0;
+    c->model = VH_MFT_MF87;
+    for (i = 0; i < 8; ++i) {
+        c->p[i] = 0.0;
+    }
 }
 
 /* MF as a function of the slip x, with the factors B, C, D, E. */
@@ -41,9 +45,27 @@ static double clamp_e(double e)
     return e < E_MAX ? e : E_MAX;
 }
 
+static int pac_check(const double *p)
+{
+    int i;
+    for (i = 0; i < 8; ++i) {
+        if (!isfinite(p[i])) {
+            return 0;
+        }
+    }
+    return p[0] > 1.0 && p[0] < 2.0 && p[4] > 1.0 && p[4] < 2.0 && p[1] > 0.0 && p[5] > 0.0 && p[3] != 0.0 &&
+           p[7] > 0.0 && p[2] < 1.0 && p[6] < 1.0;
+}
+
 int vh_mft_check(const vh_mft_coef_t *c)
 {
     int i, k;
+    if (c->model == VH_MFT_PAC2002) {
+        return pac_check(c->p);
+    }
+    if (c->model != VH_MFT_MF87) {
+        return 0;
+    }
     for (i = 0; i < 9; ++i) {
         if (!isfinite(c->a[i]) || !isfinite(c->b[i])) {
             return 0;
@@ -96,15 +118,24 @@ static void finish_load(vh_mft_state_t *s, const vh_mft_coef_t *c, double fz, do
                         double kx)
 {
     const double sc = c->fz_scale;
-    const double lam_y = mu > 0.0 ? mu / (c->a[2] * 1e-3) : 0.0;
-    const double lam_x = mu > 0.0 ? mu / (c->b[2] * 1e-3) : 0.0;
     s->fz = fz > 0.0 ? fz : 0.0;
-    s->cy = c->a[0];
-    s->cx = c->b[0];
-    s->dy = sc * lam_y * (c->a[1] * f * f + c->a[2] * f);
-    s->dx = sc * lam_x * (c->b[1] * f * f + c->b[2] * f);
-    s->ey = clamp_e(c->a[6] * f * f + c->a[7] * f + c->a[8]);
-    s->ex = clamp_e(c->b[6] * f * f + c->b[7] * f + c->b[8]);
+    if (c->model == VH_MFT_PAC2002) { /* D = mu p_d*1 Fz, C and E constant */
+        s->cy = c->p[0];
+        s->cx = c->p[4];
+        s->dy = mu > 0.0 ? mu * c->p[1] * s->fz : 0.0;
+        s->dx = mu > 0.0 ? mu * c->p[5] * s->fz : 0.0;
+        s->ey = clamp_e(c->p[2]);
+        s->ex = clamp_e(c->p[6]);
+    } else {
+        const double lam_y = mu > 0.0 ? mu / (c->a[2] * 1e-3) : 0.0;
+        const double lam_x = mu > 0.0 ? mu / (c->b[2] * 1e-3) : 0.0;
+        s->cy = c->a[0];
+        s->cx = c->b[0];
+        s->dy = sc * lam_y * (c->a[1] * f * f + c->a[2] * f);
+        s->dx = sc * lam_x * (c->b[1] * f * f + c->b[2] * f);
+        s->ey = clamp_e(c->a[6] * f * f + c->a[7] * f + c->a[8]);
+        s->ex = clamp_e(c->b[6] * f * f + c->b[7] * f + c->b[8]);
+    }
     if (s->dy > 0.0 && s->dx > 0.0 && ky > 0.0 && kx > 0.0) {
         s->by = ky / (s->cy * s->dy);
         s->bx = kx / (s->cx * s->dx);
@@ -116,6 +147,14 @@ static void finish_load(vh_mft_state_t *s, const vh_mft_coef_t *c, double fz, do
 void vh_mft_load(vh_mft_state_t *s, const vh_mft_coef_t *c, double fz, double mu)
 {
     const double sc = c->fz_scale;
+    if (c->model == VH_MFT_PAC2002) { /* slip stiffnesses proportional to the load */
+        s->dky = fabs(c->p[3]);
+        s->dkx = c->p[7];
+        s->ky = s->dky * (fz > 0.0 ? fz : 0.0);
+        s->kx = s->dkx * (fz > 0.0 ? fz : 0.0);
+        finish_load(s, c, fz, 0.0, mu, s->ky, s->kx);
+        return;
+    }
     const double f = fz > 0.0 ? fz * 1e-3 / sc : 0.0; /* kN of the published tyre */
     const double th = c->a[4] * atan(c->a[5] * f);
     const double sin_th = sin(th);

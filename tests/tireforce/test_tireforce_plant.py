@@ -286,6 +286,16 @@ def test_tyre_check_rejects_unusable_coefficients():
         assert lib.vh_mft_check(c) == 0, (field, i, bad)
     c = coef(0.1)
     assert lib.vh_mft_check(c) == 0
+    pac = (1.3507, 1.0489, -0.0074722, -21.92, 1.6411, 1.1739, 0.46403, 22.303)  # CommonRoad's vehicle 2
+    for i, bad in [(None, None), (0, 2.5), (1, 0.0), (2, 1.0), (3, 0.0), (7, -1.0), (5, math.inf)]:
+        c = coef()
+        c.model = lib.VH_MFT_PAC2002
+        c.p[0:8] = list(pac)
+        if i is not None:
+            c.p[i] = bad
+        assert lib.vh_mft_check(c) == (1 if i is None else 0), (i, bad)
+    c.model = 7
+    assert lib.vh_mft_check(c) == 0
 
 
 # ---- plant: parameters and equilibrium -------------------------------------------------------
@@ -921,6 +931,8 @@ def test_split_mu_sensors_tyre_and_vehicle_keys(tmp_path):
     (GOOD + "[tyre]\nlateral_coefficients = [2.5, -22.1, 1011, 1078, 1.82, 0.208, 0, -0.354, 0.707]\n",
      "tyre", "peaked curve"),
     (GOOD + "[tyre]\nlateral_coefficients = [1.3]\n", "tyre.lateral_coefficients", "9"),
+    ('car = "commonroad_vehicle2"\n' + GOOD
+     + "[tyre]\nlateral_coefficients = [1.3, -22.1, 1011, 1078, 1.82, 0.208, 0, -0.354, 0.707]\n", "tyre", "PAC2002"),
     (GOOD + "[sensors]\naccel_gravity = 1\n", "sensors.accel_gravity", "true or false"),
     (GOOD + "[sensors]\nay_std_m_s2 = -1.0\n", "sensors.ay_std_m_s2", "out of range"),
     ("kind = \"tireforce\"\nname = \"x\"\nduration_s = [1\n", "(TOML syntax)", ""),

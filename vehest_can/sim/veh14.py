@@ -349,6 +349,8 @@ def veh14_scenario_from_dict(doc: dict, path: str | Path, kind: str) -> Veh14Sce
                          accel_gravity=flags["accel_gravity"], ride_height=flags["ride_height"], path=Path(path),
                          car=car)
     prm = sc.plant_params(ffi, lib)
+    if tyre_doc.keys() & set(_TYRE_COEF) and prm.tyre.model == lib.VH_MFT_PAC2002:
+        c.fail("tyre", "the car's tyre is a PAC2002 set (its car file): 1987 coefficients do not apply to it")
     if not prm.ms > 0:
         c.fail("vehicle.mass_delta_kg", f"leaves a sprung mass of {prm.ms:g} kg")
     if lib.vh_v14_init(ffi.new("vh_v14_t *"), prm) != lib.VH_OK:
