@@ -14,6 +14,7 @@ NX_PAPER = 16            # the paper's variant carries the first 16
 ROBUST = 1               # vh_roll_params_t.variant of the robust variant
 X_VY, X_R, X_P = 0, 1, 5  # lateral velocity, yaw rate, roll rate (VH_ROLL_X_*)
 Z_LAT = (0, 13)          # the lateral measurements a_y and r (VH_ROLL_Z_AY, VH_ROLL_Z_R)
+Z_AZU = (1, 2, 3, 4)     # the unsprung vertical accelerations (VH_ROLL_Z_AZU): not in the robust variant
 
 
 def n_states(p: dict) -> int:
@@ -156,6 +157,9 @@ class _Filter:
         self.nis_alpha = min(p["dt"] / p["qp_adapt_tau"], 1.0) if adapt else 0.0
         self.qp_max = p["qp_adapt_max"] if adapt else 1.0
         self.nis = 0.0
+        self.z_use = np.ones(NZ, bool)
+        if p["variant"] == ROBUST:
+            self.z_use[list(Z_AZU)] = False
 
     def reset(self):
         self.x = np.zeros(self.n)                                               # eq. 13
@@ -218,7 +222,7 @@ class RefUkf(_Filter):
         X = sigma_points(xp, Pp, self.gamma)                                    # eq. 19
         Z = self.model.h(X, u)                                                  # eq. 20
         zp = w @ Z                                                              # eq. 21
-        sel = np.array([(mask >> i) & 1 for i in range(NZ)], bool) & np.isfinite(z)
+        sel = np.array([(mask >> i) & 1 for i in range(NZ)], bool) & np.isfinite(z) & self.z_use
         self.x, self.P = xp, Pp
         if not sel.any():
             return
@@ -282,7 +286,7 @@ class RefEkf(_Filter):
         F = self._jac(self.model.f, self.x, u)
         xp = self.model.f(self.x, u)[0]
         Pp = F @ self.P @ F.T + self._Q()
-        sel = np.array([(mask >> i) & 1 for i in range(NZ)], bool) & np.isfinite(z)
+        sel = np.array([(mask >> i) & 1 for i in range(NZ)], bool) & np.isfinite(z) & self.z_use
         self.x, self.P = xp, Pp
         if not sel.any():
             return
