@@ -309,3 +309,26 @@ def test_carfile_is_a_frozen_dataclass_with_the_keys():
     assert {"name", "description", "path", *carfile.DATA_SHEET} <= fields
     with pytest.raises(dataclasses.FrozenInstanceError):
         paper_car().sprung_mass_kg = 1.0  # type: ignore[misc]
+
+
+def test_the_car_a_plant_plays():
+    """played_by: the paper's car on CommonRoad's plant is paper_mb's data (vehicle 2's PAC2002 tyre and
+    K_lt, no 1987 set); a car with its own PAC2002 set stays as it is there (and MB runs that set, not its
+    base vehicle's); on our plant a car keeps its tyre and loses the compliance the plant does not model."""
+    from vehest_can.native import ffi, lib
+    from vehest_can.sim.car import played_by
+    from vehest_can.sim.mbplant import mb_parameters
+
+    paper, paper_mb = paper_car(), load_car("paper_mb")
+    on_mb = played_by(paper, "commonroad_mb")
+    assert on_mb.pac2002_coefficients == paper_mb.pac2002_coefficients
+    assert on_mb.lateral_compliance_m_per_n == paper_mb.lateral_compliance_m_per_n
+    assert on_mb.lateral_coefficients is None and on_mb.sprung_mass_kg == paper.sprung_mass_kg
+    assert played_by(paper, "veh14") is paper and played_by(paper_mb, "commonroad_mb") is paper_mb
+    v2 = load_car("commonroad_vehicle2")
+    assert played_by(v2, "veh14").lateral_compliance_m_per_n == 0.0
+    assert played_by(v2, "veh14").pac2002_coefficients == v2.pac2002_coefficients
+    own = dataclasses.replace(v2, pac2002_coefficients=(1.4, 0.9, -0.1, -18.0, 1.6, 1.1, 0.4, 20.0),
+                              lateral_compliance_m_per_n=2e-5)
+    p = mb_parameters(own.veh14_params(ffi, lib), 2, own.lateral_compliance_m_per_n)
+    assert (p.tire.p_cy1, p.tire.p_dy1, p.tire.p_ky1, p.tire.p_kx1, p.K_lt) == (1.4, 0.9, -18.0, 20.0, 2e-5)

@@ -347,10 +347,12 @@ def commonroad_doc(name: str) -> dict:
         "drag_area_m2": 0.0,
         # the multi-body model's tyre (tire_model.py: PAC2002 with K_y = p_ky1 F_z, K_x = p_kx1 F_z) and its
         # lateral compliance K_lt (the contact patch's shift per lateral force)
-        "tyre": {_PAC_KEY: [p.tire.p_cy1, p.tire.p_dy1, p.tire.p_ey1, p.tire.p_ky1,
-                            p.tire.p_cx1, p.tire.p_dx1, p.tire.p_ex1, p.tire.p_kx1],
-                 _KLT_KEY: p.K_lt},
+        "tyre": {_PAC_KEY: [getattr(p.tire, f) for f in PAC_FIELDS], _KLT_KEY: p.K_lt},
     }
+
+
+#: the PAC2002 fields of CommonRoad's tyre in the order of ``[tyre] pac2002_coefficients``
+PAC_FIELDS = ("p_cy1", "p_dy1", "p_ey1", "p_ky1", "p_cx1", "p_dx1", "p_ex1", "p_kx1")
 
 
 # ---- names ---------------------------------------------------------------------------------------------

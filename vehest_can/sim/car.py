@@ -9,12 +9,33 @@ loop, :func:`vehest_can.sim.session.run_inprocess`) or on a bus.
 """
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
 
 from ..native import ffi, lib, struct_dtype
 from . import PLANTS  # noqa: F401 - re-exported beside on_plants
+
+
+def played_by(car, plant: str):
+    """The car `plant` plays when given `car`: its data sheet with the tyre the plant runs, the car file an
+    ECU on that plant is calibrated for. Our plant ("veh14") runs the car's tyre (the 1987 set or the
+    PAC2002 set) without a lateral compliance; CommonRoad's multi-body plant runs a PAC2002 set only: the
+    car's own with its compliance, else that of the CommonRoad vehicle whose hidden physics it keeps
+    (:func:`~vehest_can.sim.mbplant.base_vehicle`). The car itself when nothing changes."""
+    if plant == "commonroad_mb" and car.pac2002_coefficients is None:
+        from ..carfile import PAC_FIELDS
+        from .mbplant import _vehicle, base_vehicle
+
+        base = _vehicle(base_vehicle(car))
+        return dataclasses.replace(car, name=f"{car.name}@{plant}", path=None, lateral_coefficients=None,
+                                   longitudinal_coefficients=None,
+                                   pac2002_coefficients=tuple(float(getattr(base.tire, f)) for f in PAC_FIELDS),
+                                   lateral_compliance_m_per_n=float(base.K_lt))
+    if plant == "veh14" and car.lateral_compliance_m_per_n != 0.0:
+        return dataclasses.replace(car, name=f"{car.name}@{plant}", path=None, lateral_compliance_m_per_n=0.0)
+    return car
 
 
 def on_plants(sc: Any, plants: tuple[str, ...]) -> list:

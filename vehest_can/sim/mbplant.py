@@ -63,12 +63,13 @@ def base_vehicle(car) -> int:
     return int(name[-1]) if name.startswith("commonroad_vehicle") and name[-1].isdigit() else BASE_VEHICLE
 
 
-def mb_parameters(prm, base: int = BASE_VEHICLE):
+def mb_parameters(prm, base: int = BASE_VEHICLE, lateral_compliance: float | None = None):
     """The package's ``VehicleParameters`` for the car of a ``vh_v14_params_t`` (our plant's data
     sheet): its masses, inertias, geometry, springs, dampers, anti-roll bars (the bar rate that gives
     the car's roll stiffness with these springs and tyres), tyre vertical stiffness, wheel radius and
-    inertia; the rest (tyre, compliances, unsprung roll inertias, steering) from CommonRoad's vehicle
-    `base`."""
+    inertia, and its tyre where that is a PAC2002 set (with `lateral_compliance`, the car's K_lt); the
+    rest (the tyre's other terms, compliances, unsprung roll inertias, steering) from CommonRoad's
+    vehicle `base`."""
     from ..native import ffi, lib
 
     plant = ffi.new("vh_v14_t *")
@@ -88,6 +89,13 @@ def mb_parameters(prm, base: int = BASE_VEHICLE):
     # MB's auxiliary torsion roll stiffness per axle: the bars, with MB's sign (a restoring bar is negative)
     p.K_tsf, p.K_tsr = -plant.k_arb_f, -plant.k_arb_r
     p.T_sb, p.T_se = 0.5, 0.5  # unused: the wheel torques are the scenario's
+    if prm.tyre.model == lib.VH_MFT_PAC2002:  # the car's own tyre (a 1987 set the package cannot run)
+        from ..carfile import PAC_FIELDS
+
+        for i, f in enumerate(PAC_FIELDS):
+            setattr(p.tire, f, float(prm.tyre.p[i]))
+        if lateral_compliance is not None:
+            p.K_lt = lateral_compliance
     return p
 
 

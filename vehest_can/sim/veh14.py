@@ -227,7 +227,8 @@ class Veh14Car(Car):
         if sc.plant == "commonroad_mb":
             from .mbplant import MbPlant, base_vehicle, mb_parameters
 
-            self.mb = MbPlant(mb_parameters(prm, base_vehicle(sc.car)), sc.initial_speed_kmh / 3.6,
+            klt = sc.car.lateral_compliance_m_per_n if sc.car is not None else None
+            self.mb = MbPlant(mb_parameters(prm, base_vehicle(sc.car), klt), sc.initial_speed_kmh / 3.6,
                               drag=0.5 * prm.rho * prm.cda)
             self.mb.attach(self.car)
         self.reset()

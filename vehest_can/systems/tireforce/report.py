@@ -281,6 +281,9 @@ def decode_signals(rows: list[dict]) -> DecodedInputs:
 # ---- running ---------------------------------------------------------------------------------
 
 ALL_VARIANTS = (*tf.VARIANTS, ADAPTIVE)
+#: SKFMEC-A calibrated for the car the run's plant plays, where that is not the ECU's car (the demo's
+#: daemon serves one car; another plant may run another tyre: sim.car.played_by)
+PLANT_CAR = "skfmec-a, plant's car"
 
 
 def _run(v: str, u: tf.Inputs, dec: DecodedInputs, car=None) -> tf.TireForceRun:
@@ -315,12 +318,14 @@ def scenario(name: str, *, mass_delta_kg: float | None = None):
 
 
 def simulate(sc, variants=ALL_VARIANTS, progress=None, car=None):
-    """Plant + sensor node offline, decode, estimators calibrated for `car` (None: the scenario's car,
-    else the paper's): (truth, DecodedInputs, runs)."""
-    from ...carfile import car_of
+    """Plant + sensor node offline, decode, estimators calibrated for `car` (None: the car the scenario's
+    plant plays, :func:`~vehest_can.sim.car.played_by` of the scenario's car or the paper's):
+    (truth, DecodedInputs, runs)."""
+    from ...carfile import car_of, paper_car
     from ...native import ffi, lib
+    from ...sim.car import played_by
 
-    car = car or car_of(sc)
+    car = car or played_by(car_of(sc) or paper_car(), sc.plant)
 
     steps = 2 + len(variants)
     truth, frames = sc.run_with_frames(ffi, lib)
@@ -447,7 +452,7 @@ def acceptance(m: dict) -> list[dict]:
     lines = []
     v = m["variants"]
     split = m["oracle"]["split_pct"]
-    for name in (tf.FIXED, tf.SKFMEC, ADAPTIVE):
+    for name in (tf.FIXED, tf.SKFMEC, ADAPTIVE, PLANT_CAR):
         if name not in v:
             continue
         pct = v[name]["rms_pct"]

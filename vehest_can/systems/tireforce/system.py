@@ -11,7 +11,7 @@ from ...sim.veh14 import Veh14Car
 from .. import EcuCounters, EcuEstimator, Registration, Setup, Study
 from . import api as tf
 from . import report
-from .adaptive import AdaptiveConfig, AdaptiveFixed
+from .adaptive import ADAPTIVE, AdaptiveConfig, AdaptiveFixed
 from .campaign import CAMPAIGN
 from .scenario import KINDS, load_tireforce_scenario, tireforce_scenario_dir
 
@@ -64,12 +64,18 @@ class TireForce(Registration):
     def metrics(self, scenario, session, out_dir: Path, setup: Setup) -> dict:
         """Against the plant: the ECU's fixed-point estimates from the bus, and the double SKFMEC and
         the paper's plain EKF re-run off-line on the same decoded CHS_Sensors samples."""
-        from ...carfile import car_of
+        from ...carfile import car_of, paper_car
+        from ...sim.car import played_by
 
         sc = scenario
         car = setup.car or car_of(sc)  # the ECU's calibration: the references use the same car
         dec = report.decode_inputs(session.messages())
         runs = report.run_estimators(dec, car=car)
+        played = played_by(car or paper_car(), sc.plant)
+        if played is not (car or paper_car()):  # this plant runs another tyre than the ECU's car file says
+            runs[report.PLANT_CAR] = report.run_estimators(dec, (ADAPTIVE,), car=played)[ADAPTIVE]
+            print(f"  the ECU is calibrated for {(car or paper_car()).name}; this plant plays {played.name} "
+                  f"(another tyre): '{report.PLANT_CAR}' is SKFMEC-A calibrated for that car")
         est = decode(session, "VEHEST_TireForceEst")
         on = est["SkfmecQ_Health"] > 0  # published (NaN elsewhere) and past INIT: SNA before
         bus_fy = np.column_stack([est[f"Fy{i}"] for i in range(1, 5)])[on]
