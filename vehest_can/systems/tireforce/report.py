@@ -428,6 +428,8 @@ def evaluate(truth, runs: dict[str, tf.TireForceRun], settle_s: float = SETTLE_S
             ok = np.flatnonzero(std <= AdaptiveConfig().mass_sigma_ok * out["model_mass_kg"])
             out["variants"][name]["mass"] = {"final_kg": float(mass[-1]), "final_std_kg": float(std[-1]),
                                              "converged_s": float(t[ok[0]] - t[0]) if ok.size else None}
+            if true_mass_kg:
+                out["variants"][name]["mass"]["error_pct"] = float(100 * (mass[-1] / true_mass_kg - 1))
     if tf.SKFMEC in runs and tf.FIXED in runs:
         d = np.asarray(runs[tf.FIXED].fy)[s] - np.asarray(runs[tf.SKFMEC].fy)[s]
         out["fixed_vs_double"] = {"rms_pct": _pct_errors(d, 0.0, peak, WHEELS),
