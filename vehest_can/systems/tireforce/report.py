@@ -538,10 +538,13 @@ def relations(truth, config: tf.SkfConfig | None = None, band_g=AY_BAND_G) -> di
 def plants_table(metrics: list[dict]) -> str:
     """The runs on both plants side by side: per scenario and plant, each variant's worst tyre and
     worst axle (RMS, % of peak |Fy|) and SKFMEC-A's mass against the truth."""
-    names = [v for v in (tf.SKFMEC, tf.FIXED, ADAPTIVE) if any(v in m["variants"] for m in metrics)]
-    head = f"{'scenario':<28}{'plant':<15}" + "".join(f"{v + ' tyre':>20}{'axle':>7}" for v in names) + f"{'mass':>9}"
-    lines = ["== tyre force on both plants: worst tyre / worst axle RMS, % of peak |Fy|; SKFMEC-A mass error",
-             head, "-" * len(head)]
+    names = [v for v in (tf.SKFMEC, tf.FIXED, ADAPTIVE, PLANT_CAR) if any(v in m["variants"] for m in metrics)]
+    label = {PLANT_CAR: "plant's car"}
+    head = (f"{'scenario':<28}{'plant':<15}" + "".join(f"{label.get(v, v) + ' tyre':>20}{'axle':>7}" for v in names)
+            + f"{'mass':>9}")
+    lines = ["== tyre force on both plants: worst tyre / worst axle RMS, % of peak |Fy|; SKFMEC-A mass error"
+             + (f" ('plant's car': {PLANT_CAR}, where the plant runs another tyre than the ECU's car)"
+                if PLANT_CAR in names else ""), head, "-" * len(head)]
     for m in sorted(metrics, key=lambda m: (m["scenario"].split("@")[0], m.get("plant", ""))):
         cells = ""
         for v in names:
