@@ -25,14 +25,13 @@ def played_by(car, plant: str):
     car's own with its compliance, else that of the CommonRoad vehicle whose hidden physics it keeps
     (:func:`~vehest_can.sim.mbplant.base_vehicle`). The car itself when nothing changes."""
     if plant == "commonroad_mb" and car.pac2002_coefficients is None:
-        from ..carfile import PAC_FIELDS
-        from .mbplant import _vehicle, base_vehicle
+        from ..carfile import load_car
+        from .mbplant import base_vehicle
 
-        base = _vehicle(base_vehicle(car))
+        base = load_car(f"commonroad_vehicle{base_vehicle(car)}")  # its tyre as CommonRoad's car file has it
         return dataclasses.replace(car, name=f"{car.name}@{plant}", path=None, lateral_coefficients=None,
-                                   longitudinal_coefficients=None,
-                                   pac2002_coefficients=tuple(float(getattr(base.tire, f)) for f in PAC_FIELDS),
-                                   lateral_compliance_m_per_n=float(base.K_lt))
+                                   longitudinal_coefficients=None, pac2002_coefficients=base.pac2002_coefficients,
+                                   lateral_compliance_m_per_n=base.lateral_compliance_m_per_n)
     if plant == "veh14" and car.lateral_compliance_m_per_n != 0.0:
         return dataclasses.replace(car, name=f"{car.name}@{plant}", path=None, lateral_compliance_m_per_n=0.0)
     return car

@@ -59,11 +59,8 @@ class Session:
         never did): the state not finite, or a body rolled past ROLLOVER_RAD (the car is rolling over;
         no chassis model here describes that, and a multi-body one may go on integrating nonsense). The
         figures of such a run are not the estimators' alone."""
-        ok = _finite_rows(self.truth)
-        if self.truth.dtype.names and "phi" in self.truth.dtype.names:
-            ok &= np.abs(self.truth["phi"]) <= ROLLOVER_RAD
-        bad = np.flatnonzero(~ok)
-        return float(bad[0]) * TICK_S if bad.size else None
+        k = left_range(self.truth)
+        return None if k is None else float(k) * TICK_S
 
     def until(self, t_s: float) -> Session:
         """The session's first t_s seconds: its truth and the frames of those ticks."""
@@ -76,6 +73,16 @@ class Session:
         writes them with absolute time, direction and bus)."""
         for f, k in zip(self.frames, self.frame_tick):
             yield to_message(f, timestamp=float(k) * TICK_S)
+
+
+def left_range(truth: np.ndarray) -> int | None:
+    """The first tick of a truth record at which the car left the range its plant's model holds (None:
+    it never did): the state not finite, or the body rolled past ROLLOVER_RAD."""
+    ok = _finite_rows(truth)
+    if truth.dtype.names and "phi" in truth.dtype.names:
+        ok &= np.abs(truth["phi"]) <= ROLLOVER_RAD
+    bad = np.flatnonzero(~ok)
+    return int(bad[0]) if bad.size else None
 
 
 def _finite_rows(a: np.ndarray) -> np.ndarray:

@@ -71,10 +71,11 @@ class TireForce(Registration):
         car = setup.car or car_of(sc)  # the ECU's calibration: the references use the same car
         dec = report.decode_inputs(session.messages())
         runs = report.run_estimators(dec, car=car)
-        played = played_by(car or paper_car(), sc.plant)
-        if played is not (car or paper_car()):  # this plant runs another tyre than the ECU's car file says
+        ecu_car = car or paper_car()
+        played = played_by(ecu_car, sc.plant)
+        if played is not ecu_car:  # this plant runs another tyre than the ECU's car file says
             runs[report.PLANT_CAR] = report.run_estimators(dec, (ADAPTIVE,), car=played)[ADAPTIVE]
-            print(f"  the ECU is calibrated for {(car or paper_car()).name}; this plant plays {played.name} "
+            print(f"  the ECU is calibrated for {ecu_car.name}; this plant plays {played.name} "
                   f"(another tyre): '{report.PLANT_CAR}' is SKFMEC-A calibrated for that car")
         est = decode(session, "VEHEST_TireForceEst")
         on = est["SkfmecQ_Health"] > 0  # published (NaN elsewhere) and past INIT: SNA before
