@@ -44,7 +44,7 @@ def _open_loop_roll(plant, m_total, secs=4.0):
 def test_a_constant_moment_rolls_both_plants_as_the_model_says(plant):
     """Sign (+ lifts the left), units and application (body, reaction on the axle): the steady roll
     per moment is eta / (k_phi - ms g e), the actuator turning the body against the suspension alone.
-    (MB's roll mode rings nearly undamped: the mean over the last 2 s.)"""
+    (MB's roll mode rings lightly damped: the mean over the last 2 s.)"""
     m = 2000.0
     phi0, _ = _open_loop_roll(plant, 0.0)
     phi1, applied = _open_loop_roll(plant, m)

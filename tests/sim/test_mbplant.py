@@ -98,6 +98,30 @@ def test_body_fixed_accelerometer_reads_g_sin_phi(plant):
     assert ay_meas == pytest.approx(9.81 * np.sin(t["phi"]), abs=0.15)
 
 
+@pytest.mark.slow  # two 6 s runs of MB tick by tick
+def test_the_tyres_offsets_would_drive_a_relay_limit_cycle():
+    """Why MB runs the tyre's offsets at zero: with the package's p_hy1, p_vy1 (multiplied by sign(camber)
+    in its formula_lateral) a lane change at 45 km/h leaves the car rolling +-0.5 deg at ~2.5 Hz on a
+    straight road with the wheel centred; with the offsets at zero (what the plant runs) the roll dies out."""
+    from vehest_can.sim.mbplant import _NCTX, BASE_VEHICLE, _vehicle, flat
+
+    def straight_roll_rate_rms(offsets: bool) -> float:
+        sc = scenario("commonroad_mb", duration_s=6.0, initial_speed_kmh=45.0, road={"mu": [[0.0, 0.8]]},
+                      driver={"steer_deg": [[0.0, 0.0], [1.0, 0.0], [1.4, 1.5], [2.0, 1.5], [2.6, -1.5],
+                                            [3.2, -1.5], [3.6, 0.0]]})
+        car = veh14.Veh14Car(sc)
+        assert car.mb.p.tire.p_vy1 == 0.0 and car.mb.p.tire.p_hy1 == 0.0
+        if offsets:
+            base = _vehicle(BASE_VEHICLE).tire
+            car.mb.p.tire.p_hy1, car.mb.p.tire.p_vy1 = base.p_hy1, base.p_vy1
+            car.mb.ctx[_NCTX:] = flat(car.mb.p)
+        p = np.array([(car.tick(k), car.truth()["p"])[1] for k in range(sc.n_steps)])
+        return float(np.degrees(np.sqrt(np.mean(p[int(5.0 / DT):] ** 2))))  # 1.4 s after the wheel centred
+
+    assert straight_roll_rate_rms(True) > 2.0   # deg/s: a limit cycle (measured 4.7)
+    assert straight_roll_rate_rms(False) < 0.8  # deg/s: dying out (measured 0.25)
+
+
 def test_mb_refuses_what_it_cannot_model():
     with pytest.raises(ScenarioError, match="split friction"):
         scenario("commonroad_mb", road={"mu_left": [[0.0, 1.0]], "mu_right": [[0.0, 0.5]]})

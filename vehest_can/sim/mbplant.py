@@ -89,6 +89,11 @@ def mb_parameters(prm, base: int = BASE_VEHICLE, lateral_compliance: float | Non
     # MB's auxiliary torsion roll stiffness per axle: the bars, with MB's sign (a restoring bar is negative)
     p.K_tsf, p.K_tsr = -plant.k_arb_f, -plant.k_arb_r
     p.T_sb, p.T_se = 0.5, 0.5  # unused: the wheel torques are the scenario's
+    # The tyre's offsets (ply steer, conicity) at zero, as the car's data have them: the package's
+    # formula_lateral multiplies them by sign(camber), a relay at zero camber that, on a car without
+    # static camber, drives a self-sustained roll and lateral oscillation on a straight road
+    # (docs/car.md, "The tyre's offsets"). The camber thrust (p_hy3, p_vy3: continuous) is kept.
+    p.tire.p_hy1 = p.tire.p_vy1 = 0.0
     if prm.tyre.model == lib.VH_MFT_PAC2002:  # the car's own tyre (a 1987 set the package cannot run)
         from ..carfile import PAC_FIELDS
 
