@@ -154,6 +154,22 @@ def test_comes_back_only_after_the_estimator_is_ok_for_recover_time():
     assert abs(mf[-1]) > 0
 
 
+def test_at_power_on_the_first_ok_estimate_ends_the_trip():
+    """The filter's INIT is its settling: after nothing but INIT the moment fades in from the first OK
+    step; once a fault was seen (a RESET, above) only after OK for recover_time."""
+    sp = rn.default_smc_params()
+    n = 1500
+    health = np.full(n, H.VH_ROLL_H_INIT)
+    health[100:] = H.VH_ROLL_H_OK
+    mf, mr, h, _ = rn.Smc(sp).run(np.full(n, 0.02), np.zeros(n), np.full(n, 5.0), health, True)
+    assert np.all(mf[:100] == 0) and np.all(h[:100] & H.VH_ROLL_S_TRIPPED)
+    assert not np.any(h[100:] & H.VH_ROLL_S_TRIPPED) and abs(mf[110]) > 0
+    health[300:310] = H.VH_ROLL_H_RESET  # a fault after the start: the hysteresis applies again
+    mf, mr, h, _ = rn.Smc(sp).run(np.full(n, 0.02), np.zeros(n), np.full(n, 5.0), health, True)
+    k_rec = int(round(sp.recover_time / DT))
+    assert np.all(h[310:310 + k_rec - 1] & H.VH_ROLL_S_TRIPPED) and not h[310 + k_rec + 1] & H.VH_ROLL_S_TRIPPED
+
+
 def test_bad_estimate_inputs_hold_zero_demand():
     c = rn.Smc()
     mf, mr, h, _ = c.run(np.full(10, np.nan), np.zeros(10), np.zeros(10), H.VH_ROLL_H_OK, True)

@@ -3,7 +3,9 @@ and one in-process closed-loop run (14-DOF plant with its actuators, chassis and
 float32 UKF + SMC, lockstep) to its figures: the UKF's roll angle and rate against the plant's truth
 (RMS, absolute and as % of the peak, over the estimates it published as valid), peaks, moments,
 health; the same run once more with the paper's UKF as the ECU's estimator (the baseline variant,
-its figures under ``paper.*``). No plots and no passive twin (a campaign runs hundreds)."""
+its figures under ``paper.*``); for an active run its passive twin (the same run in passive mode): the
+peak roll's reduction and the control line ``lines.control`` (>= 50 %). No plots (a campaign runs
+hundreds)."""
 from __future__ import annotations
 
 import numpy as np
@@ -38,6 +40,12 @@ def _run(scenario) -> dict:
     out["paper"] = {k: float(base[k]) for k in _BASELINE}
     out["lines"] = report.lines_met(m)
     out["paper"]["lines"] = report.lines_met(base)
+    if scenario.active:
+        twin = _session(scenario.with_mode("passive"), "robust")
+        red = (float("nan") if twin.diverged_s() is not None  # no twin to compare with: the line is not met
+               else report.compare(m, report.evaluate(twin, limits))["peak_roll_reduction_pct"])
+        out["peak_roll_reduction_pct"] = red
+        out["lines"]["control"] = float(red >= 100 * report.TARGET_REDUCTION)
     out["moment_peak_nm"] = {"front": m["moment_peak_nm"][0], "rear": m["moment_peak_nm"][1]}
     out["limits_respected"] = float(m["limits_respected"])
     e = report.estimates(s)
