@@ -414,8 +414,10 @@ def blame(car: CarFile, what: str, accepts) -> str:
             key = next((k for k in g if getattr(car, k) is not None), g[0])
             spec = _spec(key)
             rng = f"; documented range {spec.describe()}" if spec is not None else ""
+            fix = ("without it the car is accepted" if getattr(paper, key) is None
+                   else f"the paper's {getattr(paper, key)!r} is accepted")
             return (f"{where}: {key}: {getattr(car, key)!r} is refused by {what} together with the rest of this "
-                    f"car (the paper's {getattr(paper, key)!r} is accepted{rng})")
+                    f"car ({fix}{rng})")
     return f"{where}: {what} refuses this car, and no single key's paper value makes it accept it"
 
 
