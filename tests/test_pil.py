@@ -263,6 +263,20 @@ def test_instruction_counts_and_stack(tmp_path):
     assert 0 < stack["ticks"] < stack["size"] and 0 < stack["init"] < stack["size"]
 
 
+def test_skfmec_in_fixed_point_and_float32_on_the_target():
+    """The measurement behind docs/firmware.md's float32 SKFMEC: the bench image runs the ECU's
+    fixed-point step (the same bits as the host's) and the double source built in float32 (within
+    0.01 % of each tyre's peak of the double reference) on one scenario; the float32 step costs fewer
+    instructions than the fixed-point one."""
+    require_pil()
+    from vehest_can.tools import skfmec_f32
+
+    r = skfmec_f32.measure(duration_s=0.5)
+    assert r["steps"] == 1000 and r["fixed_bits_equal_host"] and r["float32_finite"]
+    assert max(r["float32_vs_double_rms_pct"]) < 0.01
+    assert 0 < r["float32"]["median"] < r["fixed"]["median"]
+
+
 # -- the daemon over a bus -----------------------------------------------------------------------------
 @pytest.mark.multicast
 def test_daemon_with_the_emulated_ecu_in_lockstep_over_the_bus(tmp_path):

@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import VehestError
+
 #: the clock of the part the budget is for (an STM32F4-class Cortex-M4F) and the tick
 CLOCK_HZ = 168_000_000
 TICK_CYCLES = CLOCK_HZ // 2000  # 84,000
@@ -133,6 +135,10 @@ def main(argv: list[str], prog: str) -> int:
                     help="seconds of each scenario (default: all of it)")
     ap.add_argument("--profile", action="store_true",
                     help="instead: the instructions per tick of each function, per scenario (QEMU's TCG plugin)")
+    ap.add_argument("--skfmec-float32", action="store_true",
+                    help="instead: the SKFMEC step in fixed point (the ECU's) and in float32 (its double source built "
+                         "so, not shipped) on one tyre-force scenario (default chassis_paper_mu_drop): instructions "
+                         "per step and the float32's accuracy against double")
     ap.add_argument("scenarios", nargs="*", help="scenario files (default: every shipped one)")
     args = ap.parse_args(argv)
     from ..service.pil import missing_tools
@@ -141,6 +147,19 @@ def main(argv: list[str], prog: str) -> int:
     if why:
         print(f"processor-in-the-loop unavailable: {why}", file=sys.stderr)
         return 1
+    if args.skfmec_float32:
+        from . import skfmec_f32
+
+        if len(args.scenarios) > 1:
+            print("--skfmec-float32 takes one scenario", file=sys.stderr)
+            return 2
+        try:
+            res = skfmec_f32.measure(args.scenarios[0] if args.scenarios else skfmec_f32.DEFAULT_SCENARIO, args.duration)
+        except (VehestError, RuntimeError) as exc:
+            print(f"{prog} --skfmec-float32: {exc}", file=sys.stderr)
+            return 1
+        print(skfmec_f32.table(res, CPI, TICK_CYCLES))
+        return 0
     if args.profile:
         from ..systems import shipped_scenarios
 
