@@ -42,9 +42,11 @@ def test_the_demo_reads_the_roll_acceptance_as_the_table_shows_it():
     from vehest_can.sim.report import checks_of
     from vehest_can.systems.roll import report
 
-    m = {"ukf_roll_rms_pct_of_peak": 0.3, "ukf_roll_rate_rms_pct_of_peak": 12.0, "limits_respected": True,
-         "speed_kmh": 72.0, "vs_passive": {"peak_roll_reduction_pct": 58.7}}
+    m = {"ukf_roll_rms_pct_of_peak": 0.3, "ukf_roll_rms_deg": 0.006, "peak_roll_deg": 2.0,
+         "ukf_roll_rate_rms_pct_of_peak": 12.0, "ukf_roll_rate_rms_deg_s": 0.6, "peak_roll_rate_deg_s": 5.0,
+         "steady_turn_rate_bias_deg_s": 0.05, "limits_respected": True, "speed_kmh": 72.0,
+         "vs_passive": {"peak_roll_reduction_pct": 58.7}}
     table = report.acceptance(m)
     checks = checks_of({"acceptance": report.acceptance_entries(m)}, "roll.x")
-    assert [c["passed"] for c in checks] == [ok for _, _, ok in table] == [True, False, True, True]
+    assert [c["passed"] for c in checks] == [ok for _, _, ok in table] == [True, False, True, True, True]
     assert [c["detail"] for c in checks] == [fig for _, fig, _ in table]
