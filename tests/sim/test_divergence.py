@@ -37,8 +37,9 @@ def test_a_finite_run_has_not_diverged_and_the_first_non_finite_tick_is_found():
 
 
 def test_a_passive_twin_that_diverged_fails_the_reduction_line_with_the_reason():
-    m = {"ukf_roll_rms_pct_of_peak": 1.0, "ukf_roll_rate_rms_pct_of_peak": 2.0, "speed_kmh": 72.0,
-         "vs_passive": {"passive_diverged_s": 3.334}}
+    m = {"ukf_roll_rms_pct_of_peak": 1.0, "ukf_roll_rms_deg": 0.02, "peak_roll_deg": 2.0,
+         "ukf_roll_rate_rms_pct_of_peak": 2.0, "ukf_roll_rate_rms_deg_s": 0.1, "peak_roll_rate_deg_s": 5.0,
+         "steady_turn_rate_bias_deg_s": float("nan"), "speed_kmh": 72.0, "vs_passive": {"passive_diverged_s": 3.334}}
     line = [r for r in report.acceptance(m) if r[0].startswith("peak roll reduced")]
     assert line == [("peak roll reduced >= 50 % (72 km/h)", "no passive twin: its plant diverged at 3.334 s", False)]
 
