@@ -81,24 +81,27 @@ def _inputs_digest(opt: str) -> str:
     return h.hexdigest()[:16]
 
 
+def compile_c(src: Path, obj: Path, includes: list[str], extra: tuple[str, ...] = (), opt: str = OPT) -> Path:
+    """One flashed source to its object with the image's compiler and flags (`includes` as -I options)."""
+    obj.parent.mkdir(parents=True, exist_ok=True)
+    r = subprocess.run([CC, *cbuild.STRICT_FLAGS, *cbuild.TARGET_FLAGS, opt, "-ffunction-sections", "-fdata-sections",
+                        "-fstack-usage", *extra, *includes, "-c", str(src), "-o", str(obj)], capture_output=True, text=True)
+    if r.returncode:
+        raise RuntimeError(f"{CC} failed on {src.name}:\n{r.stderr}")
+    return obj
+
+
 def build(out_dir: Path, opt: str = OPT) -> Path:
     """Compile and link the image into out_dir; returns the ELF (its map file beside it)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     gen = out_dir / "generated"
     fw, board = sources(gen)
     fw_inc = [f"-I{d}" for d in vehest_build.firmware_include_dirs(gen)]
-    base = [CC, *cbuild.STRICT_FLAGS, *cbuild.TARGET_FLAGS, opt, "-ffunction-sections", "-fdata-sections",
-            "-fstack-usage"]
 
     def compile_one(src: Path) -> Path:
         folder = src.parent.name if src.parent != gen else "codec"
-        obj = out_dir / "obj" / folder / (src.stem + ".o")
-        obj.parent.mkdir(parents=True, exist_ok=True)
         inc = fw_inc + ([f"-I{vehest_build.TARGET_DIR}"] if src in board else [])
-        r = subprocess.run([*base, *inc, "-c", str(src), "-o", str(obj)], capture_output=True, text=True)
-        if r.returncode:
-            raise RuntimeError(f"{CC} failed on {src.name}:\n{r.stderr}")
-        return obj
+        return compile_c(src, out_dir / "obj" / folder / (src.stem + ".o"), inc, opt=opt)
 
     with ThreadPoolExecutor(2) as pool:
         objs = list(pool.map(compile_one, fw + board))

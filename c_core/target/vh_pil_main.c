@@ -42,8 +42,6 @@ static vh_frame_t tx[VH_ECU_MAX_TX];
 static uint32_t rx_counts; /* SysTick counts in vh_ecu_rx since the last tick */
 static uint32_t main_depth;
 
-static uint32_t elapsed(uint32_t from, uint32_t to) { return (from - to) & 0xFFFFFFu; } /* a down-counter */
-
 static void put_u32(uint8_t *p, uint32_t v)
 {
     p[0] = (uint8_t)v;
@@ -68,12 +66,12 @@ static void send(uint8_t type, const void *payload, size_t n)
 static void do_step(void)
 {
     size_t n, i, k, pos = 5u;
-    uint32_t t0, t1;
+    uint32_t t0, counts;
     put_u32(out, ecu.tick);
     memset(vh_probe_counts, 0, sizeof vh_probe_counts);
     t0 = vh_systick_now();
     n = vh_ecu_step(&ecu, tx, VH_ECU_MAX_TX);
-    t1 = vh_systick_now();
+    counts = vh_systick_since(t0);
     out[4] = (uint8_t)n;
     for (i = 0; i < n; ++i) {
         put_u32(out + pos, tx[i].id);
@@ -86,7 +84,7 @@ static void do_step(void)
     for (k = 0; k < VH_ECU_N_APPS; ++k, pos += 4) {
         put_u32(out + pos, vh_probe_counts[k]);
     }
-    put_u32(out + pos, elapsed(t0, t1));
+    put_u32(out + pos, counts);
     put_u32(out + pos + 4, rx_counts);
     pos += 8u;
     rx_counts = 0u;
@@ -108,7 +106,7 @@ static void do_rx(size_t len)
     memcpy(f.data, in.raw + 6, f.len);
     t0 = vh_systick_now();
     vh_ecu_rx(&ecu, &f);
-    rx_counts += elapsed(t0, vh_systick_now());
+    rx_counts += vh_systick_since(t0);
 }
 
 static void do_init(size_t len)
@@ -173,7 +171,7 @@ static void do_read(size_t len)
 static void do_cal(size_t len)
 {
     uint8_t r[4];
-    uint32_t n, t0, t1;
+    uint32_t n, t0;
     if (len != 4u) {
         send(MSG_ERROR, "K", 1);
         return;
@@ -181,8 +179,7 @@ static void do_cal(size_t len)
     n = get_u32(in.raw);
     t0 = vh_systick_now();
     __asm__ volatile("1: subs %0, %0, #1\n\tbne 1b" : "+r"(n) : : "cc");
-    t1 = vh_systick_now();
-    put_u32(r, elapsed(t0, t1));
+    put_u32(r, vh_systick_since(t0));
     send(MSG_CAL, r, sizeof r);
 }
 

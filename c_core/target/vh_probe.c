@@ -17,8 +17,6 @@ const char *const vh_probe_app_name[VH_ECU_N_APPS] = {VH_ECU_APPS(NAME)};
 
 uint32_t vh_probe_counts[VH_ECU_N_APPS];
 
-static uint32_t since(uint32_t t0) { return (t0 - vh_systick_now()) & 0xFFFFFFu; } /* a down-counter */
-
 #define VH_APP(m, order)
 #define VH_APP_RX(m, id)
 #define VH_APP_MEAS(m, path, fields, comment)
@@ -30,7 +28,7 @@ static uint32_t since(uint32_t t0) { return (t0 - vh_systick_now()) & 0xFFFFFFu;
     {                                                                                \
         const uint32_t t0 = vh_systick_now();                                        \
         __real_vh_##m##_app_##fn(a, c);                                              \
-        vh_probe_counts[VH_PROBE_APP_##m] += since(t0);                              \
+        vh_probe_counts[VH_PROBE_APP_##m] += vh_systick_since(t0);                   \
     }
 #define VH_APP_TX(m, fn, MSG, period)                                                \
     int __real_vh_##m##_app_##fn(vh_##m##_app_t *a, vh_app_ctx_t *c, uint8_t *d);    \
@@ -39,7 +37,7 @@ static uint32_t since(uint32_t t0) { return (t0 - vh_systick_now()) & 0xFFFFFFu;
     {                                                                                \
         const uint32_t t0 = vh_systick_now();                                        \
         const int r = __real_vh_##m##_app_##fn(a, c, d);                             \
-        vh_probe_counts[VH_PROBE_APP_##m] += since(t0);                              \
+        vh_probe_counts[VH_PROBE_APP_##m] += vh_systick_since(t0);                   \
         return r;                                                                    \
     }
 #include "vh_ecu_apps.inc"

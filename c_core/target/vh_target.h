@@ -16,6 +16,8 @@ void vh_uart_read(void *p, size_t n);
 /* SysTick on the core clock, free-running 24-bit down-counter (reload 0xFFFFFF) */
 void vh_systick_start(void);
 static inline uint32_t vh_systick_now(void) { return *(volatile uint32_t *)0xE000E018u; }
+/* counts since a reading t0 of the down-counter (less than one wrap ago) */
+static inline uint32_t vh_systick_since(uint32_t t0) { return (t0 - vh_systick_now()) & 0xFFFFFFu; }
 
 /* The stack below the caller's frame painted with a pattern; the deepest use since, in bytes from
  * the top of the stack (the lowest word changed); the depth of the caller's SP */

@@ -73,7 +73,7 @@ def _reduction(doc):
 def test_active_control_halves_the_roll_on_mb_in_a_held_out_lane_change():
     """A run no constant was chosen on: a lane change at 100 km/h, +250 kg, mu 0.9, on MB. The robust
     law holds it (>= 50 % less peak roll than the passive twin, no filter reset, limits respected). (The
-    paper's law, the baseline, holds this one too, 60 %; on MB it is worse than passive in 8 of the 13
+    paper's law, the baseline, holds this one too, 60 %; on MB it is worse than passive in 7 of the 13
     runs of docs/roll.md's table.)"""
     doc = _doc("commonroad_mb", [[0, 0], [1.0, 0], [1.4, 2.0], [2.2, -2.0], [2.6, 0]], kmh=100.0, dm=250.0, mu=0.9)
     red, m = _reduction(doc)

@@ -89,13 +89,8 @@ class _Link:
         srv = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         srv.bind(path)
         srv.listen(1)
-        cmd = [QEMU, "-M", MACHINE, "-display", "none", "-monitor", "none", "-serial", f"unix:{path}",
-               "-kernel", str(image)]
-        if icount:
-            cmd += ["-icount", "shift=0"]
-        if profile is not None:
-            cmd += ["-plugin", f"{insn_profile_plugin()},out={profile}"]
-        self.proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        self.proc = subprocess.Popen(qemu_command(image, f"unix:{path}", icount=icount, profile=profile),
+                                     stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         srv.settimeout(30.0)
         try:
             self.sock: socket.socket | None
@@ -383,6 +378,18 @@ class PilEcu(Ecu):
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def qemu_command(image: Path, serial: str, *, icount: bool, profile: Path | None = None) -> list[str]:
+    """QEMU's command line for an image on the board, UART0 on the chardev `serial` (e.g. ``unix:PATH``,
+    ``file:PATH``); with ``icount`` one instruction per ns of virtual time; with `profile` the
+    instruction-count plugin writing there."""
+    cmd = [QEMU, "-M", MACHINE, "-display", "none", "-monitor", "none", "-serial", serial, "-kernel", str(image)]
+    if icount:
+        cmd += ["-icount", "shift=0"]
+    if profile is not None:
+        cmd += ["-plugin", f"{insn_profile_plugin()},out={profile}"]
+    return cmd
 
 
 def insn_profile_plugin() -> Path:

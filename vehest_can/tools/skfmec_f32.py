@@ -66,17 +66,11 @@ def build(out: Path, header: str) -> Path:
     (out / "vh_skfmec_bench_data.h").write_text(header)
     c_core = vb.TARGET_DIR.parent
     inc = [f"-I{d}" for d in (out, c_core / "common", c_core / "tireforce", vb.TARGET_DIR)]
-    base = [fi.CC, *cbuild.STRICT_FLAGS, *cbuild.TARGET_FLAGS, fi.OPT, "-ffunction-sections", "-fdata-sections", *inc]
-    jobs = [(c_core / "tireforce" / "vh_skfq.c", []), (c_core / "common" / "vh_fix.c", []),
-            (vb.TARGET_DIR / "vh_startup.c", []), (vb.TARGET_DIR / "vh_target.c", []),
-            (vb.TARGET_DIR / "bench" / "vh_skfmec_bench.c", ["-fsingle-precision-constant", "-Wdouble-promotion"])]
-    objs = []
-    for src, extra in jobs:
-        obj = out / (src.stem + ".o")
-        r = subprocess.run([*base, *extra, "-c", str(src), "-o", str(obj)], capture_output=True, text=True)
-        if r.returncode:
-            raise RuntimeError(f"{fi.CC} failed on {src.name}:\n{r.stderr}")
-        objs.append(str(obj))
+    jobs: list[tuple[Path, tuple[str, ...]]] = [
+        (c_core / "tireforce" / "vh_skfq.c", ()), (c_core / "common" / "vh_fix.c", ()),
+        (vb.TARGET_DIR / "vh_startup.c", ()), (vb.TARGET_DIR / "vh_target.c", ()),
+        (vb.TARGET_DIR / "bench" / "vh_skfmec_bench.c", ("-fsingle-precision-constant", "-Wdouble-promotion"))]
+    objs = [str(fi.compile_c(src, out / (src.stem + ".o"), inc, extra)) for src, extra in jobs]
     elf = out / "vh-skfmec-bench.elf"
     r = subprocess.run([fi.CC, *cbuild.TARGET_FLAGS, *fi.LINK_FLAGS, "-T", str(fi.LINKER_SCRIPT), *objs, "-lm",
                         "-o", str(elf)], capture_output=True, text=True)
@@ -87,13 +81,12 @@ def build(out: Path, header: str) -> Path:
 
 def run_image(elf: Path, n: int, timeout_s: float = 600.0) -> bytes:
     """QEMU with -icount shift=0 and UART0 into a file, until the image says it is done."""
-    from ..service.pil import MACHINE, QEMU
+    from ..service.pil import qemu_command
 
     with tempfile.TemporaryDirectory(prefix="vehest-skfmec-") as tmp:
         path = Path(tmp) / "uart0"
-        proc = subprocess.Popen([QEMU, "-M", MACHINE, "-display", "none", "-monitor", "none", "-icount", "shift=0",
-                                 "-serial", f"file:{path}", "-kernel", str(elf)],
-                                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        proc = subprocess.Popen(qemu_command(elf, f"file:{path}", icount=True), stdin=subprocess.DEVNULL,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         want = 1 + n * _STEP + 1
         t_end = time.monotonic() + timeout_s
         try:
@@ -113,19 +106,19 @@ def run_image(elf: Path, n: int, timeout_s: float = 600.0) -> bytes:
 def measure(scenario: str = DEFAULT_SCENARIO, duration_s: float | None = None) -> dict:
     """Instructions per step (median, 99th percentile, worst) of both filters on the emulated Cortex-M4F,
     the fixed point against the host's (bit for bit), the float32 against the double reference."""
+    from ..carfile import car_of, paper_car
     from ..native import ffi
     from ..service.pil import INSNS_PER_COUNT
+    from ..sim.car import played_by
     from ..sim.scenario import DT
     from ..systems.tireforce import api as tf
     from ..systems.tireforce import report
     from ..systems.tireforce.scenario import load_tireforce_scenario
 
     sc = load_tireforce_scenario(scenario)
-    truth, dec, _ = report.simulate(sc, variants=())
-    from ..carfile import car_of, paper_car
-    from ..sim.car import played_by
-
-    cfg = tf.SkfConfig.for_car(played_by(car_of(sc) or paper_car(), sc.plant))
+    car = played_by(car_of(sc) or paper_car(), sc.plant)  # the car the ECU is calibrated for on this plant
+    truth, dec, _ = report.simulate(sc, variants=(), car=car)
+    cfg = tf.SkfConfig.for_car(car)
     u = dec.for_filter()
     n = len(u) if duration_s is None else min(len(u), int(round(duration_s / DT)))
     u = u.slice(0, n)

@@ -36,8 +36,6 @@
 typedef char input_check[(sizeof(vh_skf_input_t) == 13 * sizeof(float)) ? 1 : -1];
 typedef char params_check[(sizeof(vh_skfq_params_t) == sizeof bench_skfq_params) ? 1 : -1];
 
-static uint32_t since(uint32_t t0) { return (t0 - vh_systick_now()) & 0xFFFFFFu; } /* a down-counter */
-
 int main(void)
 {
     static vh_skf_t f;
@@ -63,10 +61,10 @@ int main(void)
         memcpy(&iq, bench_q[n], sizeof iq);
         t0 = vh_systick_now();
         (void)vh_skfq_step(&q, &iq, bench_mask[n]);
-        c[0] = since(t0);
+        c[0] = vh_systick_since(t0);
         t0 = vh_systick_now();
         (void)vh_skf_step(&f, &in, bench_mask[n]);
-        c[1] = since(t0);
+        c[1] = vh_systick_since(t0);
         vh_uart_write(c, sizeof c);
         vh_uart_write(q.fy, sizeof q.fy);
         vh_uart_write(f.fy, sizeof f.fy);

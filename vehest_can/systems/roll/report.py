@@ -103,6 +103,13 @@ def steady_turn_bias(session, e: dict | None = None) -> float:
     return float(np.degrees(abs(np.mean(pe[sel] - pt[sel])))) if sel.any() else float("nan")
 
 
+def vs_passive(active: dict, twin) -> dict:
+    """An active session's figures (`active`) against its passive twin's session: :func:`compare`, or
+    ``{"passive_diverged_s": t}`` where the twin left its plant's range (no comparison then)."""
+    diverged = twin.diverged_s()
+    return {"passive_diverged_s": diverged} if diverged is not None else compare(active, evaluate(twin))
+
+
 def compare(active: dict, passive: dict) -> dict:
     """Active against its passive twin: the peak roll's reduction, the changes the paper notes."""
     return {

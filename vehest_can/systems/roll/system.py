@@ -75,9 +75,7 @@ class Roll(Registration):
         if sc.active:
             twin = sc.with_mode("passive")
             passive = run_inprocess(RollCar(twin, len(session.truth) * 0.0005), Ecu(EcuConfig(car=car)))
-            diverged = passive.diverged_s()
-            m["vs_passive"] = ({"passive_diverged_s": diverged} if diverged is not None
-                               else report.compare(m, report.evaluate(passive)))
+            m["vs_passive"] = report.vs_passive(m, passive)
         m["acceptance"] = report.acceptance_entries(m)
         m["plots"] = [str(p) for p in report.plots(session, out_dir, sc.name, passive, plant=sc.plant)]
         return m
