@@ -8,6 +8,7 @@ prints it (skipped, with the reason, where QEMU or the cross compiler is missing
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from typing import Any
 
@@ -141,6 +142,9 @@ def main(argv: list[str], prog: str) -> int:
                          "per step and the float32's accuracy against double")
     ap.add_argument("scenarios", nargs="*", help="scenario files (default: every shipped one)")
     args = ap.parse_args(argv)
+    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
+        print(f"{prog}: --duration must be a finite number of seconds > 0, not {args.duration}", file=sys.stderr)
+        return 2
     from ..service.pil import missing_tools
 
     why = missing_tools()
