@@ -323,6 +323,37 @@ static int32_t slip_observation(const vh_tfa_params_t *k, int32_t ex, int32_t fx
     return mu > k->mu_nom ? k->mu_nom : (mu < k->mu_floor ? k->mu_floor : mu);
 }
 
+/* The secant ratio Q(s) (Q30) of a tyre at its linear slip |Fx| / C_kappa and slip angle alpha on friction mu
+ * (adaptive.linear_share); s beyond the table's last knot is read there. */
+static int32_t linear_share(const vh_tfa_params_t *k, int32_t fx, int32_t fz, int32_t alpha, int32_t mu, uint32_t *sat)
+{
+    int32_t row[NS];
+    const int64_t top = (int64_t)(NS - 1) << FG;
+    const int32_t klin = MUL(abs32(fx), FN, at_load(k, k->compliance, fz, sat), FC, FS);
+    const int32_t xk = MUL(klin, FS, at_load(k, k->inv_kappa_m, fz, sat), FG, FG);
+    const int32_t xa = MUL(alpha, FG, at_load(k, k->inv_alpha_m, fz, sat), 30, FG);
+    const int32_t den = MUL(mu, FS, k->s_step, 30, FS);
+    int64_t x = den > 0 ? ((int64_t)isqrt64((int64_t)xk * xk + (int64_t)xa * xa) << FS) / den : top; /* knots, FG */
+    int j;
+    if (x > top) {
+        x = top;
+    }
+    j = (int)(x >> FG);
+    if (j > NS - 2) {
+        j = NS - 2;
+    }
+    row_at(k, k->secant, NS, fz, row, sat);
+    return ADD(row[j], MUL((int32_t)(x - ((int64_t)j << FG)), FG, SUB(row[j + 1], row[j]), 30, 30));
+}
+
+/* The friction tyre i's curve is taken at: its side's, or the road's where lower while no side has seen a split. */
+static int32_t tyre_mu(const vh_tfa_t *a, int i)
+{
+    const vh_tfa_params_t *k = &a->prm;
+    const int uniform = k->road && a->mu[0] >= k->kin_side_min && a->mu[1] >= k->kin_side_min;
+    return uniform && a->mu_road < a->mu[i & 1] ? a->mu_road : a->mu[i & 1];
+}
+
 /* Per axle, the excess differential slip e += a ((kR - kL) - (FxR / CR - FxL / CL) - e) at the yaw-corrected
  * wheel speeds vx -+ r t (adaptive.estimate_friction). */
 static void slip_lowpass(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uint32_t *sat)
@@ -351,13 +382,18 @@ static void friction_update(vh_tfa_t *a, const vh_skfq_t *f, uint32_t *sat)
             const int i = 2 * ax, j = i + 1;
             const int32_t fi = f->fx[i], fj = f->fx[j];
             int32_t ex, obs;
-            int w;
+            int w, o;
             if (!(((fi > 0 && fj > 0) || (fi < 0 && fj < 0)) && abs32(fi) >= k->fx_gate && abs32(fj) >= k->fx_gate)) {
                 continue;
             }
             ex = fj > 0 ? a->slip_e[ax] : SUB(0, a->slip_e[ax]); /* > 0: the right wheel slips more */
             side = ex > 0 ? 1 : 0;
             w = ex > 0 ? j : i;
+            o = ex > 0 ? i : j;
+            /* the differential slip is the low side's excess only while the other tyre is linear */
+            if (linear_share(k, f->fx[o], a->fz[o], a->alpha[ax], tyre_mu(a, o), sat) < k->q_gate) {
+                continue;
+            }
             obs = slip_observation(k, abs32(ex), f->fx[w], a->fz[w], a->alpha[ax], sat);
             if (obs > 0) {
                 a->mu[side] = ADD(a->mu[side], MUL(k->g_obs, 30, SUB(obs, a->mu[side]), FS, FS));
@@ -649,11 +685,9 @@ void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uns
         }
     }
     {
-        /* each tyre at its side's friction, or the road's where lower while no side has seen a split */
-        const int uniform = k->road && a->mu[0] >= k->kin_side_min && a->mu[1] >= k->kin_side_min;
         int32_t mu4[4], cap[4];
         for (i = 0; i < 4; ++i) {
-            mu4[i] = uniform && a->mu_road < a->mu[i & 1] ? a->mu_road : a->mu[i & 1];
+            mu4[i] = tyre_mu(a, i);
             cap[i] = k->combined ? ellipse(k, f->fx[i], a->fz[i], mu4[i], sat) : ONE30;
         }
         split(k, &a->fz[0], &mu4[0], &cap[0], two[0], &a->fy[0], &a->alpha[0], NULL, sat);

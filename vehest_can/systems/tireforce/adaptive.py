@@ -534,6 +534,18 @@ def slip_observation(ex: float, fx_low: float, fz_low: float, alpha_deg: float, 
     return min(cfg.mu, max(cfg.mu_floor, math.hypot(xk, xa) / s_n))
 
 
+def linear_share(fx: float, fz: float, alpha_deg: float, mu: float, tabs: dict) -> float:
+    """The secant ratio Q(s) of a tyre at its linear slip |Fx|/Cκ and slip angle α on friction μ (s beyond
+    the table's last knot is read there)."""
+    fzv = np.array(fz)
+    xk = abs(fx) * float(_at_load(tabs["compliance"], fzv)) * float(_at_load(tabs["inv_kappa_m"], fzv))
+    xa = math.radians(alpha_deg) * float(_at_load(tabs["inv_alpha_m"], fzv))
+    x = min(math.hypot(xk, xa) / (mu * S_STEP), N_S - 1.0)
+    row = _at_load(tabs["secant"], fzv)
+    j = min(int(x), N_S - 2)
+    return float(row[j] + (x - j) * (row[j + 1] - row[j]))
+
+
 def effective_mu(side: np.ndarray, road: np.ndarray, cfg: AdaptiveConfig) -> np.ndarray:
     """(n, 4) the friction each tyre's curve is taken at: its side's estimate, and the road's where it
     is lower while neither side has seen a split (both at least ``kin_side_min``)."""
@@ -640,6 +652,10 @@ def estimate_friction(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf
                         continue
                     ex = e[a] * math.copysign(1.0, fx[k, j])  # > 0: the right wheel slips more
                     side, w = (1, j) if ex > 0 else (0, i)
+                    o = i if w == j else j
+                    # the differential slip is the low side's excess only while the other tyre is linear
+                    if linear_share(fx[k, o], fz[k, o], alpha[0, a], float(mu4[0, o]), tabs) < cfg.q_gate:
+                        continue
                     obs = slip_observation(abs(ex), fx[k, w], fz[k, w], alpha[0, a], tabs, cfg)
                     if obs is not None:
                         mu_side[side] += g_obs * (obs - mu_side[side])
