@@ -68,7 +68,7 @@ int vh_tfa_check(const vh_tfa_params_t *prm)
         (prm->road && (prm->alpha_kin <= 0 || prm->alpha_kin > ONE30 || prm->ay_kin_gate < 0 || prm->fx_free < 0 ||
                        prm->k_wheelbase.m <= 0 || prm->k_knot.m <= 0 || prm->k_kin.m <= 0 || prm->k_kin_dh.m <= 0 ||
                        prm->kin_dh_max <= 0 || prm->kin_dh_max > (INT32_C(1000) << FQ) || prm->kin_dmu <= 0 ||
-                       prm->kin_q <= 0 || prm->kin_p0 < prm->kin_q || prm->kin_side_min < 0 ||
+                       prm->kin_q <= 0 || prm->kin_p0 < prm->kin_q || prm->kin_side_min < 0 || prm->kin_nis <= 0 ||
                        /* 1 + H P H within Q16 */
                        (int64_t)((((int64_t)prm->kin_dh_max * prm->kin_dh_max) >> (2 * FQ)) * prm->kin_p0 >> 30) > 16000))) {
         return VH_EINVAL;
@@ -476,12 +476,19 @@ static void road_update(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *
                                                      (INT32_C(1) << FN), FG, sat), FG, FS);
             carried = c > carried ? c : carried;
         }
-        rls(&a->mu_road, &a->p_road, dh, ADD(KM(k->k_kin, SUB(a->z_lp, h0), FG, FQ), MUL(dh, FQ, mu, FS, FQ)), ONE30,
-            k->kin_q, k->kin_p0, k->mu_floor, k->mu_nom, sat);
+        {   /* an innovation the model cannot explain at any nearby mu (nu^2 / (1 + H P H) beyond the gate) is not used */
+            const int32_t nu = KM(k->k_kin, SUB(a->z_lp, h0), FG, FQ);
+            const int32_t s = ADD(INT32_C(1) << 16, MUL(dh, FQ, MUL(a->p_road, FP, dh, FQ, 24), 24, 16)); /* Q16 */
+            if (vh_fix_asr64((int64_t)nu * nu, 2 * FQ - 16) <= (((int64_t)k->kin_nis * s) >> 16)) {
+                rls(&a->mu_road, &a->p_road, dh, ADD(nu, MUL(dh, FQ, mu, FS, FQ)), ONE30, k->kin_q, k->kin_p0,
+                    k->mu_floor, k->mu_nom, sat);
+            }
+        }
         if (carried > a->mu_road) {
             a->mu_road = carried > k->mu_nom ? k->mu_nom : carried;
         }
-    } else {
+    } else if (!(a->valid_run > k->valid_min && abs32(in->ay) >= k->ay_kin_gate && a->kin_run == 0u)) {
+        /* held while the car corners with no axle rolling free (still on the road it was measured on) */
         a->mu_road = ADD(a->mu_road, MUL(k->g_forget, 30, SUB(k->mu_nom, a->mu_road), FS, FS));
     }
 }

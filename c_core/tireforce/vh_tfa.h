@@ -111,6 +111,7 @@ typedef struct {
     int32_t kin_dmu;            /* FS */
     int32_t kin_q, kin_p0;      /* Q30: the random walk's variance per update (and the floor), the prior (ceiling) */
     int32_t kin_side_min;       /* FS */
+    int32_t kin_nis;            /* the innovation gate on nu^2 / (1 + H P H), Q16 */
     /* each axle's lateral load transfer from the ride heights (transfer: 0 off) */
     int32_t transfer;
     vh_fix_k_t k_roll[2];       /* k + 2 k_arb / (4 t^2) front, rear: a compression difference (FH) -> force (FN) */

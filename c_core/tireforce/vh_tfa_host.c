@@ -26,7 +26,7 @@ void vh_tfa_config_default(vh_tfa_config_t *c)
     c->friction = 1; c->combined = 1;
     c->ride = 1; c->spring_front = 30000.0; c->spring_rear = 25000.0; c->sigma_ride = 0.01;
     c->road = 1; c->tau_kin = 0.05; c->ay_kin_gate = 1.0; c->fx_free = 400.0;
-    c->kin_q = 0.02; c->kin_r_deg = 0.1; c->kin_sigma0 = 0.2; c->kin_dmu = 0.05; c->kin_dh_max = 30.0;
+    c->kin_q = 0.02; c->kin_r_deg = 0.1; c->kin_sigma0 = 0.2; c->kin_dmu = 0.05; c->kin_dh_max = 30.0; c->kin_nis_gate = 9.0;
     c->kin_side_min = 0.95;
     c->transfer = 1; c->tyre_kz = 250000.0;
     c->tau_vyd = 0.1; c->vyd_gate = 4.0; c->hold_implausible = 0.5;
@@ -136,6 +136,7 @@ int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t 
           skf->tf > 0.0 && skf->tr > 0.0 && skf->ts > 0.0 && s_vx > 0.0 && c->tau_kin > 0.0 &&
           c->ay_kin_gate >= 0.0 && c->fx_free >= 0.0 && c->kin_q > 0.0 && c->kin_r_deg > 0.0 &&
           c->kin_sigma0 >= c->kin_q && c->kin_dmu > 0.0 && c->kin_dh_max > 0.0 && c->kin_side_min >= 0.0 &&
+          c->kin_nis_gate > 0.0 && c->kin_nis_gate <= 1000.0 &&
           skf->lf + skf->lr > 0.0 && c->tyre_kz > 0.0 && c->tau_vyd > 0.0 && c->vyd_gate > 0.0 &&
           c->hold_implausible >= 0.0 && c->hold_implausible < 1e5 &&
           (c->tyre_model == 0 || (c->tyre_model == 1 && c->tyre_p[0] > 0.0 && c->tyre_p[1] > 0.0 && c->tyre_p[2] < 1.0 &&
@@ -262,6 +263,7 @@ int vh_tfa_params_from_config(const vh_skf_config_t *skf, const vh_tfa_config_t 
     z.kin_q = vh_skfq_qconst(c->kin_q * c->kin_q, 30, &ok);
     z.kin_p0 = vh_skfq_qconst(c->kin_sigma0 * c->kin_sigma0, 30, &ok);
     z.kin_side_min = vh_skfq_qconst(c->kin_side_min, VH_TFA_FS, &ok);
+    z.kin_nis = vh_skfq_qconst(c->kin_nis_gate, 16, &ok);
     z.transfer = c->transfer != 0;
     z.alpha_vyd = vh_skfq_qconst(skf->ts / (c->tau_vyd + skf->ts), 30, &ok);
     z.vyd_gate = vh_skfq_qconst(c->vyd_gate, VH_SKFQ_FA, &ok);

@@ -45,6 +45,7 @@ typedef struct {
     double kin_dmu;              /* the finite difference of the derivative in mu */
     double kin_dh_max;           /* that derivative's bound [deg per unit mu] */
     double kin_side_min;         /* used while both sides' estimates are at least this */
+    double kin_nis_gate;         /* an update whose normalised innovation squared exceeds this is refused */
     int tyre_model;              /* 0: the 1987 Magic Formula of tyre_a, tyre_b; 1: PAC2002 with load-proportional
                                   * slip stiffnesses (CommonRoad's), tyre_p */
     double tyre_p[8];            /* p_cy1, p_dy1, p_ey1, |p_ky1|, p_cx1, p_dx1, p_ex1, p_kx1 */

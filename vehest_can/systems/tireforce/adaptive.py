@@ -129,6 +129,7 @@ class AdaptiveConfig:
     kin_dmu: float = 0.05        # the finite difference of the measurement's derivative in mu
     kin_dh_max: float = 30.0     # that derivative bounded to this [deg per unit mu]
     kin_side_min: float = 0.95   # used (and updated) only while both sides' estimates are at least this
+    kin_nis_gate: float = 9.0    # an update whose normalised innovation squared exceeds this is refused (3 sigma)
     # each tyre's bound (docs/tireforce.md, "Per-tyre bound"): bound_z sigma; the axle model's std (N, and a
     # fraction of |F_axle|) and the lateral load transfer's (N, and a fraction of |dFz|), chosen on the design
     # runs; a bound wider than bound_max [N] makes the health DEGRADED
@@ -595,11 +596,14 @@ def estimate_friction(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf
     speeds (``free_rolling_speed``), low-passed (τ_kin), against the split's α_f − α_r at
     one friction μ̂ under all four tyres: a scalar EKF on μ̂ (random walk kin_q per update, R =
     kin_r_deg², H by a finite difference kin_dmu, bounded by kin_dh_max), so that it moves only as far as the coupling
-    can see μ (near saturation; on a dry road at small slip angles H is ~0). Gated: inputs valid
+    can see μ (near saturation; on a dry road at small slip angles H is ~0); an update whose normalised
+    innovation squared (z − h)²/(R + H P H) exceeds kin_nis_gate is refused (the model cannot explain it at
+    any nearby μ: near the pairs' peaks under braking H turns small while the residual stays). Gated: inputs valid
     for 5τ_lp, the measurement for 5τ_kin, |a_y| ≥ ay_kin_gate, v_x ≥ vx_gate, and neither side
     estimate below kin_side_min (one μ under the axle: the model's assumption). Kept at least at
     the friction whose pair peaks carry the axle forces, at most ``mu``; without an update it
-    returns to ``mu`` (tau_mu_forget) and its variance grows to the prior."""
+    returns to ``mu`` (tau_mu_forget), except while the car corners (|a_y| ≥ ay_kin_gate, inputs valid)
+    with no axle rolling free, when it is held; its variance grows to the prior."""
     n, ts = len(u), skf.ts
     a_lp = ts / (cfg.tau_slip + ts)
     a_kin = ts / (cfg.tau_kin + ts)
@@ -670,10 +674,14 @@ def estimate_friction(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf
                 h1, _ = kinematic_model(axle[k:k + 1], fz[k:k + 1], fx[k:k + 1], mu_road + cfg.kin_dmu, tabs, cfg)
                 dh = min(cfg.kin_dh_max, max(-cfg.kin_dh_max, (h1 - h0) / cfg.kin_dmu))
                 carried = mu_road * float(np.max(2.0 * np.abs(axle[k]) / np.maximum(peak, 1.0)))
-                # the EKF's update is the RLS's on the linearised y = z - h(mu^) + H mu^ = H mu, without forgetting
-                mu_road, p_road = rls_step(mu_road, p_road, dh, z_lp - h0 + dh * mu_road, r_road, 1.0, q_road, p_road_max)
+                # the EKF's update is the RLS's on the linearised y = z - h(mu^) + H mu^ = H mu, without forgetting;
+                # an innovation the model cannot explain at any nearby mu (its NIS beyond the gate) is not used
+                if (z_lp - h0) ** 2 <= cfg.kin_nis_gate * (r_road + dh * p_road * dh):
+                    mu_road, p_road = rls_step(mu_road, p_road, dh, z_lp - h0 + dh * mu_road, r_road, 1.0, q_road,
+                                               p_road_max)
                 mu_road = min(cfg.mu, max(cfg.mu_floor, carried, mu_road))
-            else:
+            elif not (valid_run > valid_min and abs(u.ay[k]) >= cfg.ay_kin_gate and kin_run == 0):
+                # held while the car corners with no axle rolling free (still on the road it was measured on)
                 mu_road += g_fgt * (cfg.mu - mu_road)
         out[k] = mu_side
         road[k] = mu_road
@@ -823,8 +831,8 @@ def config_to_c(cfg: AdaptiveConfig):
                  "mass_sigma0", "mass_sigma_floor", "mass_sigma_ok", "tyre_fz_scale", "mu", "tau_slip", "fx_gate",
                  "q_gate", "tau_mu", "tau_mu_forget", "mu_floor", "ellipse_floor", "friction", "combined", "ride",
                  "spring_front", "spring_rear", "sigma_ride", "road", "tau_kin", "ay_kin_gate", "fx_free", "kin_q",
-                 "kin_r_deg", "kin_sigma0", "kin_dmu", "kin_dh_max", "kin_side_min", "transfer", "tyre_kz",
-                 "tau_vyd", "vyd_gate", "hold_implausible", "vx_tol", "vx_tol_rel", "bal_tol", "bal_tol_rel",
+                 "kin_r_deg", "kin_sigma0", "kin_dmu", "kin_dh_max", "kin_side_min", "kin_nis_gate", "transfer",
+                 "tyre_kz", "tau_vyd", "vyd_gate", "hold_implausible", "vx_tol", "vx_tol_rel", "bal_tol", "bal_tol_rel",
                  "bound_z", "bound_axle_abs", "bound_axle_rel", "bound_lt_abs", "bound_lt_rel", "bound_max"):
         setattr(c, name, getattr(cfg, name))
     c.mass_lo, c.mass_hi = cfg.mass_range
