@@ -260,6 +260,7 @@ def test_write_run_scenario_is_a_loadable_scenario(tmp_path):
 @pytest.mark.parametrize("argv, problem", [
     (["-j", "0"], "--workers must be at least 1"),
     (["--batch-size", "0"], "--batch-size must be at least 1"),
+    (["--seed", "-1"], "--seed -1: must be an integer"),
 ])
 def test_bad_cli_arguments_are_errors(tmp_path, capsys, argv, problem):
     assert main(["campaign", str(short(tmp_path, runs=2)), *argv]) == 1
@@ -277,6 +278,17 @@ def test_bad_bench_arguments_are_errors_before_any_run(capsys, argv, problem):
     with pytest.raises(SystemExit) as e:
         main(["study", "campaign.throughput", *argv])
     assert e.value.code == 2 and problem in capsys.readouterr().err
+
+
+def test_another_seed_is_another_draw_of_the_same_spread(tmp_path, capsys):
+    """--seed draws other runs from the same distributions, into a folder of their own."""
+    p = short(tmp_path, runs=2, duration=0.5)
+    assert main(["campaign", str(p), "-o", str(tmp_path / "a"), "--no-plots", "-j", "1"]) == 0
+    assert main(["campaign", str(p), "--seed", "777", "--no-plots", "-j", "1", "-o", str(tmp_path / "b")]) == 0
+    assert "short-seed777: 2 runs, 0 failed" in capsys.readouterr().out
+    import pyarrow.parquet as pq
+    a, b = (pq.read_table(tmp_path / d / "runs").column("seed").to_pylist() for d in ("a", "b"))
+    assert len(a) == len(b) == 2 and not set(a) & set(b)
 
 
 def test_a_missing_campaign_file_is_an_error(tmp_path, capsys):

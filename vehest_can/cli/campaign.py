@@ -30,6 +30,9 @@ def add_subparser(subparsers) -> None:
     p.add_argument("--batch-size", type=int, metavar="N", help="runs per task (default: a few tasks per worker, <= 16)")
     p.add_argument("--fresh", action="store_true", help="discard results already in the output folder")
     p.add_argument("--no-plots", action="store_true", help="skip the plots")
+    p.add_argument("--seed", type=int, metavar="N",
+                   help="draw the runs with this seed instead of the file's: another draw of the same spread, to "
+                        "judge a setting on runs it was not chosen on (default output folder <name>-seed<N>)")
     add_car_argument(p, "every run's car (a car file, docs/car.md, or a shipped car's name: paper, "
                         "commonroad_vehicle1 .. 3): the base scenario's `car` key, so the 14-DOF plant runs it and "
                         "the ECU is calibrated for it; a `car` axis in the file overrides it")
@@ -86,6 +89,12 @@ def run(args) -> int:
         raise ConfigError(f"{args.spec}: no such campaign file, nor a shipped campaign's name (shipped: "
                           f"{', '.join(spec.CAMPAIGNS.names())})")
     campaign = load_campaign(path)
+    if args.seed is not None:
+        from dataclasses import replace
+
+        if not 0 <= args.seed < 2**63:
+            raise ConfigError(f"--seed {args.seed}: must be an integer in [0, 2^63)")
+        campaign = replace(campaign, seed=args.seed, name=f"{campaign.name}-seed{args.seed}")
     car = car_from_args(args)
     if car is not None:
         from dataclasses import replace
