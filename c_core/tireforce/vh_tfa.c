@@ -139,11 +139,16 @@ void vh_tfa_reset(vh_tfa_t *a)
  * (ph = phi / sigma, yv = y / sigma, FQ; x in Q29, its variance p in Q30): K = P ph / (1 + ph P ph),
  * x += K (yv - ph x) clamped to [x_lo, x_hi], P = (1 - K ph) P / lambda in [p_lo, p_hi]. The mass
  * ratio's (k, P) and the road friction's (mu, P). */
+static int32_t innovation_var(int32_t pv, int32_t ph, uint32_t *sat) /* 1 + ph P ph, Q16 */
+{
+    return ADD(INT32_C(1) << 16, MUL(ph, FQ, MUL(pv, FP, ph, FQ, 24), 24, 16));
+}
+
 static void rls(int32_t *x, int32_t *pv, int32_t ph, int32_t yv, int32_t inv_forget, int32_t p_lo, int32_t p_hi,
                 int32_t x_lo, int32_t x_hi, uint32_t *sat)
 {
     const int32_t u = MUL(*pv, FP, ph, FQ, 24);                         /* P phi, Q24 */
-    const int32_t s = ADD(INT32_C(1) << 16, MUL(ph, FQ, u, 24, 16));    /* 1 + phi P phi, Q16 */
+    const int32_t s = innovation_var(*pv, ph, sat);                     /* 1 + phi P phi, Q16 */
     const int32_t g = vh_fix_div(u, s, 16, sat);                        /* K, Q24 */
     const int32_t e = SUB(yv, MUL(ph, FQ, *x, FK, FQ));                 /* y - phi x, Q21 */
     const int64_t xn = (int64_t)*x + vh_fix_asr64((int64_t)g * e + (INT64_C(1) << 15), 16); /* Q29 */
@@ -295,16 +300,30 @@ static void split(const vh_tfa_params_t *k, const int32_t *fz, const int32_t *mu
     }
 }
 
+/* A tyre's linear slip |Fx| / C_kappa(Fz), FS */
+static int32_t linear_slip(const vh_tfa_params_t *k, int32_t fx, int32_t fz, uint32_t *sat)
+{
+    return MUL(abs32(fx), FN, at_load(k, k->compliance, fz, sat), FC, FS);
+}
+
+/* hypot(kappa / kappa_m, alpha / alpha_m) at the load (FG): the normalised combined slip times mu */
+static int32_t combined_slip(const vh_tfa_params_t *k, int32_t kappa, int32_t fz, int32_t alpha, uint32_t *sat)
+{
+    const int32_t xk = MUL(kappa, FS, at_load(k, k->inv_kappa_m, fz, sat), FG, FG);
+    const int32_t xa = MUL(alpha, FG, at_load(k, k->inv_alpha_m, fz, sat), 30, FG);
+    return isqrt64((int64_t)xk * xk + (int64_t)xa * xa);
+}
+
 /* The friction under the tyre that slips ex (FS, > 0) more than its linear slip (adaptive.slip_observation):
  * Q(s) = kappa_lin / (kappa_lin + ex) gives the normalised combined slip s, mu = hypot(kappa / kappa_m,
  * alpha / alpha_m) / s. Returns 0 if the tyre is linear (mu not observable), else mu (FS). */
 static int32_t slip_observation(const vh_tfa_params_t *k, int32_t ex, int32_t fx, int32_t fz, int32_t alpha, uint32_t *sat)
 {
     int32_t row[NS];
-    const int32_t klin = MUL(abs32(fx), FN, at_load(k, k->compliance, fz, sat), FC, FS);
+    const int32_t klin = linear_slip(k, fx, fz, sat);
     const int32_t kap = ADD(klin, ex);
     const int32_t qv = vh_fix_div(klin, kap, 30, sat);
-    int32_t sk, xk, xa, mu;
+    int32_t sk, mu;
     int j;
     if (kap <= 0 || qv >= k->q_gate) {
         return 0;
@@ -317,9 +336,7 @@ static int32_t slip_observation(const vh_tfa_params_t *k, int32_t ex, int32_t fx
     } else {
         sk = (int32_t)(NS - 1) << FG;
     }
-    xk = MUL(kap, FS, at_load(k, k->inv_kappa_m, fz, sat), FG, FG);
-    xa = MUL(alpha, FG, at_load(k, k->inv_alpha_m, fz, sat), 30, FG);
-    mu = vh_fix_div(isqrt64((int64_t)xk * xk + (int64_t)xa * xa), MUL(sk, FG, k->s_step, 30, FG), FS, sat);
+    mu = vh_fix_div(combined_slip(k, kap, fz, alpha, sat), MUL(sk, FG, k->s_step, 30, FG), FS, sat);
     return mu > k->mu_nom ? k->mu_nom : (mu < k->mu_floor ? k->mu_floor : mu);
 }
 
@@ -329,11 +346,9 @@ static int32_t linear_share(const vh_tfa_params_t *k, int32_t fx, int32_t fz, in
 {
     int32_t row[NS];
     const int64_t top = (int64_t)(NS - 1) << FG;
-    const int32_t klin = MUL(abs32(fx), FN, at_load(k, k->compliance, fz, sat), FC, FS);
-    const int32_t xk = MUL(klin, FS, at_load(k, k->inv_kappa_m, fz, sat), FG, FG);
-    const int32_t xa = MUL(alpha, FG, at_load(k, k->inv_alpha_m, fz, sat), 30, FG);
     const int32_t den = MUL(mu, FS, k->s_step, 30, FS);
-    int64_t x = den > 0 ? ((int64_t)isqrt64((int64_t)xk * xk + (int64_t)xa * xa) << FS) / den : top; /* knots, FG */
+    const int64_t s = (int64_t)combined_slip(k, linear_slip(k, fx, fz, sat), fz, alpha, sat) << FS;
+    int64_t x = den > 0 ? s / den : top; /* knots, FG */
     int j;
     if (x > top) {
         x = top;
@@ -478,8 +493,8 @@ static void road_update(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *
         }
         {   /* an innovation the model cannot explain at any nearby mu (nu^2 / (1 + H P H) beyond the gate) is not used */
             const int32_t nu = KM(k->k_kin, SUB(a->z_lp, h0), FG, FQ);
-            const int32_t s = ADD(INT32_C(1) << 16, MUL(dh, FQ, MUL(a->p_road, FP, dh, FQ, 24), 24, 16)); /* Q16 */
-            if (vh_fix_asr64((int64_t)nu * nu, 2 * FQ - 16) <= (((int64_t)k->kin_nis * s) >> 16)) {
+            const int64_t gate = ((int64_t)k->kin_nis * innovation_var(a->p_road, dh, sat)) >> 16;
+            if (vh_fix_asr64((int64_t)nu * nu, 2 * FQ - 16) <= gate) {
                 rls(&a->mu_road, &a->p_road, dh, ADD(nu, MUL(dh, FQ, mu, FS, FQ)), ONE30, k->kin_q, k->kin_p0,
                     k->mu_floor, k->mu_nom, sat);
             }

@@ -6,6 +6,7 @@ import json
 import os
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -90,15 +91,11 @@ def run(args) -> int:
                           f"{', '.join(spec.CAMPAIGNS.names())})")
     campaign = load_campaign(path)
     if args.seed is not None:
-        from dataclasses import replace
-
         if not 0 <= args.seed < 2**63:
             raise ConfigError(f"--seed {args.seed}: must be an integer in [0, 2^63)")
         campaign = replace(campaign, seed=args.seed, name=f"{campaign.name}-seed{args.seed}")
     car = car_from_args(args)
     if car is not None:
-        from dataclasses import replace
-
         from ..carfile import car_spec
 
         if campaign.base.get("kind") not in ("tireforce", "chassis", "roll"):

@@ -511,6 +511,18 @@ def ellipse(fx: np.ndarray, fz: np.ndarray, mu: np.ndarray, tabs: dict, cfg: Ada
     return np.sqrt(np.maximum(cfg.ellipse_floor ** 2, 1.0 - r * r))
 
 
+def _linear_slip(fx: float, fz: float, tabs: dict) -> float:
+    """A tyre's linear slip |Fx|/Cκ(Fz)."""
+    return abs(fx) * float(_at_load(tabs["compliance"], np.array(fz)))
+
+
+def _combined_slip(kappa: float, alpha_deg: float, fz: float, tabs: dict) -> float:
+    """√((κ/κ_m)² + (α/α_m)²) at the load: the normalised combined slip times μ."""
+    fzv = np.array(fz)
+    return math.hypot(kappa * float(_at_load(tabs["inv_kappa_m"], fzv)),
+                      math.radians(alpha_deg) * float(_at_load(tabs["inv_alpha_m"], fzv)))
+
+
 def slip_observation(ex: float, fx_low: float, fz_low: float, alpha_deg: float, tabs: dict,
                      cfg: AdaptiveConfig) -> float | None:
     """The friction under the tyre that slips ``ex`` more than its linear (nominal-μ) slip
@@ -519,7 +531,7 @@ def slip_observation(ex: float, fx_low: float, fz_low: float, alpha_deg: float, 
     Cκ Q(s) depends only on the normalised combined slip s = √((κ/κ_m)² + (α/α_m)²)/μ, so
     Q(s) = κ_lin/(κ_lin + ex) gives s, then μ = √((κ/κ_m)² + (α/α_m)²)/s. None: the tyre is
     linear (Q ≥ ``q_gate``), μ not observable."""
-    k_lin = abs(fx_low) * float(_at_load(tabs["compliance"], np.array(fz_low)))
+    k_lin = _linear_slip(fx_low, fz_low, tabs)
     kap = k_lin + ex
     q = k_lin / kap
     if q >= cfg.q_gate:
@@ -530,19 +542,14 @@ def slip_observation(ex: float, fx_low: float, fz_low: float, alpha_deg: float, 
         s_n = (j - 1 + (row[j - 1] - q) / (row[j - 1] - row[j])) * S_STEP
     else:
         s_n = (N_S - 1) * S_STEP
-    xk = kap * float(_at_load(tabs["inv_kappa_m"], np.array(fz_low)))
-    xa = math.radians(alpha_deg) * float(_at_load(tabs["inv_alpha_m"], np.array(fz_low)))
-    return min(cfg.mu, max(cfg.mu_floor, math.hypot(xk, xa) / s_n))
+    return min(cfg.mu, max(cfg.mu_floor, _combined_slip(kap, alpha_deg, fz_low, tabs) / s_n))
 
 
 def linear_share(fx: float, fz: float, alpha_deg: float, mu: float, tabs: dict) -> float:
     """The secant ratio Q(s) of a tyre at its linear slip |Fx|/Cκ and slip angle α on friction μ (s beyond
     the table's last knot is read there)."""
-    fzv = np.array(fz)
-    xk = abs(fx) * float(_at_load(tabs["compliance"], fzv)) * float(_at_load(tabs["inv_kappa_m"], fzv))
-    xa = math.radians(alpha_deg) * float(_at_load(tabs["inv_alpha_m"], fzv))
-    x = min(math.hypot(xk, xa) / (mu * S_STEP), N_S - 1.0)
-    row = _at_load(tabs["secant"], fzv)
+    x = min(_combined_slip(_linear_slip(fx, fz, tabs), alpha_deg, fz, tabs) / (mu * S_STEP), N_S - 1.0)
+    row = _at_load(tabs["secant"], np.array(fz))
     j = min(int(x), N_S - 2)
     return float(row[j] + (x - j) * (row[j + 1] - row[j]))
 
