@@ -1,6 +1,6 @@
 """Safe edges of the C core: preconditions that are checked, not assumed (issue 10, item 7).
 
-* vh_fix_dot refuses n outside [0, 8]; vh_fix_lshift_sat is defined for any shift; vh_fix_div's
+* the guarded dot product refuses n outside [0, 8]; vh_fix_lshift_sat is defined for any shift; vh_fix_div's
   clamp of s is counted;
 * the generated TX encoders round half up, clamp to the DBC range and send SNA (or 0) for NaN,
   where a plain (int16_t) cast would be undefined behaviour;
@@ -36,13 +36,19 @@ def sat_call(fn, *args):
 
 # ---- fixed point ------------------------------------------------------------------------------
 
+def dot(a, b, n, sb=1):
+    row = ffi.new("vh_fix_row_t *")
+    lib.vh_fix_row_pack(a, n, row)
+    return lib.vh_fix_row_dot(row, b, sb)
+
+
 def test_dot_refuses_more_terms_than_its_accumulator_holds():
     a = ffi.new("int32_t[]", [I32_MAX] * 9)
     assert lib.VH_FIX_DOT_MAX == 8
-    assert lib.vh_fix_dot(a, 1, a, 1, 8) == 8 * ((I32_MAX * I32_MAX) >> 3)
-    assert lib.vh_fix_dot(a, 1, a, 1, 9) == 0
-    assert lib.vh_fix_dot(a, 1, a, 1, -1) == 0
-    assert lib.vh_fix_dot(a, 1, a, 1, 0) == 0
+    assert dot(a, a, 8) == 8 * ((I32_MAX * I32_MAX) >> 3)
+    assert dot(a, a, 9) == 0
+    assert dot(a, a, -1) == 0
+    assert dot(a, a, 0) == 0
 
 
 @settings(max_examples=300, deadline=None)

@@ -1,15 +1,28 @@
 /* vh_fix.c - fixed-point helpers that are too big to inline, see vh_fix.h. Integer only. */
 #include "vh_fix.h"
 
-int64_t vh_fix_dot(const int32_t *a, int sa, const int32_t *b, int sb, int n)
+void vh_fix_row_pack(const int32_t *a, int n, vh_fix_row_t *row)
 {
-    int64_t acc = 0;
     int i;
+    row->n = 0;
     if (n < 0 || n > VH_FIX_DOT_MAX) {
-        return 0; /* precondition: more terms could overflow the accumulator */
+        return; /* precondition: more terms could overflow the accumulator */
     }
     for (i = 0; i < n; ++i) {
-        acc += vh_fix_asr64((int64_t)a[i * sa] * b[i * sb], VH_FIX_GUARD);
+        if (a[i] != 0) {
+            row->v[row->n] = a[i];
+            row->at[row->n] = (uint8_t)i;
+            ++row->n;
+        }
+    }
+}
+
+int64_t vh_fix_row_dot(const vh_fix_row_t *row, const int32_t *b, int sb)
+{
+    int64_t acc = 0;
+    int k;
+    for (k = 0; k < row->n; ++k) {
+        acc += vh_fix_asr64((int64_t)row->v[k] * b[row->at[k] * sb], VH_FIX_GUARD);
     }
     return acc;
 }

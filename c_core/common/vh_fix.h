@@ -127,15 +127,25 @@ static inline int32_t vh_fix_kmul(vh_fix_k_t k, int32_t v, int fin, int fout, ui
     return vh_fix_sat32(prod * ((int64_t)1 << -s), sat);
 }
 
-/* Guarded dot product sum_i a[i*sa] * b[i*sb], 0 <= n <= VH_FIX_DOT_MAX, returned in
+/* Guarded dot product of a packed row and b: sum_k row.v[k] * b[row.at[k] * sb], returned in
  * Q.(fa + fb - 3): each exact product is floored by the 3 guard bits before accumulation, so 8
  * products of two int32 cannot overflow the int64 accumulator (8 * 2^62 / 2^3 = 2^62). The result
  * differs from the exact sum by less than n LSB of Q.(fa+fb-3), far below the final rounding
- * (vh_fix_rshift_rnd to the output). An n outside [0, 8] is refused: the result is 0 (a longer
- * sum could overflow; callers size n at compile time, see vh_skfq.c). */
+ * (vh_fix_rshift_rnd to the output).
+ * A row a[0..n) is packed once (vh_fix_row_pack: its nonzero entries, value and column) and then
+ * multiplied by as many b as needed: the SKFMEC's Phi and H are structurally sparse, and a zero term
+ * adds exactly 0 to the guarded sum, so the products cost the nonzeros only and give the dense sum's
+ * bits. An n outside [0, 8] is refused: the packed row is empty (a longer sum could overflow; callers
+ * size n at compile time, see vh_skfq.c). */
 #define VH_FIX_GUARD 3
 #define VH_FIX_DOT_MAX 8
-int64_t vh_fix_dot(const int32_t *a, int sa, const int32_t *b, int sb, int n);
+typedef struct {
+    int32_t n;
+    int32_t v[VH_FIX_DOT_MAX];
+    uint8_t at[VH_FIX_DOT_MAX];
+} vh_fix_row_t;
+void vh_fix_row_pack(const int32_t *a, int n, vh_fix_row_t *row);
+int64_t vh_fix_row_dot(const vh_fix_row_t *row, const int32_t *b, int sb);
 
 /* round_half_up(num * 2^s / den) with den > 0, saturated; s in [0, 30] so that the numerator
  * 2 num 2^s fits int64. An s outside [0, 30] is clamped to it and counted as a saturation (the

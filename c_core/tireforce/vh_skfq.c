@@ -32,7 +32,7 @@
 #define SUB(a, b) vh_fix_sub((a), (b), sat)
 #define MUL(a, fa, b, fb, fo) vh_fix_mul((a), (fa), (b), (fb), (fo), sat)
 
-/* Every guarded dot product here is at most NX long: within vh_fix_dot's precondition. */
+/* Every guarded dot product here is at most NX long: within vh_fix_row_pack's precondition. */
 typedef char dot_length_check[(NX <= VH_FIX_DOT_MAX) ? 1 : -1];
 
 /* vh_skfq_input_row passes rows of 13 int32 as vh_skfq_input_t: no padding allowed. */
@@ -55,10 +55,11 @@ static void copy32(int32_t *d, const int32_t *s, int n)
     }
 }
 
-/* round(sum a[i] b[i]) from Q.fab products to Q.fo, through the guarded accumulator */
-static int32_t dotq(const int32_t *a, int sa, const int32_t *b, int sb, int n, int fab, int fo, uint32_t *sat)
+/* round(sum a[i] b[i sb]) from Q.fab products to Q.fo, through the guarded accumulator, with a packed
+ * row a: Phi's and H's rows are sparse (at most 31 of 49 and 11 of 28 entries nonzero) */
+static int32_t rowq(const vh_fix_row_t *a, const int32_t *b, int sb, int fab, int fo, uint32_t *sat)
 {
-    return vh_fix_rshift_rnd(vh_fix_dot(a, sa, b, sb, n), fab - VH_FIX_GUARD - fo, sat);
+    return vh_fix_rshift_rnd(vh_fix_row_dot(a, b, sb), fab - VH_FIX_GUARD - fo, sat);
 }
 
 static int k_ok(vh_fix_k_t k)
@@ -247,6 +248,7 @@ int vh_skfq_step(vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask)
     uint32_t *sat = &f->sat_step;
     int32_t z[NY], dx[NX], dg[4][NX], phi[NX * NX], tmp[NX * NX], yhat[NY], hj[NY * NX];
     int32_t xprior[NX], dxu[NX], u[NX], kc[NX], sk[NX];
+    vh_fix_row_t phi_row[NX], h_row;
     int32_t rvx, rvy, pr, cphi_unit;
     sums_t sm;
     ctx_t ctx;
@@ -343,13 +345,16 @@ int vh_skfq_step(vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask)
     }
     /* P- = Phi P Phi^T + Q: tmp = Phi P (FP), then the upper triangle of tmp Phi^T, mirrored */
     for (i = 0; i < NX; ++i) {
+        vh_fix_row_pack(phi + i * NX, NX, &phi_row[i]);
+    }
+    for (i = 0; i < NX; ++i) {
         for (j = 0; j < NX; ++j) {
-            tmp[i * NX + j] = dotq(phi + i * NX, 1, f->p + j, NX, NX, FPHI + FP, FP, sat);
+            tmp[i * NX + j] = rowq(&phi_row[i], f->p + j, NX, FPHI + FP, FP, sat);
         }
     }
     for (i = 0; i < NX; ++i) {
         for (j = i; j < NX; ++j) {
-            const int32_t v = dotq(tmp + i * NX, 1, phi + j * NX, 1, NX, FP + FPHI, FP, sat);
+            const int32_t v = rowq(&phi_row[j], tmp + i * NX, 1, FPHI + FP, FP, sat);
             f->p[i * NX + j] = v;
             f->p[j * NX + i] = v;
         }
@@ -385,11 +390,12 @@ int vh_skfq_step(vh_skfq_t *f, const vh_skfq_input_t *in, unsigned mask)
         for (j = 0; j < NX; ++j) {
             dxu[j] = SUB(f->x[j], xprior[j]);
         }
-        e = SUB(f->innov[i], dotq(h, 1, dxu, 1, NX, FH + FX, FX, sat));
+        vh_fix_row_pack(h, NX, &h_row);
+        e = SUB(f->innov[i], rowq(&h_row, dxu, 1, FH + FX, FX, sat));
         for (j = 0; j < NX; ++j) { /* u = P h^T (FU) */
-            u[j] = dotq(f->p + j * NX, 1, h, 1, NX, FP + FH, FU, sat);
+            u[j] = rowq(&h_row, f->p + j * NX, 1, FH + FP, FU, sat);
         }
-        s = ADD(k->r[i], dotq(h, 1, u, 1, NX, FH + FU, FU, sat));
+        s = ADD(k->r[i], rowq(&h_row, u, 1, FH + FU, FU, sat));
         if (s <= 0) {
             goto diverged;
         }

@@ -345,11 +345,15 @@ def test_div_rounds_half_up(num, den, s):
 
 
 @settings(max_examples=200, deadline=None)
-@given(st.lists(st.tuples(i32, i32), min_size=1, max_size=8))
-def test_guarded_dot_never_overflows(pairs):
+@given(st.lists(st.tuples(st.one_of(st.just(0), i32), i32), min_size=1, max_size=8), st.integers(1, 3))
+def test_guarded_dot_never_overflows_and_skips_only_zeros(pairs, stride):
+    """The packed row's product is the dense guarded sum, zeros in a included, b read with a stride."""
     a = ffi.new("int32_t[]", [p[0] for p in pairs])
-    b = ffi.new("int32_t[]", [p[1] for p in pairs])
-    assert lib.vh_fix_dot(a, 1, b, 1, len(pairs)) == sum((x * y) >> 3 for x, y in pairs)
+    b = ffi.new("int32_t[]", [v for p in pairs for v in [p[1]] + [12345] * (stride - 1)])
+    row = ffi.new("vh_fix_row_t *")
+    lib.vh_fix_row_pack(a, len(pairs), row)
+    assert row.n == sum(1 for x, _ in pairs if x != 0)
+    assert lib.vh_fix_row_dot(row, b, stride) == sum((x * y) >> 3 for x, y in pairs)
 
 
 @settings(max_examples=300, deadline=None)
