@@ -20,9 +20,16 @@ STRICT_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
 FP_FLAGS = ["-ffp-contract=off"]
 OPT_FLAGS = ["-O3", *FP_FLAGS]
 
-#: the Cortex-M4F the firmware is written for (firmware_size.py, firmware_image.py)
+#: the cores the firmware image is built for (firmware_image.py): the Cortex-M4F it is written for
+#: (single-precision FPU) and a Cortex-M7 with the double-precision FPU (fpv5-d16), the next part up
 TARGET_CC = "arm-none-eabi-gcc"
-TARGET_FLAGS = ["-mcpu=cortex-m4", "-mthumb", "-mfloat-abi=hard", "-mfpu=fpv4-sp-d16", *FP_FLAGS]
+CORES = {
+    "cortex-m4f": ["-mcpu=cortex-m4", "-mthumb", "-mfloat-abi=hard", "-mfpu=fpv4-sp-d16", *FP_FLAGS],
+    "cortex-m7": ["-mcpu=cortex-m7", "-mthumb", "-mfloat-abi=hard", "-mfpu=fpv5-d16", *FP_FLAGS],
+}
+DEFAULT_CORE = "cortex-m4f"
+#: the Cortex-M4F's flags (firmware_size.py)
+TARGET_FLAGS = CORES[DEFAULT_CORE]
 
 
 def cc() -> list[str]:

@@ -1,17 +1,18 @@
-"""The ECU as a firmware image for an emulated Cortex-M4F: QEMU's ``mps2-an386`` board.
+"""The ECU as a firmware image for an emulated Cortex-M4F (QEMU's ``mps2-an386`` board), or for a
+Cortex-M7 (``mps2-an500``, the same memory map and UART): ``cbuild.CORES``.
 
 Every flashed source (the firmware folders without ``*_host.c``, the generated codec) and the board
 support of ``c_core/target/`` (startup, linker script, the UART frame link, main) compiled with
-``cbuild.TARGET_CC`` and ``cbuild.TARGET_FLAGS`` (``-ffp-contract=off`` as on the host), linked
+``cbuild.TARGET_CC`` and the core's flags (``-ffp-contract=off`` as on the host), linked
 with newlib (nano) and libgcc into an ELF the emulator loads with ``-kernel``. Host-only code cannot
 reach the image: it is not compiled, so a flashed call into it is an undefined reference and the
 link fails. Each application's runnables are linked through ``--wrap`` (``c_core/target/vh_probe.c``) so
 the image can time each application's share of a tick without a line in the scheduler.
 
-``python c_core/firmware_image.py [--out DIR]`` (``make firmware-image``) builds it and prints its
-flash and RAM from the map file, per folder. ``image()`` is what the processor-in-the-loop host
-(``vehest_can.service.pil``) calls: the image for the current sources, built once into
-``build/firmware-image/<hash>/``.
+``python c_core/firmware_image.py [--core CORE] [--out DIR]`` (``make firmware-image``) builds it and
+prints its flash and RAM from the map file, per folder. ``image(core)`` is what the
+processor-in-the-loop host (``vehest_can.service.pil``) calls: the image for the current sources,
+built once into ``build/firmware-image/<hash>/``.
 """
 from __future__ import annotations
 
@@ -37,7 +38,11 @@ CC = cbuild.TARGET_CC
 OPT = "-O2"
 LINKER_SCRIPT = vehest_build.TARGET_DIR / "mps2_an386.ld"
 LINK_FLAGS = ["-nostartfiles", "--specs=nano.specs", "--specs=nosys.specs", "-Wl,--gc-sections"]
-IMAGE_NAME = "vehest-ecu-m4f.elf"
+
+
+def image_name(core: str) -> str:
+    return f"vehest-ecu-{core}.elf"
+
 #: where image() keeps the images it built (one folder per source hash)
 CACHE = ROOT / "build" / "firmware-image"
 
@@ -46,7 +51,8 @@ def missing_toolchain() -> str | None:
     """Why the image cannot be built here (no cross compiler, no newlib), or None."""
     if shutil.which(CC) is None:
         return f"{CC} not found (Debian: gcc-arm-none-eabi)"
-    r = subprocess.run([CC, *cbuild.TARGET_FLAGS, "-E", "-x", "c", "-"], input="#include <math.h>\n#include <string.h>\n",
+    r = subprocess.run([CC, *cbuild.CORES[cbuild.DEFAULT_CORE], "-E", "-x", "c", "-"],
+                       input="#include <math.h>\n#include <string.h>\n",
                        capture_output=True, text=True)
     return None if r.returncode == 0 else "no newlib for arm-none-eabi (Debian: libnewlib-arm-none-eabi)"
 
@@ -69,7 +75,7 @@ def runnables() -> list[str]:
     return out
 
 
-def _inputs_digest(opt: str) -> str:
+def _inputs_digest(opt: str, core: str) -> str:
     h = hashlib.sha256()
     files = [p for d in (*vehest_build.FIRMWARE_DIRS, vehest_build.TARGET_DIR) for p in sorted(d.iterdir())
              if p.suffix in (".c", ".h", ".inc", ".def", ".ld")]
@@ -77,21 +83,22 @@ def _inputs_digest(opt: str) -> str:
     for p in files:
         h.update(p.name.encode() + b"\0" + p.read_bytes())
     version = subprocess.run([CC, "--version"], capture_output=True, text=True).stdout.splitlines()[0]
-    h.update(" ".join([version, *cbuild.STRICT_FLAGS, *cbuild.TARGET_FLAGS, opt, *LINK_FLAGS]).encode())
+    h.update(" ".join([version, *cbuild.STRICT_FLAGS, *cbuild.CORES[core], opt, *LINK_FLAGS]).encode())
     return h.hexdigest()[:16]
 
 
-def compile_c(src: Path, obj: Path, includes: list[str], extra: tuple[str, ...] = (), opt: str = OPT) -> Path:
+def compile_c(src: Path, obj: Path, includes: list[str], extra: tuple[str, ...] = (), opt: str = OPT,
+              core: str = cbuild.DEFAULT_CORE) -> Path:
     """One flashed source to its object with the image's compiler and flags (`includes` as -I options)."""
     obj.parent.mkdir(parents=True, exist_ok=True)
-    r = subprocess.run([CC, *cbuild.STRICT_FLAGS, *cbuild.TARGET_FLAGS, opt, "-ffunction-sections", "-fdata-sections",
+    r = subprocess.run([CC, *cbuild.STRICT_FLAGS, *cbuild.CORES[core], opt, "-ffunction-sections", "-fdata-sections",
                         "-fstack-usage", *extra, *includes, "-c", str(src), "-o", str(obj)], capture_output=True, text=True)
     if r.returncode:
         raise RuntimeError(f"{CC} failed on {src.name}:\n{r.stderr}")
     return obj
 
 
-def build(out_dir: Path, opt: str = OPT) -> Path:
+def build(out_dir: Path, opt: str = OPT, core: str = cbuild.DEFAULT_CORE) -> Path:
     """Compile and link the image into out_dir; returns the ELF (its map file beside it)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     gen = out_dir / "generated"
@@ -101,13 +108,13 @@ def build(out_dir: Path, opt: str = OPT) -> Path:
     def compile_one(src: Path) -> Path:
         folder = src.parent.name if src.parent != gen else "codec"
         inc = fw_inc + ([f"-I{vehest_build.TARGET_DIR}"] if src in board else [])
-        return compile_c(src, out_dir / "obj" / folder / (src.stem + ".o"), inc, opt=opt)
+        return compile_c(src, out_dir / "obj" / folder / (src.stem + ".o"), inc, opt=opt, core=core)
 
     with ThreadPoolExecutor(2) as pool:
         objs = list(pool.map(compile_one, fw + board))
-    elf = out_dir / IMAGE_NAME
+    elf = out_dir / image_name(core)
     wraps = [f"-Wl,--wrap={fn}" for fn in runnables()]
-    r = subprocess.run([CC, *cbuild.TARGET_FLAGS, *LINK_FLAGS, *wraps, "-T", str(LINKER_SCRIPT),
+    r = subprocess.run([CC, *cbuild.CORES[core], *LINK_FLAGS, *wraps, "-T", str(LINKER_SCRIPT),
                         f"-Wl,-Map={elf.with_suffix('.map')}", *map(str, objs), "-lm", "-o", str(elf)],
                        capture_output=True, text=True)
     if r.returncode:
@@ -115,17 +122,17 @@ def build(out_dir: Path, opt: str = OPT) -> Path:
     return elf
 
 
-def image(opt: str = OPT) -> Path:
-    """The image of the current sources, built once (``build/firmware-image/<hash>/``)."""
+def image(opt: str = OPT, core: str = cbuild.DEFAULT_CORE) -> Path:
+    """The image of the current sources for `core`, built once (``build/firmware-image/<hash>/``)."""
     why = missing_toolchain()
     if why:
         raise RuntimeError(why)
-    out = CACHE / _inputs_digest(opt)
-    elf = out / IMAGE_NAME
+    out = CACHE / _inputs_digest(opt, core)
+    elf = out / image_name(core)
     if not elf.exists():
         CACHE.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(dir=CACHE) as tmp:
-            built = build(Path(tmp) / "img", opt)
+            built = build(Path(tmp) / "img", opt, core)
             try:
                 built.parent.rename(out)  # atomic: a process building the same image at once keeps its own
             except OSError:
@@ -160,13 +167,15 @@ def memory(elf: Path) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--core", choices=sorted(cbuild.CORES), default=cbuild.DEFAULT_CORE,
+                    help=f"the core to build for (default {cbuild.DEFAULT_CORE})")
     ap.add_argument("--out", type=Path, help="build into DIR (default: build/firmware-image/<hash>/)")
     args = ap.parse_args(argv)
     why = missing_toolchain()
     if why:
         print(f"error: {why}", file=sys.stderr)
         return 1
-    elf = build(args.out) if args.out else image()
+    elf = build(args.out, core=args.core) if args.out else image(core=args.core)
     mem = memory(elf)
     print(f"{elf}")
     print(f"{'owner':<16} {'flash':>8} {'data':>6} {'bss':>7}")

@@ -1,5 +1,6 @@
 """Processor in the loop: the ECU image (c_core/firmware_image.py) in QEMU's mps2-an386 Cortex-M4F
-against the host build, over the frame link (vehest_can.service.pil).
+(and the same sources built for the Cortex-M7 of mps2-an500) against the host build, over the frame
+link (vehest_can.service.pil).
 
 The calibration block and the state read back cross the link as raw bytes, so their layout must be
 the same on x86-64 and ARM: a dump of every leaf's offset and size, compiled by both compilers. The
@@ -47,10 +48,11 @@ def require_pil(why: str | None = None) -> None:
     pytest.skip(message)
 
 
-@pytest.fixture(scope="module")
-def target():
+@pytest.fixture(scope="module", params=sorted(pil.MACHINES))
+def target(request):
+    """The emulated ECU on each core: the Cortex-M4F and the Cortex-M7 beside it."""
     require_pil()
-    with pil.PilEcu(measure=True) as ecu:
+    with pil.PilEcu(measure=True, core=request.param) as ecu:
         yield ecu
 
 
@@ -240,7 +242,7 @@ def test_float_functions_are_the_same_bits_on_host_and_target(target):
     assert np.array_equal(bits(on_target(3, x)), bits(host))
     import firmware_image
 
-    nm = subprocess.run(["arm-none-eabi-nm", "--defined-only", str(firmware_image.image())], check=True,
+    nm = subprocess.run(["arm-none-eabi-nm", "--defined-only", str(firmware_image.image(core=target.core))], check=True,
                         capture_output=True, text=True).stdout
     linked = {ln.split()[-1] for ln in nm.splitlines()}
     assert not linked & {"sinf", "cosf", "atanf", "atan2f", "sin", "cos", "atan", "atan2"}

@@ -102,6 +102,15 @@ def test_bad_daemon_burst_limit_is_an_error(capsys):
         in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("target", ["qemu", "qemu-m7"])
+def test_an_emulated_ecu_runs_in_lockstep_only(capsys, target):
+    """Both emulated cores refuse a wall clock, in the daemon and in the demo, before anything starts."""
+    assert main(["daemon", "--target", target, "--mode", "realtime"]) == 1
+    assert f"error: --target {target} needs --mode lockstep" in capsys.readouterr().err
+    assert main(["demo", "--target", target, "--realtime", "5"]) == 1
+    assert f"--realtime with --target {target}: the emulated ECU runs in lockstep only" in capsys.readouterr().err
+
+
 FLOATS = ("nan", "inf", "-inf", "-1", "0", "1e300")
 RANGES = [  # (verb and flags, the flag, its range and unit in the error, values out of it)
     (["camber", "bound"], "--lsb-mg", "mg in 0.0001..500", (*FLOATS, "1e-300", "501")),

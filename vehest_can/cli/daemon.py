@@ -22,7 +22,7 @@ from ._common import (
     open_session_log,
     secoc_from_args,
 )
-from ._target import add_target_argument, make_ecu, refuse_on_qemu
+from ._target import add_target_argument, make_ecu, on_qemu, refuse_on_qemu
 
 if TYPE_CHECKING:  # annotations only: the verb's parser loads none of it
     from ..systems.ecu import Ecu
@@ -88,8 +88,8 @@ def run(args) -> int:
     elif args.report:
         raise ConfigError("--report applies to --mode realtime (a lockstep daemon's time is the simulator's)")
     check_log_arguments(args)
-    if args.target == "qemu" and args.mode != "lockstep":
-        raise ConfigError("--target qemu needs --mode lockstep: an emulator's time is not the target's, it cannot "
+    if on_qemu(args) and args.mode != "lockstep":
+        raise ConfigError(f"--target {args.target} needs --mode lockstep: an emulator's time is not the target's, it cannot "
                           "keep a 2 kHz wall clock")
     refuse_on_qemu(args, **{"--xcp": "the emulated board has no AES backend for the slave's seed & key",
                             "--secoc-keys": "the emulated board has no AES backend"})

@@ -18,7 +18,7 @@ from ..bus.formats import FORMATS
 from ..errors import ConfigError, VehestError
 from ..sim import PLANTS
 from ._common import CAR_HELP, add_car_argument, car_from_args, check_seconds, ecu_car, has_car, with_car
-from ._target import add_target_argument
+from ._target import add_target_argument, on_qemu
 
 if TYPE_CHECKING:  # annotations only: the verb's parser loads none of it
     from ..systems import System
@@ -68,11 +68,11 @@ def run(args, systems: list[System] | None = None) -> int:
     from ..systems import Setup, load_any_scenario, registered, shipped_scenarios
 
     check_seconds(args.realtime, "--realtime", zero=True)
-    if getattr(args, "target", "host") == "qemu":
+    if on_qemu(args):
         if args.realtime:
-            raise ConfigError("--realtime with --target qemu: the emulated ECU runs in lockstep only")
+            raise ConfigError(f"--realtime with --target {args.target}: the emulated ECU runs in lockstep only")
         if args.secoc == "on":
-            print("SecOC: off (--target qemu: the emulated board has no AES backend)")
+            print(f"SecOC: off (--target {args.target}: the emulated board has no AES backend)")
             args.secoc = "off"
     systems = registered() if systems is None else systems
     paths = [Path(p) for p in args.scenarios] or shipped_scenarios(systems)

@@ -17,7 +17,7 @@ HOUSE = (
     ("campaign.throughput", "vehest_can.campaign.bench:main",
      "a campaign on 1 and N local workers and on Dask, runs per minute side by side (docs/campaigns.md)"),
     ("firmware.cost", "vehest_can.tools.pil_bench:main",
-     "instructions and cycles per tick per system on the emulated Cortex-M4F (docs/firmware.md)"),
+     "instructions and cycles per tick per system on the emulated Cortex-M4F or Cortex-M7 (docs/firmware.md)"),
 )
 
 

@@ -1,5 +1,6 @@
 """Processor in the loop: the ECU firmware cross-compiled for a Cortex-M4F, run in QEMU's
-``mps2-an386`` board, behind the same face as :class:`vehest_can.systems.ecu.Ecu`.
+``mps2-an386`` board (or for a Cortex-M7 in ``mps2-an500``: :data:`MACHINES`), behind the same face as
+:class:`vehest_can.systems.ecu.Ecu`.
 
 The image (``c_core/firmware_image.py``) talks over its UART0, which QEMU connects to a Unix socket
 this process listens on (docs/firmware.md, "Processor in the loop"): the calibration block (the
@@ -38,7 +39,10 @@ from ..systems.ecu import Ecu, EcuConfig, check_car
 #: the source checkout's C core: the image is built from it (an installed wheel has no c_core/)
 C_CORE = Path(__file__).resolve().parents[2] / "c_core"
 QEMU = "qemu-system-arm"
-MACHINE = "mps2-an386"
+#: the QEMU board of each core the image is built for (c_core/cbuild.py CORES); both boards have the same
+#: memory map, CMSDK UART0 and SysTick clock
+MACHINES = {"cortex-m4f": "mps2-an386", "cortex-m7": "mps2-an500"}
+DEFAULT_CORE = "cortex-m4f"
 #: SysTick runs on the board's 25 MHz clock; with -icount shift=0 one instruction is 1 ns of virtual
 #: time, so one count is 40 instructions (checked by the image's calibration loop, 'K')
 INSNS_PER_COUNT = 40
@@ -64,12 +68,12 @@ def missing_tools() -> str | None:
     return firmware_image.missing_toolchain()
 
 
-def firmware_image() -> Path:
-    """The ECU image of the current sources (built on first use, kept under build/firmware-image/)."""
+def firmware_image(core: str = DEFAULT_CORE) -> Path:
+    """The ECU image of the current sources for `core` (built on first use, kept under build/firmware-image/)."""
     sys.path.insert(0, str(C_CORE))
     import firmware_image as fi
 
-    return fi.image()
+    return fi.image(core=core)
 
 
 def _frame_bytes(f) -> bytes:
@@ -80,7 +84,7 @@ def _frame_bytes(f) -> bytes:
 class _Link:
     """QEMU with the image, its UART0 on a Unix socket: messages of type, u16 length, payload."""
 
-    def __init__(self, image: Path, *, icount: bool, profile: Path | None = None):
+    def __init__(self, image: Path, *, icount: bool, profile: Path | None = None, core: str = DEFAULT_CORE):
         why = missing_tools()
         if why:
             raise PilError(f"processor-in-the-loop unavailable: {why}")
@@ -89,7 +93,7 @@ class _Link:
         srv = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         srv.bind(path)
         srv.listen(1)
-        self.proc = subprocess.Popen(qemu_command(image, f"unix:{path}", icount=icount, profile=profile),
+        self.proc = subprocess.Popen(qemu_command(image, f"unix:{path}", icount=icount, profile=profile, core=core),
                                      stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         srv.settimeout(30.0)
         try:
@@ -191,7 +195,9 @@ class PilEcu(Ecu):
     image's per-runnable counts when ``measure`` is on (meaningful as instructions with ``icount``)."""
 
     def __init__(self, config: EcuConfig | None = None, *, icount: bool = False, measure: bool = False,
-                 image: Path | None = None, profile: Path | None = None):
+                 image: Path | None = None, profile: Path | None = None, core: str = DEFAULT_CORE):
+        if core not in MACHINES:
+            raise ConfigError(f"core {core!r}: one of {', '.join(MACHINES)}")
         self.config = config or EcuConfig.default()
         cfg = self.config.to_c()
         if lib.vh_ecu_config_complete(cfg) != lib.VH_OK:  # completed in place: the calibration block
@@ -201,11 +207,12 @@ class PilEcu(Ecu):
         super().__init__(self.config)  # the host's ECU: the state mirror (and the same checks)
         self.icount = icount
         self.measure = measure
-        self.image = image or firmware_image()
+        self.core = core
+        self.image = image or firmware_image(core)
         #: with a file: the instructions QEMU executed per function, written there when the ECU is closed
         #: (function_profile reads it)
         self.profile = profile
-        self._link = _Link(self.image, icount=icount, profile=profile)
+        self._link = _Link(self.image, icount=icount, profile=profile, core=core)
         try:
             hello = self._link_hello()
             if hello["config_size"] != ffi.sizeof("vh_ecu_config_t"):
@@ -380,11 +387,12 @@ class PilEcu(Ecu):
         self.close()
 
 
-def qemu_command(image: Path, serial: str, *, icount: bool, profile: Path | None = None) -> list[str]:
-    """QEMU's command line for an image on the board, UART0 on the chardev `serial` (e.g. ``unix:PATH``,
-    ``file:PATH``); with ``icount`` one instruction per ns of virtual time; with `profile` the
-    instruction-count plugin writing there."""
-    cmd = [QEMU, "-M", MACHINE, "-display", "none", "-monitor", "none", "-serial", serial, "-kernel", str(image)]
+def qemu_command(image: Path, serial: str, *, icount: bool, profile: Path | None = None,
+                 core: str = DEFAULT_CORE) -> list[str]:
+    """QEMU's command line for an image on the core's board, UART0 on the chardev `serial` (e.g.
+    ``unix:PATH``, ``file:PATH``); with ``icount`` one instruction per ns of virtual time; with `profile`
+    the instruction-count plugin writing there."""
+    cmd = [QEMU, "-M", MACHINES[core], "-display", "none", "-monitor", "none", "-serial", serial, "-kernel", str(image)]
     if icount:
         cmd += ["-icount", "shift=0"]
     if profile is not None:
