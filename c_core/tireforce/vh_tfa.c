@@ -661,8 +661,9 @@ void vh_tfa_step(vh_tfa_t *a, const vh_skfq_t *f, const vh_skfq_input_t *in, uns
         abs32(in->ay) <= k->ay_gate && f->x[VH_SKF_VX] >= k->vx_gate) {
         mass_rls(a, KM(k->k_phi, a->ax_lp, FA, FQ), KM(k->k_y, a->y_lp, FN, FQ), sat); /* the balance, y = m a_x */
     }
-    if (a->steps % k->decim == 0u && a->ride_run > k->ride_min) {
-        /* the ride heights: m = sprung weight / g + the unsprung mass, a regressor of 1 */
+    if (a->steps % k->decim == 0u && a->ride_run > k->ride_min && abs32(in->ay) <= k->ay_gate) {
+        /* the ride heights: m = sprung weight / g + the unsprung mass, a regressor of 1; within the
+         * balance's |a_y| gate too, where the roll-centre links' term (the least certain) is moderate */
         mass_rls(a, k->ride_phi, ADD(KM(k->k_ride, a->w_lp, FN, FQ), k->ride_unsprung), sat);
     }
     for (i = 0; i < 4; ++i) {

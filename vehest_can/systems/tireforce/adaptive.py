@@ -32,7 +32,8 @@ the SKFMEC unchanged and adds, per step (docs/tireforce.md, "SKFMEC-A"):
    balance (the filter starting at the first sample, updates after one time constant), it is a
    second measurement of m (= it/g + the unsprung mass, a regressor of 1, std ``sigma_ride``) in
    the same RLS: the mass is then known from 0.2 s on, in steady cornering too, where the balance
-   sees nothing.
+   sees nothing (updated while |a_y| ≤ ``ay_gate``, as the balance: the roll-centre term, the least
+   certain, stays moderate there).
 9. **the road's friction** from the axles' kinematic slip-angle coupling α_f − α_r = δ − L r / v_x
    (v_x from a free-rolling axle) against the split's at one friction: a scalar EKF, used where it is
    lower than a side's while no side has seen a split (``estimate_friction``, ``kinematic_model``);
@@ -439,7 +440,7 @@ def estimate_mass(u: tf.Inputs, base: tf.TireForceRun, mask: np.ndarray, skf: tf
             if gated:
                 m_hat, p = rls_step(m_hat, p, phif, yf, r_y, cfg.forget, p_floor, p_ceil)
                 m_hat = min(hi, max(lo, m_hat))
-            if ride_run > ride_min:  # m = sprung weight / g + the unsprung mass
+            if ride_run > ride_min and abs(u.ay[k]) <= cfg.ay_gate:  # m = sprung weight / g + the unsprung mass
                 m_hat, p = rls_step(m_hat, p, 1.0, w_lp / skf.g + (m0 - skf.ms), r_ride, cfg.forget, p_floor, p_ceil)
                 m_hat = min(hi, max(lo, m_hat))
         mass[k], std[k] = m_hat, math.sqrt(p)
