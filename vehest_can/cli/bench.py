@@ -60,7 +60,12 @@ def run(args) -> int:
     print(bench.table(res, factors))
     if rep:
         print(replay_bench.table(rep))
-    targets = {} if args.no_pil else _pil(args.quick)
+    if args.no_pil:
+        from ..tools.pil_bench import PARTS
+
+        targets: dict[str, dict | None] = dict.fromkeys(PARTS)  # the JSON's keys stay, as null
+    else:
+        targets = _pil(args.quick)
     if args.json:
         print(json.dumps({**res, "lockstep_realtime_factor": factors, "replay": rep,
                           **{core.replace("-", "_"): r for core, r in targets.items()}}, indent=2))
@@ -70,12 +75,12 @@ def run(args) -> int:
 def _pil(quick: bool) -> dict[str, dict | None]:
     """The emulated ECU's cost per tick on the Cortex-M4F and, beside it, the Cortex-M7, printed; None
     (and the reason) where it cannot run."""
-    from ..service.pil import MACHINES, missing_tools
+    from ..service.pil import missing_tools
     from ..tools import pil_bench
 
     why = missing_tools()
     out: dict[str, dict | None] = {}
-    for core in MACHINES:
+    for core in pil_bench.PARTS:
         if why:
             print(f"{pil_bench.PARTS[core].name} cost per tick: skipped ({why})")
             out[core] = None
